@@ -1,0 +1,5 @@
+import sys
+
+from usdscene.cli import main
+
+sys.exit(main())

@@ -1,0 +1,251 @@
+"""The asset catalog: asset class → USD file, kind, variants, extents, places.
+
+Pure module (json + numpy): validation and composition planning read the catalog without
+importing pxr. The USD files stay the truth for geometry; ``catalog.json`` is written by the
+same generator (or by ``usdscene assets add``) and mirrors what composition needs.
+
+``catalog.json`` format (version 1)::
+
+    {
+      "format": "usdscene-catalog", "version": 1,
+      "classes": {
+        "backpack": {
+          "kind": "object",                       # environment | object | passenger
+          "usd": "objects/backpack.usda",         # relative to the catalog folder
+          "description": "...",
+          "variants": {"appearance": ["navy", "red"]},
+          "default_variants": {"appearance": "navy"},
+          "extent_m": [[-0.16, -0.11, 0.0], [0.16, 0.11, 0.45]],  # asset frame, Z up
+          "relations": ["is_on", "is_below", "is_in", "is_in_front_of"],
+          "places": {}                            # environments only, see Place
+        }
+      }
+    }
+
+Asset frames: Z up, metres, origin at the centre of the bottom face of the object, so an
+object rests on a surface when its origin lies on it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping
+
+from usdscene.errors import AssetError, ProblemCollector
+from usdscene.model import Pose
+
+CATALOG_FILE = "catalog.json"
+ASSET_KINDS = ("environment", "object", "passenger")
+
+# Place region prim names in environment assets and the placement relation each serves.
+REGION_RELATIONS = {
+    "on": "is_on",
+    "below": "is_below",
+    "in_front": "is_in_front_of",
+    "back_pocket": "is_in",
+    "in": "is_in",
+}
+
+
+@dataclass(frozen=True)
+class PlaceRegion:
+    """A box where a relation may put objects.
+
+    The region frame has Z up; the support surface is its z = 0 plane; the usable volume is
+    x ∈ [-size_m[0]/2, size_m[0]/2], y ∈ [-size_m[1]/2, size_m[1]/2], z ∈ [0, size_m[2]].
+
+    Attributes:
+        relation: the placement relation this region serves (``is_on``, ``is_below``, ...).
+        pose: region frame → environment (= world) frame.
+        size_m: (x, y, z) size of the usable box in metres.
+    """
+
+    relation: str
+    pose: Pose
+    size_m: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Place:
+    """A named target inside an environment (``seat_03A``, ``bin_02L``, ``aisle_04``).
+
+    Attributes:
+        name: place name, unique in its environment.
+        kind: ``seat``, ``bin``, ``aisle``, ...
+        regions: relation name → region.
+    """
+
+    name: str
+    kind: str
+    regions: Mapping[str, PlaceRegion] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class AssetEntry:
+    """One asset class of the catalog.
+
+    Attributes:
+        class_name: class name used as OpenLABEL object ``type``.
+        kind: ``environment``, ``object`` or ``passenger``.
+        usd_path: absolute path of the asset's USD file.
+        description: free text.
+        variants: variant set name → variant names.
+        default_variants: variant set name → default variant.
+        extent_min_m, extent_max_m: axis-aligned bounds in the asset frame (metres).
+        relations: placement relations the class supports as a subject.
+        places: for environments, place name → Place.
+    """
+
+    class_name: str
+    kind: str
+    usd_path: Path
+    description: str = ""
+    variants: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    default_variants: Mapping[str, str] = field(default_factory=dict)
+    extent_min_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    extent_max_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    relations: tuple[str, ...] = ()
+    places: Mapping[str, Place] = field(default_factory=dict)
+
+    @property
+    def size_m(self) -> tuple[float, float, float]:
+        return tuple(hi - lo for lo, hi in zip(self.extent_min_m, self.extent_max_m))  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class Catalog:
+    """All asset classes visible to a scene (shipped library + extra folders).
+
+    Attributes:
+        entries: class name → entry. A later folder overrides an earlier one.
+        folders: the catalog folders that were read, in order.
+    """
+
+    entries: Mapping[str, AssetEntry]
+    folders: tuple[Path, ...] = ()
+
+    def __contains__(self, class_name: str) -> bool:
+        return class_name in self.entries
+
+    def __getitem__(self, class_name: str) -> AssetEntry:
+        return self.entries[class_name]
+
+    def classes(self, kind: str | None = None) -> tuple[str, ...]:
+        return tuple(sorted(k for k, e in self.entries.items() if kind is None or e.kind == kind))
+
+    def places(self, environment: str) -> Mapping[str, Place]:
+        return self.entries[environment].places
+
+
+def default_asset_folder() -> Path:
+    """The shipped asset library: ``$USDSCENE_ASSETS`` or ``<repo>/assets``."""
+    env = os.environ.get("USDSCENE_ASSETS")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parent.parent / "assets"
+
+
+def load_catalog(extra_folders: Iterable[str | os.PathLike] = (), *,
+                 include_default: bool = True, base_dir: str | os.PathLike | None = None) -> Catalog:
+    """Read the shipped catalog plus extra catalog folders.
+
+    Args:
+        extra_folders: folders holding a ``catalog.json`` (relative ones resolved against
+            ``base_dir``, e.g. the folder of the scene document).
+        include_default: read the shipped library first.
+        base_dir: folder that relative ``extra_folders`` are relative to (default: cwd).
+
+    Raises:
+        AssetError: a folder or catalog file is missing or malformed (all problems at once).
+    """
+    folders: list[Path] = [default_asset_folder()] if include_default else []
+    base = Path(base_dir) if base_dir is not None else Path.cwd()
+    for folder in extra_folders:
+        p = Path(folder)
+        folders.append(p if p.is_absolute() else base / p)
+    problems = ProblemCollector()
+    entries: dict[str, AssetEntry] = {}
+    for folder in folders:
+        entries.update(_read_catalog_file(folder, problems))
+    problems.raise_if_any(AssetError)
+    return Catalog(entries=entries, folders=tuple(folders))
+
+
+def _read_catalog_file(folder: Path, problems: ProblemCollector) -> dict[str, AssetEntry]:
+    path = folder / CATALOG_FILE
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        problems.add(str(path), "asset catalog not found (is this an asset folder?)")
+        return {}
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        problems.add(str(path), f"cannot read asset catalog: {exc}")
+        return {}
+    if not isinstance(data, dict) or not isinstance(data.get("classes"), dict):
+        problems.add(str(path), "expected an object with a 'classes' object")
+        return {}
+    entries = {}
+    for name, raw in data["classes"].items():
+        where = f"{path}:classes.{name}"
+        try:
+            entries[name] = _entry_from_json(name, raw, folder)
+        except (KeyError, TypeError, ValueError) as exc:
+            problems.add(where, f"malformed catalog entry ({type(exc).__name__}: {exc})")
+            continue
+        if entries[name].kind not in ASSET_KINDS:
+            problems.add(where + ".kind", f"unknown kind {entries[name].kind!r}; expected one of {ASSET_KINDS}")
+    return entries
+
+
+def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:
+    lo, hi = raw.get("extent_m", [[0, 0, 0], [0, 0, 0]])
+    places = {}
+    for pname, praw in raw.get("places", {}).items():
+        regions = {
+            rel: PlaceRegion(relation=rel, pose=Pose.from_matrix(r["matrix"]),
+                             size_m=tuple(float(v) for v in r["size_m"]))  # type: ignore[arg-type]
+            for rel, r in praw.get("regions", {}).items()
+        }
+        places[pname] = Place(name=pname, kind=str(praw.get("kind", "")), regions=regions)
+    return AssetEntry(
+        class_name=name,
+        kind=str(raw["kind"]),
+        usd_path=(folder / raw["usd"]).resolve(),
+        description=str(raw.get("description", "")),
+        variants={k: tuple(v) for k, v in raw.get("variants", {}).items()},
+        default_variants=dict(raw.get("default_variants", {})),
+        extent_min_m=tuple(float(v) for v in lo),  # type: ignore[arg-type]
+        extent_max_m=tuple(float(v) for v in hi),  # type: ignore[arg-type]
+        relations=tuple(raw.get("relations", ())),
+        places=places,
+    )
+
+
+def entry_to_json(entry: AssetEntry, folder: Path) -> dict:
+    """Inverse of the reader for one entry; paths relative to ``folder``. Used by the
+    generator and ``assets add``."""
+    out: dict = {
+        "kind": entry.kind,
+        "usd": os.path.relpath(entry.usd_path, folder).replace(os.sep, "/"),
+        "description": entry.description,
+        "variants": {k: list(v) for k, v in entry.variants.items()},
+        "default_variants": dict(entry.default_variants),
+        "extent_m": [list(entry.extent_min_m), list(entry.extent_max_m)],
+        "relations": list(entry.relations),
+    }
+    if entry.places:
+        out["places"] = {
+            name: {"kind": place.kind,
+                   "regions": {rel: {"matrix": list(r.pose.matrix), "size_m": list(r.size_m)}
+                               for rel, r in place.regions.items()}}
+            for name, place in place_items(entry.places)
+        }
+    return out
+
+
+def place_items(places: Mapping[str, Place]) -> list[tuple[str, Place]]:
+    """Places sorted by name (stable output order)."""
+    return sorted(places.items())

@@ -1,0 +1,1 @@
+"""One module per ``usdscene`` sub-command (discovered by ``usdscene.cli``)."""

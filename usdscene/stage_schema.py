@@ -1,0 +1,86 @@
+"""Names of the composed USD stage: layer files, prim paths and attribute names.
+
+The composer writes these names and every reader (the Blender worker, ``scene_from_stage``,
+annotation) reads them from here, so a rename happens in one place. Pure: no pxr import.
+
+Stage layout (``out/stage/``)::
+
+    scene.usda        root layer: sublayers strongest first, upAxis Z, metersPerUnit 1,
+                      start/end time codes, customLayerData provenance
+    render.usda       /Render/Settings (UsdRender.Settings), /Render/Products/<camera>
+    cameras.usda      /World/Cameras/<camera>          UsdGeom.Camera + usdscene:lens:* attrs
+    lights.usda       /World/Lights/<light>            UsdLux lights, variant set "lighting"
+    objects.usda      /World/Objects/<class>_<uid>     references into assets, time samples,
+                                                       variant set "appearance"
+    environment.usda  /World/Environment               reference to the environment asset
+                      /World/Environment/Places/...    its places (from the asset)
+"""
+
+from __future__ import annotations
+
+import re
+
+ROOT_LAYER = "scene.usda"
+# Sublayers of the root, strongest first.
+SUBLAYERS = ("render.usda", "cameras.usda", "lights.usda", "objects.usda", "environment.usda")
+
+WORLD = "/World"
+CAMERAS = "/World/Cameras"
+LIGHTS = "/World/Lights"
+OBJECTS = "/World/Objects"
+ENVIRONMENT = "/World/Environment"
+PLACES = "/World/Environment/Places"
+RENDER_SETTINGS = "/Render/Settings"
+RENDER_PRODUCTS = "/Render/Products"
+
+# customData keys on every prim that came from an OpenLABEL element.
+CUSTOM_UID = "usdscene:uid"
+CUSTOM_CLASS = "usdscene:class"
+CUSTOM_NAME = "usdscene:name"
+
+# The same identity as plain attributes, because Blender's USD importer drops customData but
+# imports ``userProperties:*`` attributes as custom properties.
+ATTR_USER_UID = "userProperties:usdscene_uid"
+ATTR_USER_CLASS = "userProperties:usdscene_class"
+
+# Camera lens attributes (on the UsdGeom.Camera prim), see usdscene.model.Intrinsics.
+ATTR_LENS_MODEL = "usdscene:lens:model"            # token, a LensModel value
+ATTR_LENS_WIDTH = "usdscene:lens:widthPx"          # int
+ATTR_LENS_HEIGHT = "usdscene:lens:heightPx"        # int
+ATTR_LENS_FX = "usdscene:lens:fxPx"                # double
+ATTR_LENS_FY = "usdscene:lens:fyPx"                # double
+ATTR_LENS_CX = "usdscene:lens:cxPx"                # double
+ATTR_LENS_CY = "usdscene:lens:cyPx"                # double
+ATTR_LENS_DISTORTION = "usdscene:lens:distortion"  # double[]
+ATTR_LENS_FOV = "usdscene:lens:fovDeg"             # double (fisheye image-circle FOV)
+ATTR_LENS_SENSOR_WIDTH = "usdscene:lens:sensorWidthMm"  # double
+ATTR_CAMERA_MODEL_NAME = "usdscene:camera:modelName"    # string
+
+# Object appearance.
+VARIANT_SET_APPEARANCE = "appearance"
+VARIANT_SET_LIGHTING = "lighting"
+ATTR_COLOR = "primvars:displayColor"
+
+_PRIM_NAME_BAD = re.compile(r"[^A-Za-z0-9_]")
+
+
+def prim_name(text: str) -> str:
+    """A valid USD prim name derived from ``text`` (non-identifier characters → ``_``; a
+    leading digit gets a ``_`` prefix). Deterministic; callers keep the original in
+    ``customData`` so nothing is lost."""
+    name = _PRIM_NAME_BAD.sub("_", text) or "_"
+    if name[0].isdigit():
+        name = "_" + name
+    return name
+
+
+def object_prim_path(class_name: str, uid: str) -> str:
+    return f"{OBJECTS}/{prim_name(f'{class_name}_{uid}')}"
+
+
+def camera_prim_path(camera_name: str) -> str:
+    return f"{CAMERAS}/{prim_name(camera_name)}"
+
+
+def light_prim_path(light_name: str) -> str:
+    return f"{LIGHTS}/{prim_name(light_name)}"
