@@ -1,0 +1,61 @@
+"""The output folder layout and the uid → mask id assignment. Pure module.
+
+::
+
+    out/stage/...                       composed USD stage (see usdscene.stage_schema)
+    out/images/<camera>/<frame:06d>.png 8-bit RGB
+    out/masks/<camera>/<frame:06d>.png  16-bit instance ids, 0 = background
+    out/masks/ids.json                  {"<mask id>": {"uid", "class", "name"}}
+    out/annotations.openlabel.json      input + per-frame, per-camera labels and image uris
+    out/exports/<format>/...            coco, yolo, rois
+    out/manifest.json                   finished (frame, camera) pairs, versions, timings
+
+Every writer and reader takes these paths from here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from usdscene.model import SceneSpec
+
+STAGE_DIR = "stage"
+IMAGES_DIR = "images"
+MASKS_DIR = "masks"
+EXPORTS_DIR = "exports"
+ID_MAP_FILE = "masks/ids.json"
+MANIFEST_FILE = "manifest.json"
+ANNOTATIONS_FILE = "annotations.openlabel.json"
+
+BACKGROUND_ID = 0
+MAX_MASK_ID = 65535  # masks are uint16
+
+
+def frame_file(frame: int) -> str:
+    return f"{frame:06d}.png"
+
+
+def image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    return Path(out_dir) / IMAGES_DIR / camera / frame_file(frame)
+
+
+def mask_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    return Path(out_dir) / MASKS_DIR / camera / frame_file(frame)
+
+
+def stage_root(out_dir: str | Path) -> Path:
+    return Path(out_dir) / STAGE_DIR / "scene.usda"
+
+
+def mask_ids(scene: SceneSpec) -> dict[str, int]:
+    """uid → mask id for every dynamic object: 1, 2, ... in document order.
+
+    The environment (seats, walls) and places are background (0): labels are for the objects
+    a detector must find. Ids are stable for a given document, whatever the executor.
+
+    Raises:
+        ValueError: more objects than a uint16 mask can hold (65535).
+    """
+    if len(scene.objects) > MAX_MASK_ID:
+        raise ValueError(f"{len(scene.objects)} objects exceed the {MAX_MASK_ID} ids of a uint16 mask")
+    return {obj.uid: index + 1 for index, obj in enumerate(scene.objects)}
