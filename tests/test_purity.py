@@ -1,0 +1,53 @@
+"""The pure modules must import without pxr and bpy (dependency direction of the design)."""
+
+import subprocess
+import sys
+
+import pytest
+
+PURE_MODULES = [
+    "usdscene.model",
+    "usdscene.errors",
+    "usdscene.stage_schema",
+    "usdscene.layout",
+    "usdscene.files",
+    "usdscene.catalog",
+    "usdscene.cli",
+    "usdscene.placement",
+    "usdscene.projection",
+    "usdscene.labels",
+    "converters.openlabel",
+    "converters.openlabel_annotations",
+    "converters.coco",
+    "converters.yolo",
+]
+
+
+@pytest.mark.parametrize("module", PURE_MODULES)
+def test_pure_module_imports_without_pxr_and_bpy(module):
+    code = (
+        "import sys, importlib\n"
+        "sys.modules['bpy'] = None\n"
+        "sys.modules['pxr'] = None\n"
+        f"importlib.import_module({module!r})\n"
+        "loaded = [m for m in ('bpy', 'pxr') if sys.modules.get(m) is not None]\n"
+        "assert not loaded, loaded\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
+def test_help_is_fast_and_light():
+    code = (
+        "import sys\n"
+        "from usdscene.cli import main\n"
+        "try:\n"
+        "    main(['--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = [m for m in ('bpy', 'pxr', 'cv2', 'trimesh', 'jsonschema') if m in sys.modules]\n"
+        "print(heavy)\n"
+        "assert not heavy, heavy\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
