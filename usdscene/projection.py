@@ -1,0 +1,311 @@
+"""Camera projection for every lens model, and the remap grids of lenses Blender lacks. Pure.
+
+numpy only (no pxr, no bpy, no cv2): the functions here are the *definition* of each
+:class:`usdscene.model.LensModel`; tests check them against OpenCV's ``cv2.projectPoints`` and
+``cv2.fisheye.projectPoints``, and the renderer is checked against them.
+
+Pixel convention (see :class:`usdscene.model.Intrinsics`): x right, y down, pixel centres at
+integer coordinates. Camera frames are OpenCV (x right, y down, z forward).
+
+Models, with ``(x, y, z)`` a point in the camera frame, ``ρ = √(x² + y²)`` and
+``θ = atan2(ρ, z)`` its angle off the optical axis:
+
+* ``perspective``: ``u = fx·x/z + cx``; valid when ``z > 0``.
+* ``orthographic``: ``u = fx·x + cx`` (fx in pixels per metre); valid when ``z > 0``.
+* ``fisheye_equidistant``: image radius ``r = f·θ``; valid when ``θ ≤ fov/2``.
+* ``fisheye_equisolid``: ``r = 2f·sin(θ/2)``; valid when ``θ ≤ fov/2``.
+* ``opencv_pinhole``: pinhole + Brown-Conrady (k1 k2 p1 p2 [k3 [k4 k5 k6]]), exactly
+  ``cv2.projectPoints``; valid when ``z > 0`` and the radial distortion has not folded back
+  (the distorted radius still grows with the undistorted one).
+* ``opencv_fisheye``: Kannala-Brandt ``θd = θ(1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸)``, exactly
+  ``cv2.fisheye.projectPoints`` for ``z > 0``; valid when ``θ ≤ fov/2`` (``fov_deg`` unset:
+  ``z > 0``) and ``θd`` still grows with ``θ``.
+
+Without a ``fov_deg``, fisheye models accept every direction up to 180° off the axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from usdscene.model import Camera, Intrinsics, LensModel
+
+__all__ = [
+    "project_points",
+    "project_camera_points",
+    "pixel_rays",
+    "remap_grids",
+    "undistorted_render_intrinsics",
+    "NATIVE_LENSES",
+]
+
+# Lens models Blender/Cycles renders directly; the others are rendered through a native lens
+# and remapped (see remap_grids).
+NATIVE_LENSES = frozenset({LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC,
+                           LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID})
+
+
+def project_points(camera: Camera, points_world: np.ndarray,
+                   frame: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Project world points into a camera's image.
+
+    Args:
+        camera: the camera (intrinsics and camera → world pose in OpenCV axes).
+        points_world: (N, 3) points in world coordinates, metres.
+        frame: frame whose pose to use (``camera.pose_at(frame)``); None = ``camera.pose``.
+
+    Returns:
+        ``(uv, valid)``: (N, 2) float64 pixel coordinates (OpenCV convention, pixel centres at
+        integers; meaningless where ``valid`` is False) and (N,) bool, True where the point is
+        in front of the camera and inside the lens's field of view. Points outside the image
+        rectangle but inside the field of view are valid.
+    """
+    pose = camera.pose if frame is None else camera.pose_at(frame)
+    pts = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
+    m = pose.as_array()
+    # world → camera: R^T (p - t), written for row vectors.
+    points_cam = (pts - m[:3, 3]) @ m[:3, :3]
+    return project_camera_points(camera.intrinsics, points_cam)
+
+
+def project_camera_points(intrinsics: Intrinsics,
+                          points_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Project (N, 3) camera-frame points (OpenCV axes, metres) → ``(uv (N, 2), valid (N,))``.
+
+    See :func:`project_points`.
+    """
+    p = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    lens = LensModel(intrinsics.lens)
+    fx, fy, cx, cy = intrinsics.fx_px, intrinsics.fy_px, intrinsics.cx_px, intrinsics.cy_px
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if lens is LensModel.ORTHOGRAPHIC:
+            xn, yn = x, y
+            valid = z > 0
+        elif lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+            valid = z > 0
+            zs = np.where(valid, z, 1.0)
+            xn, yn = x / zs, y / zs
+            if lens is LensModel.OPENCV_PINHOLE:
+                xn, yn, growing = _brown_conrady(xn, yn, intrinsics.distortion)
+                valid &= growing
+        else:
+            rho = np.hypot(x, y)
+            theta = np.arctan2(rho, z)
+            if lens is LensModel.FISHEYE_EQUIDISTANT:
+                radius, growing = theta, np.ones_like(theta, dtype=bool)
+            elif lens is LensModel.FISHEYE_EQUISOLID:
+                radius, growing = 2.0 * np.sin(theta / 2.0), theta < math.pi
+            else:  # OPENCV_FISHEYE
+                radius, growing = _kannala_brandt(theta, intrinsics.distortion)
+            valid = growing & (theta <= _half_fov_rad(intrinsics, lens)) & (rho + np.abs(z) > 0)
+            safe_rho = np.where(rho > 0, rho, 1.0)
+            xn = np.where(rho > 0, radius * x / safe_rho, 0.0)
+            yn = np.where(rho > 0, radius * y / safe_rho, 0.0)
+    uv = np.stack([fx * xn + cx, fy * yn + cy], axis=1)
+    valid = valid & np.isfinite(uv).all(axis=1)
+    return uv, valid
+
+
+def _half_fov_rad(intrinsics: Intrinsics, lens: LensModel) -> float:
+    if intrinsics.fov_deg is not None:
+        return math.radians(intrinsics.fov_deg) / 2.0
+    # cv2.fisheye is only defined in front of the camera.
+    return math.pi / 2.0 if lens is LensModel.OPENCV_FISHEYE else math.pi
+
+
+def _distortion(coeffs: tuple[float, ...], count: int) -> np.ndarray:
+    out = np.zeros(count)
+    values = np.asarray(coeffs, dtype=np.float64)[:count]
+    out[: values.size] = values
+    return out
+
+
+def _brown_conrady(xn: np.ndarray, yn: np.ndarray, coeffs: tuple[float, ...]):
+    """OpenCV's distortion of normalised coordinates → (xd, yd, radius_still_growing)."""
+    k1, k2, p1, p2, k3, k4, k5, k6 = _distortion(coeffs, 8)
+    r2 = xn * xn + yn * yn
+    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+    radial = num / den
+    xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
+    yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
+    # d(r·radial)/dr = radial + r · d radial/dr; d radial/d(r²) by the quotient rule.
+    dnum = k1 + r2 * (2 * k2 + 3 * k3 * r2)
+    dden = k4 + r2 * (2 * k5 + 3 * k6 * r2)
+    growing = (radial + 2 * r2 * (dnum * den - num * dden) / (den * den)) > 0
+    return xd, yd, growing & (den > 0)
+
+
+def _kannala_brandt(theta: np.ndarray, coeffs: tuple[float, ...]):
+    """θd of Kannala-Brandt and whether it still grows with θ."""
+    k1, k2, k3, k4 = _distortion(coeffs, 4)
+    t2 = theta * theta
+    theta_d = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+    slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+    return theta_d, slope > 0
+
+
+def pixel_rays(intrinsics: Intrinsics, uv: np.ndarray,
+               iterations: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """Unit viewing rays of pixel positions (the inverse of :func:`project_camera_points`).
+
+    Args:
+        intrinsics: the camera model.
+        uv: (N, 2) pixel coordinates (OpenCV convention).
+        iterations: fixed-point / Newton iterations for distorted models.
+
+    Returns:
+        ``(rays, valid)``: (N, 3) float64 unit directions in the camera frame (OpenCV axes;
+        for ORTHOGRAPHIC the ray direction is +z for every pixel) and (N,) bool, False where
+        the pixel has no ray (outside a fisheye's image circle, or the inversion of the
+        distortion did not converge to 1e-6 px).
+    """
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    lens = LensModel(intrinsics.lens)
+    xd = (uv[:, 0] - intrinsics.cx_px) / intrinsics.fx_px
+    yd = (uv[:, 1] - intrinsics.cy_px) / intrinsics.fy_px
+    valid = np.ones(len(uv), dtype=bool)
+    if lens is LensModel.ORTHOGRAPHIC:
+        rays = np.tile([0.0, 0.0, 1.0], (len(uv), 1))
+        return rays, valid
+    if lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+        xn, yn = xd.copy(), yd.copy()
+        if lens is LensModel.OPENCV_PINHOLE:
+            xn, yn, valid = _undistort_brown_conrady(xd, yd, intrinsics, iterations)
+        rays = np.stack([xn, yn, np.ones_like(xn)], axis=1)
+        return rays / np.linalg.norm(rays, axis=1, keepdims=True), valid
+    radius = np.hypot(xd, yd)
+    if lens is LensModel.FISHEYE_EQUIDISTANT:
+        theta = radius
+    elif lens is LensModel.FISHEYE_EQUISOLID:
+        valid &= radius <= 2.0
+        theta = 2.0 * np.arcsin(np.clip(radius / 2.0, 0.0, 1.0))
+    else:
+        theta, ok = _invert_kannala_brandt(radius, intrinsics.distortion, iterations)
+        valid &= ok
+    valid &= theta <= _half_fov_rad(intrinsics, lens)
+    safe = np.where(radius > 0, radius, 1.0)
+    s = np.sin(theta)
+    rays = np.stack([np.where(radius > 0, s * xd / safe, 0.0),
+                     np.where(radius > 0, s * yd / safe, 0.0), np.cos(theta)], axis=1)
+    return rays, valid
+
+
+def _undistort_brown_conrady(xd, yd, intrinsics: Intrinsics, iterations: int):
+    # The same fixed-point scheme as cv2.undistortPoints, run long enough to converge; the
+    # residual check rejects pixels outside the region where the distortion is invertible.
+    k1, k2, p1, p2, k3, k4, k5, k6 = _distortion(intrinsics.distortion, 8)
+    xn, yn = xd.copy(), yd.copy()
+    for _ in range(iterations):
+        r2 = xn * xn + yn * yn
+        icdist = (1 + r2 * (k4 + r2 * (k5 + r2 * k6))) / (1 + r2 * (k1 + r2 * (k2 + r2 * k3)))
+        dx = 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
+        dy = p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
+        xn, yn = (xd - dx) * icdist, (yd - dy) * icdist
+    xr, yr, growing = _brown_conrady(xn, yn, intrinsics.distortion)
+    err = np.hypot((xr - xd) * intrinsics.fx_px, (yr - yd) * intrinsics.fy_px)
+    # A converged pixel reprojects to within far less than 1e-3 px.
+    valid = np.isfinite(err) & (err < 1e-3) & growing
+    return xn, yn, valid
+
+
+def _invert_kannala_brandt(theta_d, coeffs, iterations: int):
+    k1, k2, k3, k4 = _distortion(coeffs, 4)
+    theta = theta_d.copy()
+    for _ in range(iterations):  # Newton on θ(1 + k1θ² + ...) - θd = 0
+        value, _ = _kannala_brandt(theta, coeffs)
+        t2 = theta * theta
+        slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+        theta = theta - (value - theta_d) / np.where(np.abs(slope) > 1e-12, slope, 1e-12)
+        theta = np.clip(theta, 0.0, math.pi)
+    value, growing = _kannala_brandt(theta, coeffs)
+    ok = np.isfinite(theta) & (np.abs(value - theta_d) < 1e-9) & growing
+    return theta, ok
+
+
+def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 3.0) -> Intrinsics:
+    """The native lens to render before remapping an OpenCV-model camera.
+
+    The render keeps the output's focal length (so the centre of the image keeps its pixel
+    density) and is just large enough to contain the ray of every output pixel, plus a
+    two-pixel margin for bilinear interpolation. Perspective for ``opencv_pinhole`` and for
+    ``opencv_fisheye`` up to 60° off the axis; an equidistant fisheye beyond.
+
+    Args:
+        intrinsics: an ``opencv_pinhole`` or ``opencv_fisheye`` camera.
+        max_scale: cap on render size / output size per axis (strong distortion at the
+            corners would otherwise ask for huge renders; rays beyond the cap stay black).
+
+    Returns:
+        Intrinsics of a native lens (``perspective`` or ``fisheye_equidistant``).
+    """
+    lens = LensModel(intrinsics.lens)
+    if lens in NATIVE_LENSES:
+        return intrinsics
+    w, h = intrinsics.width_px, intrinsics.height_px
+    uv = _border_pixels(w, h)
+    rays, valid = pixel_rays(intrinsics, uv)
+    rays = rays[valid]
+    if rays.size == 0:
+        rays = np.array([[0.0, 0.0, 1.0]])
+    theta_max = float(np.max(np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])))
+    fx, fy = intrinsics.fx_px, intrinsics.fy_px
+    if lens is LensModel.OPENCV_PINHOLE or theta_max < math.radians(60.0):
+        tx = np.abs(rays[:, 0] / rays[:, 2])
+        ty = np.abs(rays[:, 1] / rays[:, 2])
+        half_w = min(fx * float(tx.max()) + 2.0, max_scale * w / 2.0)
+        half_h = min(fy * float(ty.max()) + 2.0, max_scale * h / 2.0)
+        rw, rh = 2 * math.ceil(half_w) + 1, 2 * math.ceil(half_h) + 1
+        return replace(intrinsics, lens=LensModel.PERSPECTIVE, width_px=rw, height_px=rh,
+                       cx_px=(rw - 1) / 2.0, cy_px=(rh - 1) / 2.0, distortion=(), fov_deg=None,
+                       sensor_width_mm=intrinsics.sensor_width_mm * rw / w)
+    # Equidistant fisheye with the same focal length: θd ≈ θ near the axis.
+    f = min(fx, fy)
+    half = min(f * theta_max + 2.0, max_scale * max(w, h) / 2.0)
+    size = 2 * math.ceil(half) + 1
+    fov = min(360.0, math.degrees(2.0 * theta_max) + 2.0)
+    return replace(intrinsics, lens=LensModel.FISHEYE_EQUIDISTANT, width_px=size, height_px=size,
+                   fx_px=f, fy_px=f, cx_px=(size - 1) / 2.0, cy_px=(size - 1) / 2.0,
+                   distortion=(), fov_deg=fov, sensor_width_mm=intrinsics.sensor_width_mm * size / w)
+
+
+def _border_pixels(width: int, height: int) -> np.ndarray:
+    """(N, 2) positions along the outer edge of the image (pixel edges, not centres)."""
+    xs = np.linspace(-0.5, width - 0.5, max(2, width + 1))
+    ys = np.linspace(-0.5, height - 0.5, max(2, height + 1))
+    return np.concatenate([
+        np.stack([xs, np.full_like(xs, -0.5)], 1), np.stack([xs, np.full_like(xs, height - 0.5)], 1),
+        np.stack([np.full_like(ys, -0.5), ys], 1), np.stack([np.full_like(ys, width - 0.5), ys], 1),
+    ])
+
+
+def remap_grids(intrinsics: Intrinsics, render_intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """Maps for ``cv2.remap`` that turn a render through ``render_intrinsics`` into the image
+    of ``intrinsics`` (same camera pose).
+
+    ``output[v, u] = rendered[map_y[v, u], map_x[v, u]]``: bilinear for the RGB image, nearest
+    for the mask, with the same maps so labels stay exact. Pixels without a ray, or whose ray
+    the render does not see, map to ``-1`` (black / background with ``BORDER_CONSTANT``).
+
+    Args:
+        intrinsics: the output camera (any model; normally opencv_pinhole / opencv_fisheye).
+        render_intrinsics: the native lens that was rendered (perspective, fisheye).
+
+    Returns:
+        ``(map_x, map_y)``: float32 arrays of shape (height_px, width_px) of ``intrinsics``,
+        in pixel coordinates of the rendered image (OpenCV convention, as ``cv2.remap``).
+    """
+    h, w = intrinsics.height_px, intrinsics.width_px
+    vs, us = np.mgrid[0:h, 0:w]
+    uv = np.stack([us.ravel(), vs.ravel()], axis=1).astype(np.float64)
+    rays, valid = pixel_rays(intrinsics, uv)
+    src, seen = project_camera_points(render_intrinsics, rays)
+    ok = valid & seen
+    src[~ok] = -1.0
+    map_x = src[:, 0].reshape(h, w).astype(np.float32)
+    map_y = src[:, 1].reshape(h, w).astype(np.float32)
+    return map_x, map_y
