@@ -56,6 +56,23 @@ ATTR_LENS_FOV = "usdscene:lens:fovDeg"             # double (fisheye image-circl
 ATTR_LENS_SENSOR_WIDTH = "usdscene:lens:sensorWidthMm"  # double
 ATTR_CAMERA_MODEL_NAME = "usdscene:camera:modelName"    # string
 
+# Mask id of an object prim (int, 1..65535; 0 is background), see usdscene.layout.mask_ids.
+ATTR_MASK_ID = "usdscene:maskId"
+
+# Render settings: attributes on the /Render/Settings prim, one per usdscene.model.RenderSettings
+# field; an absent attribute means the RenderSettings default.
+ATTR_RENDER_ENGINE = "usdscene:render:engine"                # token: cycles / eevee / workbench
+ATTR_RENDER_DEVICE = "usdscene:render:device"                # token: cpu / gpu
+ATTR_RENDER_SAMPLES = "usdscene:render:samples"              # int
+ATTR_RENDER_ADAPTIVE_THRESHOLD = "usdscene:render:adaptiveThreshold"  # float, 0 = off
+ATTR_RENDER_DENOISE = "usdscene:render:denoise"              # bool
+ATTR_RENDER_DENOISER = "usdscene:render:denoiser"            # token
+ATTR_RENDER_MAX_BOUNCES = "usdscene:render:maxBounces"       # int
+ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
+ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int
+ATTR_RENDER_RESOLUTION = "usdscene:render:resolutionPx"      # int2 (width, height)
+ATTR_RENDER_SEED = "usdscene:render:seed"                    # int
+
 # Object appearance.
 VARIANT_SET_APPEARANCE = "appearance"
 VARIANT_SET_LIGHTING = "lighting"
