@@ -78,6 +78,22 @@ VARIANT_SET_APPEARANCE = "appearance"
 VARIANT_SET_LIGHTING = "lighting"
 ATTR_COLOR = "primvars:displayColor"
 
+# Inside every asset of the library (relative to the asset's default prim). Blender's USD
+# importer ignores inherited primvars, so recolouring goes through the main material's
+# shader input: author ``<object prim>/Looks/Body/Surface.inputs:diffuseColor`` (color3f).
+VARIANT_SET_POSE = "pose"                      # passengers: upright, leaning, reading, ...
+VARIANT_SET_CONFIGURATION = "configuration"    # environments: e.g. bins_open / bins_closed
+ASSET_LOOKS = "Looks"
+ASSET_SURFACE_SHADER = "Surface"               # UsdPreviewSurface under each Material
+ASSET_MAIN_MATERIAL = "Body"                   # the recolourable material of an object
+ASSET_COLOR_SHADER = "Looks/Body/Surface"      # relative prim path of the colour shader
+ATTR_ASSET_COLOR = "inputs:diffuseColor"       # color3f, linear RGB
+# Places of an environment asset: <defaultPrim>/Places/<place>/<region>.
+ASSET_PLACES = "Places"
+ATTR_PLACE_KIND = "usdscene:place:kind"        # token on the place prim: seat, bin, aisle
+ATTR_PLACE_RELATION = "usdscene:place:relation"  # token on the region prim: is_on, ...
+ATTR_PLACE_SIZE = "usdscene:place:size"        # double3 on the region prim, metres
+
 _PRIM_NAME_BAD = re.compile(r"[^A-Za-z0-9_]")
 
 
