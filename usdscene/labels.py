@@ -49,7 +49,6 @@ DEFAULT_EPSILON_PX = 0.75
 # fraction of a pixel of the curved one.
 MAX_PROJECTED_EDGE_PX = 8.0
 _MAX_SUBDIVISIONS = 5
-_SHIFT_BITS = 4  # sub-pixel precision of cv2 rasterisation (1/16 px)
 
 
 # --------------------------------------------------------------------------------------------
@@ -449,7 +448,11 @@ def _clip_polygon(poly: np.ndarray, axis: int, bound: float, keep_greater: bool)
 
 def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
                         valid: np.ndarray | None = None) -> AmodalProjection:
-    """Fill projected triangles into an image-sized mask.
+    """Fill projected triangles into an image-sized mask by pixel-centre sampling.
+
+    A pixel belongs to the projection when its centre lies inside or on the edge of a
+    triangle, the sampling rule of a renderer's one-sample-per-pixel id pass (OpenCV's
+    ``fillConvexPoly`` instead rounds edges outwards, up to a pixel too wide).
 
     Args:
         uv_px: (T, 3, 2) float vertex pixel coordinates (pixel centres at integers).
@@ -458,12 +461,11 @@ def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
             invalid vertex are skipped and make the projection count as truncated.
 
     Returns:
-        AmodalProjection: mask (H, W) bool of pixel centres inside any triangle (edges
-        included), truncated = some vertex lies outside the image area
-        ``[-0.5, W - 0.5] × [-0.5, H - 0.5]`` or was invalid.
+        AmodalProjection: mask (H, W) bool, truncated = some vertex lies outside the image
+        area ``[-0.5, W - 0.5] × [-0.5, H - 0.5]`` or was invalid.
     """
     uv = np.asarray(uv_px, dtype=np.float64).reshape(-1, 3, 2)
-    mask = np.zeros((height_px, width_px), dtype=np.uint8)
+    mask = np.zeros((height_px, width_px), dtype=bool)
     truncated = False
     if valid is not None:
         ok = np.asarray(valid, dtype=bool).reshape(-1, 3).all(axis=1)
@@ -473,30 +475,50 @@ def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
     truncated = truncated or bool((~finite).any())
     uv = uv[finite]
     if uv.size == 0:
-        return AmodalProjection(mask.astype(bool), truncated)
+        return AmodalProjection(mask, truncated)
     lo = uv.min(axis=1)
     hi = uv.max(axis=1)
-    outside = ((lo[:, 0] < -0.5) | (lo[:, 1] < -0.5)
-               | (hi[:, 0] > width_px - 0.5) | (hi[:, 1] > height_px - 0.5))
-    truncated = truncated or bool(outside.any())
-    # Triangles entirely off the image draw nothing; the rest are drawn one by one
-    # (cv2.fillPoly with several polygons XORs overlaps, fillConvexPoly does not).
-    on_image = ~((hi[:, 0] < -0.5) | (hi[:, 1] < -0.5)
-                 | (lo[:, 0] > width_px - 0.5) | (lo[:, 1] > height_px - 0.5))
-    guard = 4.0 * max(width_px, height_px)  # keeps 1/16 px fixed point far from int32 limits
-    scale = float(1 << _SHIFT_BITS)
-    for tri, far in zip(uv[on_image], (np.abs(uv[on_image]) > guard).any(axis=(1, 2))):
-        poly = tri
-        if far:
-            for axis in (0, 1):
-                poly = _clip_polygon(poly, axis, -guard, True)
-                if len(poly):
-                    poly = _clip_polygon(poly, axis, guard, False)
-            if len(poly) < 3:
-                continue
-        cv2.fillConvexPoly(mask, np.round(poly * scale).astype(np.int32), 1, lineType=cv2.LINE_8,
-                           shift=_SHIFT_BITS)
-    return AmodalProjection(mask.astype(bool), truncated)
+    truncated = truncated or bool(((lo[:, 0] < -0.5) | (lo[:, 1] < -0.5)
+                                   | (hi[:, 0] > width_px - 0.5) | (hi[:, 1] > height_px - 0.5)).any())
+    # Candidate pixel centres of each triangle: its bounding box clipped to the image.
+    x0 = np.clip(np.ceil(lo[:, 0]), 0, width_px).astype(np.int64)
+    x1 = np.clip(np.floor(hi[:, 0]), -1, width_px - 1).astype(np.int64)
+    y0 = np.clip(np.ceil(lo[:, 1]), 0, height_px).astype(np.int64)
+    y1 = np.clip(np.floor(hi[:, 1]), -1, height_px - 1).astype(np.int64)
+    bw = np.maximum(x1 - x0 + 1, 0)
+    bh = np.maximum(y1 - y0 + 1, 0)
+    a, b, c = uv[:, 0], uv[:, 1], uv[:, 2]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    count = np.where(area2 != 0, bw * bh, 0)
+    keep = np.flatnonzero(count)
+    # Vectorised over triangles, in chunks that bound the candidate arrays (~4 M pixels).
+    start = 0
+    cumulative = np.cumsum(count[keep])
+    while start < keep.size:
+        base = cumulative[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(cumulative, base + _CANDIDATES_PER_CHUNK, side="right")))
+        _fill_chunk(mask, keep[start:stop], count, x0, y0, bw, a, b, c, area2)
+        start = stop
+    return AmodalProjection(mask, truncated)
+
+
+_CANDIDATES_PER_CHUNK = 1 << 22
+
+
+def _fill_chunk(mask, tris, count, x0, y0, bw, a, b, c, area2) -> None:
+    n = count[tris]
+    owner = np.repeat(tris, n)
+    local = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    px = x0[owner] + local % bw[owner]
+    py = y0[owner] + local // bw[owner]
+    sign = np.sign(area2[owner])
+    inside = np.ones(owner.size, dtype=bool)
+    for p, q in ((a, b), (b, c), (c, a)):
+        # Edge function of p→q at the pixel centre, oriented so the interior is >= 0.
+        e = ((q[owner, 0] - p[owner, 0]) * (py - p[owner, 1])
+             - (q[owner, 1] - p[owner, 1]) * (px - p[owner, 0])) * sign
+        inside &= e >= 0
+    mask[py[inside], px[inside]] = True
 
 
 def _clip_triangles_near(tris_cam: np.ndarray, near_m: float) -> tuple[np.ndarray, bool]:
