@@ -94,6 +94,28 @@ ATTR_PLACE_KIND = "usdscene:place:kind"        # token on the place prim: seat, 
 ATTR_PLACE_RELATION = "usdscene:place:relation"  # token on the region prim: is_on, ...
 ATTR_PLACE_SIZE = "usdscene:place:size"        # double3 on the region prim, metres
 
+# Composition (usdscene.compose) and Scene2VCD (converters.usd_stage). customData is authored
+# nested ({usdscene = {uid, class, name}}), i.e. read it with prim.GetCustomDataByKey(CUSTOM_UID).
+ATTR_USER_NAME = "userProperties:usdscene_name"            # string
+ATTR_USER_MASK_ID = "userProperties:usdscene_mask_id"      # int, same as ATTR_MASK_ID
+ATTR_USER_COLOR = "userProperties:usdscene_color"          # double3, exact linear RGB override
+ATTR_CAMERA_DESCRIPTION = "usdscene:camera:description"     # string
+ATTR_CAMERA_CUSTOM = "usdscene:camera:customJson"           # string, JSON of Camera.custom
+ATTR_CAMERA_CLIPPING = "usdscene:camera:clippingRangeM"     # double2 (near, far), exact
+# Lights: exact document values beside the UsdLux attributes (the Blender worker sets light
+# energy from these directly).
+ATTR_LIGHT_KIND = "usdscene:light:kind"                    # token: point / spot / sun / area
+ATTR_LIGHT_POWER_W = "usdscene:light:powerW"               # double (sun: irradiance W/m²)
+ATTR_LIGHT_COLOR = "usdscene:light:colorRgb"               # double3 linear RGB
+ATTR_LIGHT_RADIUS = "usdscene:light:radiusM"               # double
+ATTR_LIGHT_SPOT_ANGLE = "usdscene:light:spotAngleDeg"      # double, full cone angle
+ATTR_LIGHT_SPOT_BLEND = "usdscene:light:spotBlend"         # double
+ATTR_LIGHT_SIZE = "usdscene:light:sizeM"                   # double2 (width, height)
+ATTR_LIGHT_SUN_ANGLE = "usdscene:light:sunAngleDeg"        # double, angular diameter
+# Root layer customLayerData: dictionary "usdscene" with provenance and the document-level
+# fields that have no prim (JSON strings keep their order).
+LAYER_DATA_KEY = "usdscene"
+
 _PRIM_NAME_BAD = re.compile(r"[^A-Za-z0-9_]")
 
 
