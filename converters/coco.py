@@ -1,0 +1,111 @@
+"""COCO export of an annotated OpenLABEL document. Pure (json + numpy).
+
+Reads only the document written by :func:`converters.openlabel_annotations.add_annotations`
+(never internal state), so any annotated document can be exported.
+
+* One image record per (frame, camera), with the extra fields ``camera`` and ``frame``;
+  ``file_name`` is the image uri of the document, relative to the output folder that holds
+  the document (``images/<camera>/<frame:06d>.png``); the export records that folder as
+  ``info.image_root`` relative to the COCO file.
+* Categories: the sorted class names (catalog classes when given), ids 1, 2, ... in that order.
+* One annotation per visible object and camera: ``bbox`` ``[x, y, w, h]`` with the top-left
+  corner in COCO's pixel convention (pixel ``i`` covers ``[i, i + 1)``: OpenLABEL's centre
+  ``cx`` becomes ``x = cx - w / 2 + 0.5``), ``area`` = visible pixel count, ``iscrowd`` 0,
+  ``segmentation`` = one polygon per outer contour, its holes joined in by zero-width bridges
+  (COCO polygons cannot express holes otherwise), vertices shifted by +0.5 px into COCO's
+  convention. Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``.
+  Fully occluded objects (amodal box only) are not exported.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from converters.openlabel_annotations import image_records, label_classes, labels_in
+from usdscene import layout
+from usdscene.files import write_json_atomic
+from usdscene.labels import bridge_rings
+
+COCO_DIR = "coco"
+COCO_FILE = "annotations.json"
+
+
+def corner_box(center_size: list[float]) -> list[float]:
+    """OpenLABEL ``[cx, cy, w, h]`` (pixel centres at integers) → COCO ``[x, y, w, h]``."""
+    cx, cy, w, h = (float(v) for v in center_size)
+    return [cx - w / 2.0 + 0.5, cy - h / 2.0 + 0.5, w, h]
+
+
+def object_rings(polygons: list[dict]) -> list[np.ndarray]:
+    """One ring per outer contour, with that contour's holes bridged in; (N, 2) float64 each,
+    in the document's pixel-centre convention."""
+    rings = []
+    for index, poly in enumerate(polygons):
+        if poly["is_hole"]:
+            continue
+        parts = [np.asarray(poly["points"], dtype=np.float64).reshape(-1, 2)]
+        parts += [np.asarray(h["points"], dtype=np.float64).reshape(-1, 2)
+                  for h in polygons if h["is_hole"] and h["parent"] == index]
+        rings.append(bridge_rings(parts))
+    return rings
+
+
+def _coco_polygon(ring: np.ndarray) -> list[float]:
+    pts = ring + 0.5
+    if len(pts) < 3:  # single pixels and 1-px lines: pycocotools needs >= 3 vertices
+        pts = np.concatenate([pts, np.repeat(pts[-1:], 3 - len(pts), axis=0)])
+    return [round(float(v), 3) for v in pts.reshape(-1)]
+
+
+def coco_dataset(document: dict, classes: Iterable[str] | None = None) -> dict:
+    """The COCO dict (``info``, ``images``, ``annotations``, ``categories``) of a document."""
+    names = label_classes(document, classes)
+    category_ids = {name: k + 1 for k, name in enumerate(names)}
+    images, annotations = [], []
+    for image_id, record in enumerate(image_records(document), start=1):
+        images.append({"id": image_id, "file_name": record["uri"], "width": record["width_px"],
+                       "height": record["height_px"], "camera": record["camera"],
+                       "frame": record["frame"]})
+        for label in labels_in(document, record["frame"], record["camera"]):
+            if label["bbox"] is None or label["type"] not in category_ids:
+                continue
+            attrs = label["attributes"]
+            rings = object_rings(label["polygons"])
+            if rings:
+                segmentation = [_coco_polygon(r) for r in rings]
+            else:  # no polygon stored: the box outline
+                x, y, w, h = corner_box(label["bbox"])
+                segmentation = [[x, y, x + w, y, x + w, y + h, x, y + h]]
+            annotations.append({
+                "id": len(annotations) + 1, "image_id": image_id,
+                "category_id": category_ids[label["type"]],
+                "bbox": corner_box(label["bbox"]),
+                "area": float(attrs.get("pixel_count", label["bbox"][2] * label["bbox"][3])),
+                "segmentation": segmentation, "iscrowd": 0,
+                "uid": label["uid"],
+                "visible_fraction": attrs.get("visible_fraction"),
+                "truncated": bool(attrs.get("truncated", False)),
+                "amodal_bbox": corner_box(label["amodal_bbox"]) if label["amodal_bbox"] else None,
+            })
+    return {
+        "info": {"description": "usdscene export", "image_root": "../..",
+                 "bbox": "[x, y, w, h], top-left corner, pixel i covers [i, i + 1)"},
+        "images": images,
+        "annotations": annotations,
+        "categories": [{"id": category_ids[n], "name": n, "supercategory": "object"} for n in names],
+    }
+
+
+def export_coco(document: dict, out_dir: str | os.PathLike,
+                classes: Iterable[str] | None = None) -> Path:
+    """Write ``<out_dir>/exports/coco/annotations.json`` atomically; returns its path.
+
+    ``file_name`` of each image is relative to ``out_dir`` (``info.image_root`` = ``"../.."``
+    relative to the COCO file).
+    """
+    target = Path(out_dir) / layout.EXPORTS_DIR / COCO_DIR / COCO_FILE
+    return write_json_atomic(target, coco_dataset(document, classes))

@@ -1,0 +1,342 @@
+"""Write mask-derived labels into an OpenLABEL document. Pure (no pxr, no bpy).
+
+:func:`add_annotations` takes the scene's OpenLABEL document (the input, or what
+``write_openlabel`` made of the SceneSpec) and returns a new document with, per frame:
+
+* ``frames[f].frame_properties.streams[<camera>].uri``: the image, relative to the output folder
+  (``images/<camera>/<frame:06d>.png``; the document lives in that folder);
+* ``frames[f].frame_properties.usdscene.streams[<camera>]``: ``{"mask_uri", "width_px",
+  "height_px"}``, the 16-bit instance mask (``masks/<camera>/<frame:06d>.png``, 0 = background,
+  ids in the ``mask_id`` attributes) and the image size. The schema's ``stream`` object admits
+  no extra key, ``frame_properties`` does, hence this place.
+* ``frames[f].objects[<uid>].object_data``, per camera that sees the object:
+
+  - ``bbox`` named ``<camera>_bbox``: tight box of the visible pixels, ``[cx, cy, w, h]`` in
+    pixels with pixel centres at integer coordinates (the box spans whole pixels, so
+    ``w = x_max - x_min + 1``), ``coordinate_system`` = camera. Attributes: ``num``
+    ``visible_fraction`` (visible / amodal pixels, 0..1; absent when unknown), ``num``
+    ``pixel_count`` (visible pixels), ``boolean`` ``truncated``, ``vec`` ``amodal_bbox``
+    ([cx, cy, w, h] of the whole projection clipped to the image; absent when unknown),
+    ``num`` ``mask_id``.
+  - ``bbox`` named ``<camera>_amodal_bbox``: the whole projection clipped to the image, written
+    whenever it is known, *also for fully occluded objects* (which have no ``<camera>_bbox``).
+    Attributes: ``visible_fraction``, ``pixel_count``, ``amodal_pixel_count``, ``truncated``,
+    ``mask_id``.
+  - ``poly2d`` named ``<camera>_poly2d_<k>`` (k = 0, 1, ...): closed polygons
+    (``MODE_POLY2D_ABSOLUTE``, ``[x0, y0, x1, y1, ...]`` pixel centres of boundary pixels) of
+    the visible region; ``hierarchy`` = OpenCV's ``[next, previous, first_child, parent]`` with
+    indices k among the same camera's polygons (holes are children of their outer contour);
+    attribute ``boolean`` ``is_hole``.
+
+Every object gets ``object_data_pointers`` for these names (type, frame intervals,
+``attribute_pointers``), its ``frame_intervals`` are widened to the labelled frames, and the
+root ``frame_intervals`` is the union of all frames. ``metadata.usdscene_annotations`` records
+the conventions and the polygon tolerance. Relations are kept as given.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+from usdscene import layout
+from usdscene.errors import DocumentError, ProblemCollector
+from usdscene.labels import Annotations, ImageLabels, ObjectLabel
+from usdscene.model import FrameInterval, SceneSpec, union_intervals
+
+ANNOTATION_METADATA_KEY = "usdscene_annotations"
+FRAME_PROPERTIES_KEY = "usdscene"
+BBOX_SUFFIX = "_bbox"
+AMODAL_BBOX_SUFFIX = "_amodal_bbox"
+POLY2D_INFIX = "_poly2d_"
+POLY2D_MODE = "MODE_POLY2D_ABSOLUTE"
+
+_BBOX_ATTRIBUTES = {"visible_fraction": "num", "pixel_count": "num", "truncated": "boolean",
+                    "amodal_bbox": "vec", "mask_id": "num"}
+_AMODAL_ATTRIBUTES = {"visible_fraction": "num", "pixel_count": "num", "amodal_pixel_count": "num",
+                      "truncated": "boolean", "mask_id": "num"}
+_POLY_ATTRIBUTES = {"is_hole": "boolean"}
+
+
+def _relative_uri(path: Path, out_dir: str | os.PathLike) -> str:
+    return Path(os.path.relpath(path, out_dir)).as_posix()
+
+
+def bbox_name(camera: str) -> str:
+    return f"{camera}{BBOX_SUFFIX}"
+
+
+def amodal_bbox_name(camera: str) -> str:
+    return f"{camera}{AMODAL_BBOX_SUFFIX}"
+
+
+def poly2d_name(camera: str, index: int) -> str:
+    return f"{camera}{POLY2D_INFIX}{index}"
+
+
+def _attributes(values: dict[str, Any], kinds: dict[str, str]) -> dict:
+    out: dict[str, list] = {}
+    for name, kind in kinds.items():
+        value = values.get(name)
+        if value is None:
+            continue
+        out.setdefault(kind, []).append({"name": name, "val": value})
+    return out
+
+
+def _object_data(camera: str, label: ObjectLabel) -> dict[str, list]:
+    """OpenLABEL object data of one object in one camera (see the module docstring)."""
+    data: dict[str, list] = {}
+    amodal = list(label.amodal_box.center_size()) if label.amodal_box is not None else None
+    fraction = None if label.visible_fraction is None else round(float(label.visible_fraction), 6)
+    if label.box is not None:
+        values = {"visible_fraction": fraction, "pixel_count": int(label.pixel_count),
+                  "truncated": bool(label.truncated), "amodal_bbox": amodal, "mask_id": int(label.mask_id)}
+        data.setdefault("bbox", []).append({
+            "name": bbox_name(camera), "val": list(label.box.center_size()),
+            "coordinate_system": camera, "attributes": _attributes(values, _BBOX_ATTRIBUTES)})
+    if label.amodal_box is not None:
+        values = {"visible_fraction": fraction, "pixel_count": int(label.pixel_count),
+                  "amodal_pixel_count": label.amodal_pixel_count,
+                  "truncated": bool(label.truncated), "mask_id": int(label.mask_id)}
+        data.setdefault("bbox", []).append({
+            "name": amodal_bbox_name(camera), "val": amodal,
+            "coordinate_system": camera, "attributes": _attributes(values, _AMODAL_ATTRIBUTES)})
+    contours = label.contours
+    for k, contour in enumerate(contours):
+        children = [j for j, c in enumerate(contours) if c.is_hole and c.parent == k]
+        same_level = [j for j, c in enumerate(contours) if c.is_hole == contour.is_hole
+                      and (not contour.is_hole or c.parent == contour.parent)]
+        pos = same_level.index(k)
+        nxt = same_level[pos + 1] if pos + 1 < len(same_level) else -1
+        prev = same_level[pos - 1] if pos > 0 else -1
+        data.setdefault("poly2d", []).append({
+            "name": poly2d_name(camera, k), "val": contour.flat(), "mode": POLY2D_MODE,
+            "closed": True, "coordinate_system": camera,
+            "hierarchy": [nxt, prev, children[0] if children else -1, int(contour.parent)],
+            "attributes": {"boolean": [{"name": "is_hole", "val": bool(contour.is_hole)}]}})
+    return data
+
+
+def _pointer_type_attrs(name: str, kind: str) -> dict[str, str]:
+    if kind == "poly2d":
+        return _POLY_ATTRIBUTES
+    return _AMODAL_ATTRIBUTES if name.endswith(AMODAL_BBOX_SUFFIX) else _BBOX_ATTRIBUTES
+
+
+def _intervals_json(frames: Iterable[int]) -> list[dict]:
+    return [{"frame_start": iv.frame_start, "frame_end": iv.frame_end}
+            for iv in union_intervals(FrameInterval(f, f) for f in frames)]
+
+
+def _intervals_of(raw: Any) -> list[FrameInterval]:
+    out = []
+    for item in raw or ():
+        if isinstance(item, dict) and "frame_start" in item and "frame_end" in item:
+            out.append(FrameInterval(int(item["frame_start"]), int(item["frame_end"])))
+    return out
+
+
+def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
+                    out_dir: str | os.PathLike) -> dict:
+    """The document plus per-frame image/mask uris and per-camera labels (a new dict).
+
+    Args:
+        document: ``{"openlabel": {...}}`` of the scene (not modified).
+        scene: the SceneSpec it describes (camera names, object classes).
+        annotations: labels of every labelled (frame, camera).
+        out_dir: the output folder; uris are relative to it (the document is written there).
+
+    Returns:
+        A new ``{"openlabel": {...}}`` dict; see the module docstring for where things go.
+
+    Raises:
+        DocumentError: a label names a camera or object uid the document does not have.
+    """
+    result = copy.deepcopy(document)
+    root = result.get("openlabel")
+    if not isinstance(root, dict):
+        raise DocumentError("expected an object with an 'openlabel' object", where="openlabel")
+    objects = root.setdefault("objects", {})
+    frames = root.setdefault("frames", {})
+    cameras = {c.name for c in scene.cameras}
+    problems = ProblemCollector()
+    # name → (type, frames) per object, for the data pointers.
+    pointer_frames: dict[str, dict[str, tuple[str, set[int]]]] = {}
+    for image in annotations.images:
+        if image.camera not in cameras:
+            problems.add(f"annotations.{image.camera}", f"camera {image.camera!r} is not a camera of the scene")
+            continue
+        frame = frames.setdefault(str(int(image.frame)), {})
+        props = frame.setdefault("frame_properties", {})
+        streams = props.setdefault("streams", {})
+        streams.setdefault(image.camera, {})["uri"] = _relative_uri(
+            layout.image_path(out_dir, image.camera, image.frame), out_dir)
+        ours = props.setdefault(FRAME_PROPERTIES_KEY, {}).setdefault("streams", {})
+        ours[image.camera] = {"mask_uri": _relative_uri(layout.mask_path(out_dir, image.camera, image.frame), out_dir),
+                              "width_px": int(image.width_px), "height_px": int(image.height_px)}
+        for label in image.objects:
+            if label.uid not in objects:
+                problems.add(f"openlabel.objects.{label.uid}",
+                             f"labelled object uid {label.uid!r} is not an object of the document")
+                continue
+            data = _object_data(image.camera, label)
+            if not data:
+                continue
+            frame_objects = frame.setdefault("objects", {})
+            object_data = frame_objects.setdefault(label.uid, {}).setdefault("object_data", {})
+            pointers = pointer_frames.setdefault(label.uid, {})
+            for kind, items in data.items():
+                existing = object_data.setdefault(kind, [])
+                replaced = {item["name"] for item in items}
+                existing[:] = [e for e in existing if e.get("name") not in replaced] + items
+                for item in items:
+                    pointers.setdefault(item["name"], (kind, set()))[1].add(int(image.frame))
+    problems.raise_if_any(DocumentError)
+
+    for uid, names in pointer_frames.items():
+        element = objects[uid]
+        ptrs = element.setdefault("object_data_pointers", {})
+        all_frames: set[int] = set()
+        for name, (kind, data_frames) in sorted(names.items()):
+            all_frames |= data_frames
+            ptrs[name] = {"type": kind, "frame_intervals": _intervals_json(data_frames),
+                          "attribute_pointers": dict(_pointer_type_attrs(name, kind))}
+        widened = union_intervals([*_intervals_of(element.get("frame_intervals")),
+                                   *(FrameInterval(f, f) for f in all_frames)])
+        element["frame_intervals"] = [{"frame_start": iv.frame_start, "frame_end": iv.frame_end}
+                                      for iv in widened]
+
+    frame_numbers = [int(k) for k in frames if str(k).lstrip("-").isdigit()]
+    root["frame_intervals"] = [
+        {"frame_start": iv.frame_start, "frame_end": iv.frame_end}
+        for iv in union_intervals([*_intervals_of(root.get("frame_intervals")),
+                                   *(FrameInterval(f, f) for f in frame_numbers)])]
+    metadata = root.setdefault("metadata", {"schema_version": "1.0.0"})
+    metadata.setdefault("schema_version", "1.0.0")
+    metadata[ANNOTATION_METADATA_KEY] = {
+        "pixel_convention": "pixel centres at integer coordinates, x right, y down",
+        "bbox": "[cx, cy, w, h] in pixels; the box spans whole pixels (w = x_max - x_min + 1)",
+        "poly2d": "closed polygons through boundary pixel centres; hierarchy = OpenCV "
+                  "[next, previous, first_child, parent] among the camera's polygons",
+        "polygon_epsilon_px": float(annotations.epsilon_px),
+        "min_visible_fraction": float(annotations.min_visible_fraction),
+        "mask_uris": f"frames.<f>.frame_properties.{FRAME_PROPERTIES_KEY}.streams.<camera>.mask_uri",
+    }
+    return result
+
+
+# --------------------------------------------------------------------------------------------
+# Reading the labels back (used by the exporters, which work from the document only)
+
+
+def image_records(document: dict) -> list[dict]:
+    """Every labelled image of an annotated document, sorted by (frame, camera).
+
+    Returns:
+        Dicts ``{"frame": int, "camera": str, "uri": str, "mask_uri": str | None,
+        "width_px": int, "height_px": int}``.
+
+    Raises:
+        DocumentError: an image record has no size (neither in ``frame_properties.usdscene``
+            nor in the stream's intrinsics).
+    """
+    root = document.get("openlabel", {})
+    streams = root.get("streams", {})
+    problems = ProblemCollector()
+    records = []
+    for key, frame in root.get("frames", {}).items():
+        props = frame.get("frame_properties", {}) or {}
+        ours = (props.get(FRAME_PROPERTIES_KEY) or {}).get("streams", {})
+        for camera, stream in (props.get("streams") or {}).items():
+            if "uri" not in stream:
+                continue
+            extra = ours.get(camera, {})
+            width, height = extra.get("width_px"), extra.get("height_px")
+            if width is None or height is None:
+                width, height = _stream_size(streams.get(camera, {}))
+            if width is None or height is None:
+                problems.add(f"openlabel.frames.{key}.frame_properties.streams.{camera}",
+                             f"image {stream['uri']!r} has no known size")
+                continue
+            records.append({"frame": int(key), "camera": camera, "uri": stream["uri"],
+                            "mask_uri": extra.get("mask_uri"), "width_px": int(width),
+                            "height_px": int(height)})
+    problems.raise_if_any(DocumentError)
+    return sorted(records, key=lambda r: (r["frame"], r["camera"]))
+
+
+def _stream_size(stream: dict) -> tuple[int | None, int | None]:
+    props = stream.get("stream_properties", {}) or {}
+    for key in ("intrinsics_pinhole", "intrinsics_fisheye", "intrinsics_custom"):
+        intr = props.get(key)
+        if isinstance(intr, dict) and "width_px" in intr and "height_px" in intr:
+            return int(intr["width_px"]), int(intr["height_px"])
+    return None, None
+
+
+def labels_in(document: dict, frame: int, camera: str) -> list[dict]:
+    """Labels of one image read back from an annotated document, sorted by mask id then uid.
+
+    Returns:
+        Dicts ``{"uid", "type", "name", "bbox": [cx, cy, w, h] | None, "amodal_bbox": ... | None,
+        "polygons": [{"points": [x0, y0, ...], "is_hole": bool, "parent": int}],
+        "attributes": {name: value}}``; ``attributes`` merges those of the visible and amodal boxes.
+    """
+    root = document.get("openlabel", {})
+    objects = root.get("objects", {})
+    frame_objects = (root.get("frames", {}).get(str(int(frame)), {}) or {}).get("objects", {}) or {}
+    out = []
+    for uid, entry in frame_objects.items():
+        data = (entry or {}).get("object_data", {}) or {}
+        bbox = amodal = None
+        attributes: dict[str, Any] = {}
+        for item in data.get("bbox", []):
+            if item.get("name") == amodal_bbox_name(camera):
+                amodal = list(item["val"])
+            elif item.get("name") == bbox_name(camera):
+                bbox = list(item["val"])
+            else:
+                continue
+            for kind_items in (item.get("attributes") or {}).values():
+                for attr in kind_items:
+                    attributes.setdefault(attr["name"], attr["val"])
+        polygons = []
+        prefix = f"{camera}{POLY2D_INFIX}"
+        for item in data.get("poly2d", []):
+            name = item.get("name", "")
+            if not name.startswith(prefix) or not name[len(prefix):].isdigit():
+                continue
+            hierarchy = item.get("hierarchy") or [-1, -1, -1, -1]
+            polygons.append((int(name[len(prefix):]), {
+                "points": [float(v) for v in item["val"]], "parent": int(hierarchy[3]),
+                "is_hole": int(hierarchy[3]) >= 0}))
+        if bbox is None and amodal is None and not polygons:
+            continue
+        element = objects.get(uid, {})
+        out.append({"uid": uid, "type": element.get("type", ""), "name": element.get("name", ""),
+                    "bbox": bbox, "amodal_bbox": amodal,
+                    "polygons": [p for _, p in sorted(polygons, key=lambda kp: kp[0])],
+                    "attributes": attributes})
+    return sorted(out, key=lambda o: (o["attributes"].get("mask_id", 0), o["uid"]))
+
+
+def label_classes(document: dict, classes: Iterable[str] | None = None) -> list[str]:
+    """Class names of an export, sorted (their order gives COCO ids 1.. and YOLO ids 0..).
+
+    Args:
+        document: annotated document.
+        classes: the catalog's labelled classes (object and passenger kinds); None = the
+            types of the document's objects that carry at least one label.
+    """
+    if classes is not None:
+        return sorted(set(classes))
+    root = document.get("openlabel", {})
+    found = set()
+    for uid, element in root.get("objects", {}).items():
+        pointers = element.get("object_data_pointers") or {}
+        if any(name.endswith(BBOX_SUFFIX) or POLY2D_INFIX in name for name in pointers):
+            found.add(element.get("type", ""))
+    return sorted(found)

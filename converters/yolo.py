@@ -1,0 +1,119 @@
+"""YOLO (Ultralytics layout) export of an annotated OpenLABEL document. Pure (no pxr, bpy).
+
+Two datasets side by side, because a YOLO label file is found from its image path by
+replacing the last ``images`` folder with ``labels``::
+
+    exports/yolo/detect/data.yaml
+    exports/yolo/detect/images/<camera>/<frame:06d>.png   link (or copy) of the rendered image
+    exports/yolo/detect/labels/<camera>/<frame:06d>.txt   "<class> <cx> <cy> <w> <h>"
+    exports/yolo/segment/...                              "<class> <x1> <y1> <x2> <y2> ..."
+
+Values are normalised to [0, 1] by the image width and height, with YOLO's pixel convention
+(pixel ``i`` covers ``[i, i + 1)``, so OpenLABEL's pixel-centre coordinates gain 0.5 px).
+Class ids are 0, 1, ... in sorted class-name order (:func:`label_classes`). A segmentation line
+holds one polygon per object: the parts and holes of the visible region joined by zero-width
+bridges. Images without visible objects get an empty label file (a background image).
+Fully occluded objects are not exported.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from converters.coco import corner_box, object_rings
+from converters.openlabel_annotations import image_records, label_classes, labels_in
+from usdscene import layout
+from usdscene.files import write_bytes_atomic, write_text_atomic
+from usdscene.labels import bridge_rings
+
+log = logging.getLogger(__name__)
+
+YOLO_DIR = "yolo"
+TASKS = ("detect", "segment")
+
+
+def _fmt(values: Iterable[float]) -> str:
+    return " ".join(f"{min(1.0, max(0.0, float(v))):.6f}" for v in values)
+
+
+def yolo_lines(document: dict, frame: int, camera: str, width_px: int, height_px: int,
+               class_ids: dict[str, int]) -> tuple[list[str], list[str]]:
+    """Detection and segmentation label lines of one image."""
+    detect, segment = [], []
+    scale = np.array([width_px, height_px], dtype=np.float64)
+    for label in labels_in(document, frame, camera):
+        if label["bbox"] is None or label["type"] not in class_ids:
+            continue
+        cls = class_ids[label["type"]]
+        x, y, w, h = corner_box(label["bbox"])
+        detect.append(f"{cls} " + _fmt([(x + w / 2) / width_px, (y + h / 2) / height_px,
+                                         w / width_px, h / height_px]))
+        rings = object_rings(label["polygons"])
+        if rings:
+            ring = bridge_rings(rings) + 0.5
+        else:
+            ring = np.array([[x, y], [x + w, y], [x + w, y + h], [x, y + h]])
+        if len(ring) < 3:
+            ring = np.concatenate([ring, np.repeat(ring[-1:], 3 - len(ring), axis=0)])
+        segment.append(f"{cls} " + _fmt((ring / scale).reshape(-1)))
+    return detect, segment
+
+
+def _link_or_copy(source: Path, target: Path) -> None:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if target.is_symlink() or target.exists():
+        target.unlink()
+    try:
+        target.symlink_to(os.path.relpath(source, target.parent))
+    except OSError:  # file systems without symlinks
+        shutil.copyfile(source, target)
+
+
+def export_yolo(document: dict, out_dir: str | os.PathLike, classes: Iterable[str] | None = None, *,
+                link_images: bool = True) -> Path:
+    """Write the detection and segmentation datasets under ``<out_dir>/exports/yolo``.
+
+    Args:
+        document: annotated OpenLABEL document.
+        out_dir: the output folder holding the document and ``images/``.
+        classes: class names (catalog); None = the labelled types of the document.
+        link_images: link (relative symlink, copy where impossible) each image into the
+            dataset; False writes labels and ``data.yaml`` only.
+
+    Returns:
+        The ``exports/yolo`` folder.
+    """
+    out = Path(out_dir)
+    root = out / layout.EXPORTS_DIR / YOLO_DIR
+    names = label_classes(document, classes)
+    class_ids = {name: k for k, name in enumerate(names)}
+    for record in image_records(document):
+        detect, segment = yolo_lines(document, record["frame"], record["camera"],
+                                     record["width_px"], record["height_px"], class_ids)
+        stem = Path(record["camera"]) / Path(record["uri"]).stem
+        for task, lines in zip(TASKS, (detect, segment)):
+            write_text_atomic(root / task / "labels" / stem.with_suffix(".txt"),
+                              "".join(line + "\n" for line in lines))
+            if link_images:
+                source = out / record["uri"]
+                if source.exists():
+                    _link_or_copy(source, root / task / "images" / stem.with_suffix(Path(record["uri"]).suffix))
+                else:
+                    log.warning("image %s is missing; labels written without it", source)
+    for task in TASKS:
+        # No "path" key: Ultralytics then resolves train/val against this file's folder.
+        yaml = ["# usdscene export: every rendered image; split train/val by camera or frame as needed",
+                "train: images", "val: images", f"task: {task}", "names:"]
+        yaml += [f"  {k}: {_yaml_string(name)}" for k, name in enumerate(names)]
+        write_bytes_atomic(root / task / "data.yaml", ("\n".join(yaml) + "\n").encode("utf-8"))
+    return root
+
+
+def _yaml_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
