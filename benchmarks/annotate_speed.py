@@ -1,0 +1,109 @@
+"""How long labelling one image takes (mask → boxes, polygons, visibility).
+
+A 640x480 uint16 instance mask with 60 overlapping objects (ellipses and rotated boxes, some
+with holes, drawn far to near so that later ones occlude earlier ones) plus each object's
+amodal mask; then the amodal rasterisation of a 960-triangle mesh (UV sphere) per object
+through a pinhole camera.
+
+    python benchmarks/annotate_speed.py [--repeat 50] [--objects 60]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import cv2
+import numpy as np
+
+from usdscene.labels import DEFAULT_EPSILON_PX, amodal_projection, label_image
+from usdscene.model import Camera, Intrinsics, LensModel
+
+W, H = 640, 480
+
+
+def synthetic_image(objects: int, seed: int = 0) -> tuple[np.ndarray, dict[int, str], dict[str, np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((H, W), np.uint16)
+    amodal = {}
+    for k in range(1, objects + 1):
+        layer = np.zeros((H, W), np.uint8)
+        cx, cy = int(rng.integers(0, W)), int(rng.integers(0, H))
+        ax, ay = int(rng.integers(10, 70)), int(rng.integers(10, 70))
+        if k % 2:
+            cv2.ellipse(layer, (cx, cy), (ax, ay), float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        else:
+            box = cv2.boxPoints(((cx, cy), (2 * ax, 2 * ay), float(rng.uniform(0, 90))))
+            cv2.fillPoly(layer, [np.round(box).astype(np.int32)], 1)
+        if k % 5 == 0:  # a hole
+            cv2.circle(layer, (cx, cy), min(ax, ay) // 2, 0, -1)
+        region = layer.astype(bool)
+        amodal[str(k)] = region
+        mask[region] = k
+    return mask, {k: str(k) for k in range(1, objects + 1)}, amodal
+
+
+def uv_sphere(radius_m: float, rings: int = 16, segments: int = 32) -> np.ndarray:
+    """(T, 3, 3) triangles of a UV sphere; T = 2 * segments * (rings - 1)."""
+    theta = np.linspace(0, np.pi, rings + 1)
+    phi = np.linspace(0, 2 * np.pi, segments + 1)
+    p = radius_m * np.stack([np.sin(theta)[:, None] * np.cos(phi)[None, :],
+                             np.sin(theta)[:, None] * np.sin(phi)[None, :],
+                             np.cos(theta)[:, None] * np.ones_like(phi)[None, :]], axis=-1)
+    tris = []
+    for i in range(rings):
+        for j in range(segments):
+            a, b, c, d = p[i, j], p[i + 1, j], p[i + 1, j + 1], p[i, j + 1]
+            if i > 0:
+                tris.append((a, b, d))
+            if i < rings - 1:
+                tris.append((b, c, d))
+    return np.array(tris)
+
+
+def timed(fn, repeat: int) -> tuple[float, float]:
+    fn()  # warm-up
+    samples = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    return statistics.median(samples) * 1e3, min(samples) * 1e3
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=50)
+    parser.add_argument("--objects", type=int, default=60)
+    args = parser.parse_args()
+    mask, ids, amodal = synthetic_image(args.objects)
+    visible = sum(1 for k in ids if (mask == k).any())
+    print(f"image {W}x{H}, {args.objects} objects ({visible} visible), repeat {args.repeat}; "
+          f"median / best in ms")
+    for title, kwargs in [
+        (f"label_image, mask only, epsilon {DEFAULT_EPSILON_PX}", {}),
+        (f"label_image + amodal masks, epsilon {DEFAULT_EPSILON_PX}", {"amodal_masks": amodal}),
+        ("label_image + amodal masks, epsilon 0 (exact)", {"amodal_masks": amodal, "epsilon_px": 0}),
+    ]:
+        median, best = timed(lambda: label_image(mask, ids, **kwargs), args.repeat)
+        print(f"  {title:55s} {median:7.2f} / {best:6.2f}")
+
+    camera = Camera("cam", Intrinsics(LensModel.PERSPECTIVE, W, H, 500.0, 500.0, (W - 1) / 2, (H - 1) / 2))
+    sphere = uv_sphere(0.15)
+    rng = np.random.default_rng(1)
+    centres = np.stack([rng.uniform(-1.5, 1.5, args.objects), rng.uniform(-1.0, 1.0, args.objects),
+                        rng.uniform(2.0, 6.0, args.objects)], axis=1)
+    meshes = [sphere + c for c in centres]
+    repeat = max(3, args.repeat // 10)
+    median, best = timed(lambda: [amodal_projection(camera, m) for m in meshes], repeat)
+    print(f"  {'amodal_projection, %d objects x %d triangles' % (args.objects, len(sphere)):55s} "
+          f"{median:7.2f} / {best:6.2f}")
+    distorted = Camera("cam", Intrinsics(LensModel.OPENCV_PINHOLE, W, H, 500.0, 500.0, (W - 1) / 2,
+                                         (H - 1) / 2, distortion=(-0.25, 0.07, 0.0, 0.0, 0.0)))
+    median, best = timed(lambda: [amodal_projection(distorted, m) for m in meshes], repeat)
+    print(f"  {'  same, OpenCV pinhole with distortion (subdivision)':55s} {median:7.2f} / {best:6.2f}")
+
+
+if __name__ == "__main__":
+    main()
