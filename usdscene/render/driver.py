@@ -1,0 +1,364 @@
+"""The parent side of rendering: plan shards, run worker processes, track progress, resume.
+
+The driver never imports ``bpy``. It reads the stage with pxr (:mod:`stage_reader`), decides
+which (frame, camera) pairs are missing (:mod:`manifest`), cuts them into shards of
+consecutive frames, writes one JSON job per shard and runs ``python -m usdscene.render.worker
+JOB`` for each, reading the worker's progress lines from its stdout.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from usdscene import __version__, layout
+from usdscene.errors import Problem, RenderError
+from usdscene.files import write_json_atomic
+from usdscene.model import LensModel, RenderSettings
+from usdscene.projection import NATIVE_LENSES, undistorted_render_intrinsics
+from usdscene.render.job import intrinsics_to_json
+from usdscene.render.manifest import Manifest, fingerprint
+
+log = logging.getLogger(__name__)
+
+ENGINES = ("cycles", "eevee", "workbench")
+# Settings the worker knows beyond RenderSettings (benchmarked in benchmarks/render_settings.py).
+EXTRA_SETTINGS = {"denoising_quality": "FAST", "denoising_prefilter": "FAST"}
+
+
+@dataclass(frozen=True)
+class RenderReport:
+    """What a :func:`render` call did.
+
+    Attributes:
+        out_dir: the output folder.
+        pairs_total: (frame, camera) pairs requested.
+        pairs_rendered: pairs rendered by this call.
+        pairs_skipped: pairs already finished by an earlier run (from the manifest).
+        wall_s: wall-clock seconds of the call.
+        render_s: sum over rendered pairs of Blender's render call (path tracing, denoising,
+            scene update and EXR write), seconds.
+        post_s: sum of EXR decoding, remapping and PNG writing in the worker, seconds.
+        import_s: sum of USD import time over workers, seconds.
+        startup_s: sum of worker start-up time before the first image (process start, bpy
+            import, USD import, scene setup), seconds.
+    """
+
+    out_dir: Path
+    pairs_total: int
+    pairs_rendered: int
+    pairs_skipped: int
+    wall_s: float
+    render_s: float
+    post_s: float
+    import_s: float
+    startup_s: float
+
+
+def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[str, Any] | None) -> dict:
+    """Render settings as the worker's JSON dict: ``base`` updated by ``override`` (a whole
+    RenderSettings, or a mapping of RenderSettings fields and the extra knobs
+    ``denoising_quality`` / ``denoising_prefilter``).
+
+    Raises:
+        RenderError: an unknown key or an impossible value, every problem listed.
+    """
+    problems: list[Problem] = []
+    settings = dict(dataclasses.asdict(base), **EXTRA_SETTINGS)
+    if isinstance(override, RenderSettings):
+        settings.update(dataclasses.asdict(override))
+    elif override:
+        for key, value in override.items():
+            if key not in settings:
+                problems.append(Problem(f"render.{key}", f"unknown render setting {key!r}; known: {sorted(settings)}"))
+                continue
+            settings[key] = value
+    settings["resolution_px"] = list(settings["resolution_px"])
+    if settings["engine"] not in ENGINES:
+        problems.append(Problem("render.engine", f"engine {settings['engine']!r} is not one of {list(ENGINES)}"))
+    elif settings["engine"] != "cycles":
+        problems.append(Problem("render.engine",
+                                f"engine {settings['engine']!r} cannot write the object-index pass that exact "
+                                "instance masks come from; use 'cycles' (Eevee and Workbench have no such pass)"))
+    if settings["device"] not in ("cpu", "gpu"):
+        problems.append(Problem("render.device", f"device {settings['device']!r} is not 'cpu' or 'gpu'"))
+    if int(settings["samples"]) < 1:
+        problems.append(Problem("render.samples", f"samples {settings['samples']!r} must be at least 1"))
+    if int(settings["max_bounces"]) < 0:
+        problems.append(Problem("render.max_bounces", f"max_bounces {settings['max_bounces']!r} must be >= 0"))
+    if int(settings["tile_size_px"]) < 8:
+        problems.append(Problem("render.tile_size_px", f"tile_size_px {settings['tile_size_px']!r} must be >= 8"))
+    if settings["denoiser"] not in ("openimagedenoise", "optix"):
+        problems.append(Problem("render.denoiser", f"denoiser {settings['denoiser']!r} is not 'openimagedenoise' or 'optix'"))
+    for key, allowed in (("denoising_quality", ("HIGH", "BALANCED", "FAST")),
+                         ("denoising_prefilter", ("NONE", "FAST", "ACCURATE"))):
+        if settings[key] not in allowed:
+            problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
+    if problems:
+        raise RenderError(problems)
+    return settings
+
+
+def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = None,
+           cameras: Sequence[str] | None = None,
+           settings_override: RenderSettings | Mapping[str, Any] | None = None,
+           progress: bool = True, workers: int = 1,
+           on_event: Callable[[dict], None] | None = None) -> RenderReport:
+    """Render every requested camera of every requested frame of a composed stage.
+
+    Writes ``out/images/<camera>/<frame:06d>.png`` (8-bit sRGB), ``out/masks/<camera>/
+    <frame:06d>.png`` (uint16 ids, 0 = background), ``out/masks/ids.json`` and
+    ``out/manifest.json``; pairs a previous run finished are skipped.
+
+    Args:
+        stage_path: root layer of the composed stage (``out/stage/scene.usda``).
+        out_dir: output folder.
+        frames: frames to render (default: the stage's whole range).
+        cameras: camera names (default: every camera under ``/World/Cameras``).
+        settings_override: RenderSettings or a mapping of fields that win over the stage's.
+        progress: show a ``rich`` progress bar on stderr.
+        workers: worker processes run side by side, each on a block of frames (each imports
+            only the objects its frames show); CPU threads are split between them.
+        on_event: called with every progress event of the workers (dicts), in the parent.
+
+    Returns:
+        A :class:`RenderReport`.
+
+    Raises:
+        RenderError: bad selection or settings, or a worker failed (finished pairs are kept
+            and a re-run resumes).
+    """
+    from usdscene.render.stage_reader import read_stage_plan
+
+    started = time.perf_counter()
+    out_dir = Path(out_dir)
+    plan = read_stage_plan(stage_path)
+    settings = resolve_settings(plan.settings, settings_override)
+    problems: list[Problem] = []
+    frame_list = list(plan.frames) if frames is None else [int(f) for f in frames]
+    for f in frame_list:
+        if f not in plan.frames:
+            problems.append(Problem("frames", f"frame {f} is outside the stage's range "
+                                              f"{plan.frame_start}..{plan.frame_end}"))
+    by_name = {c.name: c for c in plan.cameras}
+    camera_list = list(by_name) if cameras is None else list(cameras)
+    for name in camera_list:
+        if name not in by_name:
+            problems.append(Problem("cameras", f"camera {name!r} is not in the stage; cameras: {sorted(by_name)}"))
+    if not by_name:
+        problems.append(Problem(str(stage_path), "the stage has no camera under /World/Cameras"))
+    if problems:
+        raise RenderError(problems)
+
+    cam_json = {}
+    for name in camera_list:
+        cam = by_name[name]
+        intr = cam.intrinsics
+        render_intr = intr if intr.lens in NATIVE_LENSES and _centred(intr) else undistorted_render_intrinsics(intr)
+        cam_json[name] = {
+            "intrinsics": intrinsics_to_json(intr),
+            "render_intrinsics": intrinsics_to_json(render_intr),
+            "pose": list(cam.pose.matrix),
+            "poses": {str(f): list(p.matrix) for f, p in cam.frame_poses if f in set(frame_list)},
+            "clip_m": [cam.clip_near_m, cam.clip_far_m],
+        }
+    print_settings = {k: v for k, v in settings.items() if k != "device"}
+    manifest = Manifest.load(out_dir, fingerprint({
+        "stage": _stage_digest(plan.stage_path), "settings": print_settings,
+        "cameras": {n: {k: v for k, v in c.items()} for n, c in cam_json.items()},
+        "objects": [dataclasses.asdict(o) for o in plan.objects],
+    }))
+    manifest.versions = {"usdscene": __version__}
+    todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
+    total = len(frame_list) * len(camera_list)
+    skipped = total - len(todo)
+    write_json_atomic(out_dir / layout.ID_MAP_FILE, {
+        str(o.mask_id): {"uid": o.uid, "class": o.class_name, "prim": o.prim_path} for o in plan.objects})
+
+    totals = {"render_s": 0.0, "post_s": 0.0, "import_s": 0.0, "startup_s": 0.0, "rendered": 0}
+    if todo:
+        shards = _shards(todo, max(1, int(workers)))
+        threads = max(1, (os.cpu_count() or 1) // len(shards)) if len(shards) > 1 else None
+        scratch = Path(tempfile.mkdtemp(prefix="usdscene-render-", dir=_scratch_root()))
+        lock = threading.Lock()
+        bar = _Progress(total, skipped, enabled=progress)
+        try:
+            jobs = []
+            for index, pairs in enumerate(shards):
+                shard_frames = sorted({f for f, _ in pairs})
+                frame_set = set(shard_frames)
+                objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
+                            "visible_frames": [f for f in o.visible_frames if f in frame_set]}
+                           for o in plan.objects if frame_set.intersection(o.visible_frames)]
+                mask = list(plan.shared_prims) + [o["prim"] for o in objects]
+                job = {
+                    "stage": str(plan.stage_path),
+                    "out_dir": str(out_dir.resolve()),
+                    "scratch_dir": str(scratch),
+                    # An empty mask would import everything: name a path that cannot exist.
+                    "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",
+                    "settings": settings,
+                    "threads": threads,
+                    "objects": objects,
+                    "cameras": {c: cam_json[c] for c in sorted({c for _, c in pairs})},
+                    "pairs": [[f, c] for f, c in pairs],
+                }
+                job_path = scratch / f"job-{index}.json"
+                job_path.write_text(json.dumps(job))
+                jobs.append(job_path)
+
+            def handle(event: dict) -> None:
+                with lock:
+                    if event.get("event") == "done":
+                        manifest.mark_done(int(event["frame"]), event["camera"],
+                                           {k: event[k] for k in ("render_s", "post_s")})
+                        manifest.save()
+                        totals["render_s"] += event["render_s"]
+                        totals["post_s"] += event["post_s"]
+                        totals["rendered"] += 1
+                        bar.advance()
+                    elif event.get("event") == "imported":
+                        totals["import_s"] += event["seconds"]
+                        if event.get("missing_count"):
+                            log.warning("%d objects of the stage were not found after the USD import, "
+                                        "e.g. %s", event["missing_count"], event["missing_uids"])
+                    elif event.get("event") == "warning":
+                        log.warning("%s", event.get("message"))
+                    if on_event is not None:
+                        on_event(event)
+
+            with bar:
+                errors = _run_workers(jobs, scratch, handle, totals)
+        finally:
+            manifest.timings = {"wall_s": round(time.perf_counter() - started, 3),
+                                "render_s": round(totals["render_s"], 3)}
+            manifest.save()
+            shutil.rmtree(scratch, ignore_errors=True)
+        if errors:
+            raise RenderError([Problem(str(stage_path), e) for e in errors])
+    else:
+        manifest.save()
+    return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
+                        totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"])
+
+
+def _centred(intr) -> bool:
+    """Native fisheyes render with a centred principal point only (Cycles ignores lens shift
+    for panoramic cameras); other native lenses take any principal point."""
+    if intr.lens not in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
+        return True
+    return (abs(intr.cx_px - (intr.width_px - 1) / 2) < 1e-6 and abs(intr.cy_px - (intr.height_px - 1) / 2) < 1e-6
+            and abs(intr.fx_px - intr.fy_px) < 1e-9 * intr.fx_px)
+
+
+def _scratch_root() -> str | None:
+    return "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+
+
+def _stage_digest(stage_path: Path) -> str:
+    """Digest of every USD layer file beside the root layer (the composed stage's layers)."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    folder = Path(stage_path).parent
+    for path in sorted(folder.glob("*.usd*")):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _shards(pairs: list[tuple[int, str]], count: int) -> list[list[tuple[int, str]]]:
+    """Split pairs (in frame order) into at most ``count`` blocks of consecutive frames."""
+    frames = sorted({f for f, _ in pairs})
+    count = min(count, len(frames))
+    blocks = [frames[i * len(frames) // count:(i + 1) * len(frames) // count] for i in range(count)]
+    return [[p for p in pairs if p[0] in set(block)] for block in blocks if block]
+
+
+def _run_workers(jobs: list[Path], scratch: Path, handle, totals) -> list[str]:
+    """Run one worker process per job side by side; return error messages."""
+    errors: list[str] = []
+    threads = []
+
+    def run(job_path: Path) -> None:
+        log_path = scratch / (job_path.stem + ".log")
+        t0 = time.perf_counter()
+        first = True
+        with open(log_path, "w") as log_file:
+            proc = subprocess.Popen([sys.executable, "-m", "usdscene.render.worker", str(job_path)],
+                                    stdout=subprocess.PIPE, stderr=log_file, text=True, bufsize=1)
+            tail: deque[str] = deque(maxlen=20)
+            failed = None
+            try:
+                for line in proc.stdout:
+                    if not line.startswith("@usdscene "):
+                        tail.append(line.rstrip())
+                        log_file.write(line)
+                        continue
+                    event = json.loads(line[len("@usdscene "):])
+                    if event.get("event") == "done" and first:
+                        first = False
+                        totals["startup_s"] += time.perf_counter() - t0 - event["render_s"] - event["post_s"]
+                    if event.get("event") == "error":
+                        failed = event.get("message")
+                    handle(event)
+            finally:
+                code = proc.wait()
+        if code != 0:
+            log_file_tail = log_path.read_text(errors="replace").splitlines()[-10:]
+            detail = failed or "; ".join(log_file_tail[-5:]) or f"exit code {code}"
+            errors.append(f"render worker ({job_path.name}) failed: {detail}")
+
+    for job in jobs:
+        thread = threading.Thread(target=run, args=(job,), daemon=True)
+        thread.start()
+        threads.append(thread)
+    for thread in threads:
+        thread.join()
+    return errors
+
+
+class _Progress:
+    """A rich progress bar over frames × cameras (images/s and ETA), or nothing."""
+
+    def __init__(self, total: int, done: int, enabled: bool) -> None:
+        self.enabled = enabled
+        self.total, self.done = total, done
+        self._progress = None
+
+    def __enter__(self):
+        if self.enabled:
+            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                                       TimeElapsedColumn, TimeRemainingColumn)
+
+            class _Rate(TextColumn):
+                def render(self, task):
+                    speed = task.finished_speed or task.speed
+                    return f"{speed:.2f} images/s" if speed else "… images/s"
+
+            self._progress = Progress(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(),
+                                      _Rate(""), TimeElapsedColumn(), TextColumn("ETA"),
+                                      TimeRemainingColumn(), transient=False)
+            self._progress.__enter__()
+            self._task = self._progress.add_task("render", total=self.total, completed=self.done)
+        return self
+
+    def advance(self) -> None:
+        if self._progress is not None:
+            self._progress.advance(self._task)
+
+    def __exit__(self, *exc) -> None:
+        if self._progress is not None:
+            self._progress.__exit__(*exc)

@@ -1,0 +1,273 @@
+"""What the renderer needs from a composed stage, read with pxr in the parent process.
+
+The Blender worker imports the geometry itself but never opens the stage with pxr (Blender
+bundles its own USD): cameras, per-frame presence, mask ids and render settings come from here
+and travel in the job file.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+from usdscene import stage_schema as names
+from usdscene.errors import Problem, RenderError
+from usdscene.model import (Camera, Intrinsics, LensModel, Pose, RenderSettings,
+                            usd_pose_to_cv_pose)
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ObjectEntry:
+    """One labelled object prim.
+
+    Attributes:
+        uid: OpenLABEL uid (``userProperties:usdscene_uid``, else customData, else prim name).
+        class_name: asset class.
+        prim_path: prim path under ``/World/Objects``.
+        mask_id: value in the masks (``usdscene:maskId``), 1..65535.
+        visible_frames: frames of the stage range where the prim is visible, ascending.
+    """
+
+    uid: str
+    class_name: str
+    prim_path: str
+    mask_id: int
+    visible_frames: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class StagePlan:
+    """Everything the driver needs besides the geometry.
+
+    Attributes:
+        stage_path: the root layer.
+        frame_start, frame_end: closed frame range (start/end time codes).
+        cameras: calibrated cameras; ``frame_poses`` holds every frame when the camera moves.
+        objects: labelled objects in prim order.
+        settings: render settings (``/Render/Settings`` attributes over the defaults).
+        shared_prims: prims every shard imports (environment, lights, looks; not cameras,
+            not objects).
+    """
+
+    stage_path: Path
+    frame_start: int
+    frame_end: int
+    cameras: tuple[Camera, ...]
+    objects: tuple[ObjectEntry, ...]
+    settings: RenderSettings
+    shared_prims: tuple[str, ...]
+
+    @property
+    def frames(self) -> range:
+        return range(self.frame_start, self.frame_end + 1)
+
+
+def read_stage_plan(stage_path: str | Path) -> StagePlan:
+    """Open the composed stage and read cameras, objects, presence and render settings.
+
+    Raises:
+        RenderError: the stage cannot be opened, or cameras/objects are malformed (every
+            problem listed, with its prim path).
+    """
+    from pxr import Usd, UsdGeom
+
+    path = Path(stage_path).resolve()
+    stage = Usd.Stage.Open(str(path)) if path.is_file() else None
+    if stage is None:
+        raise RenderError(f"cannot open USD stage {str(stage_path)!r}", where=str(stage_path))
+    problems: list[Problem] = []
+    start = int(stage.GetStartTimeCode()) if stage.HasAuthoredTimeCodeRange() else 0
+    end = int(stage.GetEndTimeCode()) if stage.HasAuthoredTimeCodeRange() else start
+    frames = list(range(start, end + 1))
+    settings = _read_settings(stage, problems)
+    cameras = _read_cameras(stage, frames, settings, problems)
+    objects = _read_objects(stage, frames, problems)
+    shared = []
+    for prim in stage.GetPseudoRoot().GetChildren():
+        if prim.GetPath().pathString == names.WORLD:
+            for child in prim.GetChildren():
+                if child.GetPath().pathString not in (names.CAMERAS, names.OBJECTS):
+                    shared.append(child.GetPath().pathString)
+        elif not prim.GetPath().pathString.startswith("/Render"):
+            shared.append(prim.GetPath().pathString)
+    if problems:
+        raise RenderError(problems)
+    return StagePlan(path, start, end, tuple(cameras), tuple(objects), settings, tuple(shared))
+
+
+def _read_settings(stage, problems: list[Problem]) -> RenderSettings:
+    settings = RenderSettings()
+    prim = stage.GetPrimAtPath(names.RENDER_SETTINGS)
+    if not prim:
+        return settings
+    attrs = {
+        "engine": names.ATTR_RENDER_ENGINE, "device": names.ATTR_RENDER_DEVICE,
+        "samples": names.ATTR_RENDER_SAMPLES, "adaptive_threshold": names.ATTR_RENDER_ADAPTIVE_THRESHOLD,
+        "denoise": names.ATTR_RENDER_DENOISE, "denoiser": names.ATTR_RENDER_DENOISER,
+        "max_bounces": names.ATTR_RENDER_MAX_BOUNCES, "caustics": names.ATTR_RENDER_CAUSTICS,
+        "tile_size_px": names.ATTR_RENDER_TILE_SIZE, "resolution_px": names.ATTR_RENDER_RESOLUTION,
+        "seed": names.ATTR_RENDER_SEED,
+    }
+    types = {f.name: type(getattr(settings, f.name)) for f in fields(RenderSettings)}
+    values = {}
+    for field_name, attr_name in attrs.items():
+        attr = prim.GetAttribute(attr_name)
+        if not attr or not attr.HasAuthoredValue():
+            continue
+        value = attr.Get()
+        try:
+            if field_name == "resolution_px":
+                value = (int(value[0]), int(value[1]))
+            else:
+                value = types[field_name](value)
+        except (TypeError, ValueError, IndexError):
+            problems.append(Problem(f"{names.RENDER_SETTINGS}.{attr_name}",
+                                    f"cannot read {value!r} as {types[field_name].__name__}"))
+            continue
+        values[field_name] = value
+    return replace(settings, **values)
+
+
+def _attr(prim, name, default=None):
+    attr = prim.GetAttribute(name)
+    if attr and attr.HasAuthoredValue():
+        return attr.Get()
+    return default
+
+
+def _read_cameras(stage, frames, settings: RenderSettings, problems) -> list[Camera]:
+    from pxr import Usd, UsdGeom
+
+    root = stage.GetPrimAtPath(names.CAMERAS)
+    cameras: list[Camera] = []
+    if not root:
+        return cameras
+    cache = UsdGeom.XformCache()
+    for prim in Usd.PrimRange(root):
+        if not prim.IsA(UsdGeom.Camera):
+            continue
+        where = prim.GetPath().pathString
+        geom = UsdGeom.Camera(prim)
+        try:
+            intr = _intrinsics(prim, geom, settings)
+        except (ValueError, TypeError) as exc:
+            problems.append(Problem(where, str(exc)))
+            continue
+
+        def pose_at(time):
+            cache.SetTime(Usd.TimeCode(time))
+            m = cache.GetLocalToWorldTransform(prim)
+            usd = Pose.from_matrix([[m[c][r] for c in range(4)] for r in range(4)])
+            # Normalise away any scale so the rotation stays orthonormal.
+            import numpy as np
+            u, _, vt = np.linalg.svd(usd.rotation)
+            return usd_pose_to_cv_pose(Pose.from_rotation_translation(u @ vt, usd.translation_m))
+
+        moving = any(UsdGeom.Xformable(p).TransformMightBeTimeVarying()
+                     for p in _self_and_ancestors(prim) if p.IsA(UsdGeom.Xformable))
+        base = pose_at(Usd.TimeCode.Default().GetValue() if not moving else frames[0])
+        frame_poses = tuple((f, pose_at(f)) for f in frames) if moving else ()
+        clip = geom.GetClippingRangeAttr().Get() or (0.01, 1000.0)
+        cameras.append(Camera(name=prim.GetName(), intrinsics=intr, pose=base, frame_poses=frame_poses,
+                              clip_near_m=float(clip[0]), clip_far_m=float(clip[1]),
+                              model_name=str(_attr(prim, names.ATTR_CAMERA_MODEL_NAME, "") or "")))
+    return cameras
+
+
+def _self_and_ancestors(prim):
+    while prim and not prim.IsPseudoRoot():
+        yield prim
+        prim = prim.GetParent()
+
+
+def _intrinsics(prim, geom, settings: RenderSettings) -> Intrinsics:
+    from pxr import UsdGeom
+
+    model = _attr(prim, names.ATTR_LENS_MODEL)
+    width = _attr(prim, names.ATTR_LENS_WIDTH)
+    height = _attr(prim, names.ATTR_LENS_HEIGHT)
+    width = int(width) if width is not None else settings.resolution_px[0]
+    height = int(height) if height is not None else settings.resolution_px[1]
+    if width <= 0 or height <= 0:
+        raise ValueError(f"resolution {width}x{height} px must be positive")
+    sensor_w = float(_attr(prim, names.ATTR_LENS_SENSOR_WIDTH, geom.GetHorizontalApertureAttr().Get() or 36.0))
+    if model is None:  # a plain USD camera: derive a pinhole/orthographic model from USD attributes
+        ortho = geom.GetProjectionAttr().Get() == UsdGeom.Tokens.orthographic
+        aperture = float(geom.GetHorizontalApertureAttr().Get())
+        if ortho:
+            # USD apertures of orthographic cameras are in tenths of a scene unit.
+            fx = width / (aperture / 10.0)
+            return Intrinsics(LensModel.ORTHOGRAPHIC, width, height, fx, fx, (width - 1) / 2, (height - 1) / 2)
+        fx = float(geom.GetFocalLengthAttr().Get()) * width / aperture
+        return Intrinsics(LensModel.PERSPECTIVE, width, height, fx, fx, (width - 1) / 2, (height - 1) / 2,
+                          sensor_width_mm=aperture)
+    try:
+        lens = LensModel(str(model))
+    except ValueError:
+        raise ValueError(f"{names.ATTR_LENS_MODEL} {str(model)!r} is not one of "
+                         f"{[m.value for m in LensModel]}") from None
+    fx = _attr(prim, names.ATTR_LENS_FX)
+    fy = _attr(prim, names.ATTR_LENS_FY, fx)
+    if fx is None or float(fx) <= 0 or float(fy) <= 0:
+        raise ValueError(f"{names.ATTR_LENS_FX} {fx!r} must be a positive number of pixels")
+    cx = float(_attr(prim, names.ATTR_LENS_CX, (width - 1) / 2))
+    cy = float(_attr(prim, names.ATTR_LENS_CY, (height - 1) / 2))
+    distortion = tuple(float(v) for v in (_attr(prim, names.ATTR_LENS_DISTORTION, ()) or ()))
+    fov = _attr(prim, names.ATTR_LENS_FOV)
+    return Intrinsics(lens, width, height, float(fx), float(fy), cx, cy, distortion,
+                      float(fov) if fov is not None else None, sensor_w)
+
+
+def _read_objects(stage, frames, problems) -> list[ObjectEntry]:
+    from pxr import Usd, UsdGeom
+
+    root = stage.GetPrimAtPath(names.OBJECTS)
+    if not root:
+        return []
+    # Presence of the parents (rarely animated), evaluated once per frame.
+    parent_visible = {f: UsdGeom.Imageable(root).ComputeVisibility(f) != UsdGeom.Tokens.invisible
+                      for f in frames} if root.IsA(UsdGeom.Imageable) else {f: True for f in frames}
+    entries: list[ObjectEntry] = []
+    seen_ids: dict[int, str] = {}
+    for prim in root.GetChildren():
+        where = prim.GetPath().pathString
+        uid = _attr(prim, names.ATTR_USER_UID) or prim.GetCustomDataByKey(names.CUSTOM_UID) or prim.GetName()
+        cls = _attr(prim, names.ATTR_USER_CLASS) or prim.GetCustomDataByKey(names.CUSTOM_CLASS) or ""
+        mask_id = _attr(prim, names.ATTR_MASK_ID)
+        if mask_id is None:
+            problems.append(Problem(where, f"object prim has no {names.ATTR_MASK_ID} attribute"))
+            continue
+        mask_id = int(mask_id)
+        if not 1 <= mask_id <= 65535:
+            problems.append(Problem(where, f"{names.ATTR_MASK_ID} {mask_id} is outside 1..65535"))
+            continue
+        if mask_id in seen_ids:
+            problems.append(Problem(where, f"{names.ATTR_MASK_ID} {mask_id} is also used by {seen_ids[mask_id]}"))
+            continue
+        seen_ids[mask_id] = where
+        visible = _visible_frames(prim, frames)
+        entries.append(ObjectEntry(str(uid), str(cls), where, mask_id,
+                                   tuple(f for f in visible if parent_visible[f])))
+    return entries
+
+
+def _visible_frames(prim, frames) -> list[int]:
+    """Frames where the prim's own visibility is not ``invisible`` (held interpolation)."""
+    from pxr import UsdGeom
+
+    attr = UsdGeom.Imageable(prim).GetVisibilityAttr()
+    samples = attr.GetTimeSamples() if attr else []
+    if not samples:
+        value = attr.Get() if attr else UsdGeom.Tokens.inherited
+        return list(frames) if value != UsdGeom.Tokens.invisible else []
+    values = [attr.Get(t) for t in samples]
+    out = []
+    for f in frames:
+        i = max(0, bisect.bisect_right(samples, f) - 1)
+        if values[i] != UsdGeom.Tokens.invisible:
+            out.append(f)
+    return out

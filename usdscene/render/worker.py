@@ -1,0 +1,410 @@
+"""The Blender worker process: the only module of usdscene that imports ``bpy``.
+
+Run as ``python -m usdscene.render.worker JOB.json``; never imported by the parent (bpy breaks
+``multiprocessing`` and owns process-wide state). The job file (written by
+:mod:`usdscene.render.driver`, see :mod:`usdscene.render.job`) says which stage to import,
+which prims the shard needs, which objects are visible on which frames with which mask ids, the
+calibrated cameras and their poses per frame, the render settings and the (frame, camera)
+pairs to render, in order.
+
+What happens:
+
+1. Factory-empty scene; a black world is created *before* the USD import so that a dome light
+   of the stage can replace it (the importer drops dome lights without a world).
+2. ``wm.usd_import`` once, of the prims the shard needs only (``prim_path_mask``), instances
+   realised (instanced prims would share the prototype's pass index), no cameras (one render
+   camera of our own is driven from the job; switching ``scene.camera`` forces a full re-sync
+   with persistent data).
+3. Per frame: ``scene.frame_set`` (transform caches follow the stage's time samples), then
+   ``hide_render`` for objects absent on that frame and ``pass_index`` = mask id.
+4. Per camera: the render camera takes the camera's pose and intrinsics; Cycles renders a
+   multilayer EXR on ``/dev/shm`` holding the beauty and the object-index pass of the *same*
+   render; the worker converts the linear beauty to an 8-bit sRGB PNG and the object index to a
+   uint16 PNG, remaps both with one shared map for OpenCV lens models (bilinear for the image,
+   nearest for the mask), and writes them atomically.
+5. After each pair a line ``@usdscene {json}`` goes to stdout (the driver parses those and
+   ignores Blender's own chatter).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+PROGRESS_PREFIX = "@usdscene "
+
+
+def _emit(event: dict) -> None:
+    sys.stdout.write(PROGRESS_PREFIX + json.dumps(event) + "\n")
+    sys.stdout.flush()
+
+
+def _import_bpy():
+    try:
+        import bpy  # noqa: F401  (the one place usdscene imports bpy)
+    except ImportError as exc:  # pragma: no cover - environment problem
+        raise ImportError("usdscene's renderer needs the 'bpy' package (pip install bpy==5.0.1) "
+                          f"in this Python ({sys.executable}): {exc}") from exc
+    return bpy
+
+
+ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE", "workbench": "BLENDER_WORKBENCH"}
+
+
+class Session:
+    """A Blender scene holding one imported stage shard and one render camera."""
+
+    def __init__(self, job: dict) -> None:
+        self.job = job
+        self.bpy = _import_bpy()
+        self.scratch = Path(job["scratch_dir"])
+        self.scratch.mkdir(parents=True, exist_ok=True)
+        self.exr_path = self.scratch / f"render-{os.getpid()}.exr"
+        self.current_frame: int | None = None
+        self.hidden: dict[str, bool] = {}
+        self._remaps: dict[str, tuple] = {}
+        self._fov_masks: dict[str, object] = {}
+        self._setup_scene()
+        self._import_stage()
+        self._setup_render()
+
+    # ---------------------------------------------------------------------------------------
+    def _setup_scene(self) -> None:
+        bpy = self.bpy
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        world = bpy.data.worlds.new("World")
+        scene.world = world
+        # Black unless the stage brings a dome light (the importer rebuilds the world then).
+        background = world.node_tree.nodes.get("Background") if world.node_tree else None
+        if background is not None:
+            background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        world.color = (0.0, 0.0, 0.0)
+        self.scene = scene
+
+    def _import_stage(self) -> None:
+        bpy = self.bpy
+        started = time.perf_counter()
+        result = bpy.ops.wm.usd_import(
+            filepath=self.job["stage"],
+            prim_path_mask=self.job.get("prim_path_mask", ""),
+            import_cameras=False,
+            import_visible_only=False,  # presence is per frame, applied below
+            support_scene_instancing=False,  # realise instances: each needs its own pass index
+            property_import_mode="USER",
+            set_frame_range=True,
+            create_collection=False,
+        )
+        if "FINISHED" not in result:
+            raise RuntimeError(f"USD import of {self.job['stage']} failed: {result}")
+        # uid → Blender objects carrying it (the object and everything below it).
+        wanted = {o["uid"]: o for o in self.job["objects"]}
+        self.objects: dict[str, list] = {}
+        for ob in bpy.data.objects:
+            uid = ob.get("usdscene_uid")
+            if uid is None and ob.data is not None and hasattr(ob.data, "get"):
+                uid = ob.data.get("usdscene_uid")
+            if uid is None or uid not in wanted:
+                continue
+            members = [ob, *ob.children_recursive]
+            self.objects.setdefault(str(uid), []).extend(members)
+        for uid, members in self.objects.items():
+            mask_id = int(wanted[uid]["mask_id"])
+            for ob in members:
+                ob.pass_index = mask_id
+        missing = sorted(set(wanted) - set(self.objects))
+        _emit({"event": "imported", "seconds": time.perf_counter() - started,
+               "objects": len(bpy.data.objects), "missing_uids": missing[:20],
+               "missing_count": len(missing)})
+
+    def _setup_render(self) -> None:
+        bpy = self.bpy
+        scene = self.scene
+        s = self.job["settings"]
+        engine = ENGINES.get(s["engine"], s["engine"])
+        scene.render.engine = engine
+        if engine != "CYCLES":
+            raise RuntimeError(f"render engine {s['engine']!r}: exact instance masks need the Cycles "
+                               "object-index pass; use engine 'cycles'")
+        cycles = scene.cycles
+        cycles.device = "CPU"
+        if s["device"] == "gpu" and self._enable_gpu():
+            cycles.device = "GPU"
+        cycles.samples = int(s["samples"])
+        cycles.use_adaptive_sampling = float(s["adaptive_threshold"]) > 0
+        if cycles.use_adaptive_sampling:
+            cycles.adaptive_threshold = float(s["adaptive_threshold"])
+        cycles.use_denoising = bool(s["denoise"])
+        if cycles.use_denoising:
+            cycles.denoiser = "OPTIX" if s["denoiser"] == "optix" else "OPENIMAGEDENOISE"
+            cycles.denoising_quality = s.get("denoising_quality", "FAST")
+            cycles.denoising_prefilter = s.get("denoising_prefilter", "FAST")
+            cycles.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+        bounces = int(s["max_bounces"])
+        cycles.max_bounces = bounces
+        cycles.diffuse_bounces = bounces
+        cycles.glossy_bounces = bounces
+        cycles.transmission_bounces = max(bounces, 0)
+        cycles.volume_bounces = 0
+        cycles.caustics_reflective = bool(s["caustics"])
+        cycles.caustics_refractive = bool(s["caustics"])
+        cycles.use_auto_tile = True
+        cycles.tile_size = int(s["tile_size_px"])
+        cycles.seed = int(s["seed"])
+        cycles.use_animated_seed = False
+        scene.render.use_persistent_data = True
+        scene.render.resolution_percentage = 100
+        scene.render.film_transparent = False
+        scene.render.dither_intensity = 0.0
+        scene.view_settings.view_transform = "Standard"
+        scene.view_settings.look = "None"
+        scene.view_settings.exposure = 0.0
+        scene.view_settings.gamma = 1.0
+        view_layer = scene.view_layers[0]
+        view_layer.use_pass_object_index = True
+        image = scene.render.image_settings
+        image.media_type = "MULTI_LAYER_IMAGE"
+        image.file_format = "OPEN_EXR_MULTILAYER"
+        image.color_depth = "32"
+        image.exr_codec = "NONE"  # /dev/shm: compression costs time and saves nothing
+        scene.render.filepath = str(self.exr_path)
+        scene.render.use_file_extension = False
+        threads = self.job.get("threads")
+        if threads:
+            scene.render.threads_mode = "FIXED"
+            scene.render.threads = int(threads)
+        data = bpy.data.cameras.new("usdscene_render_camera")
+        self.camera = bpy.data.objects.new("usdscene_render_camera", data)
+        scene.collection.objects.link(self.camera)
+        scene.camera = self.camera
+
+    def _enable_gpu(self) -> bool:
+        prefs = self.bpy.context.preferences.addons["cycles"].preferences
+        for kind in ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"):
+            try:
+                prefs.compute_device_type = kind
+                prefs.refresh_devices()
+            except TypeError:
+                continue
+            devices = [d for d in prefs.devices if d.type == kind]
+            if devices:
+                for d in devices:
+                    d.use = True
+                return True
+        _emit({"event": "warning", "message": "no GPU found; rendering on the CPU"})
+        return False
+
+    # ---------------------------------------------------------------------------------------
+    def set_frame(self, frame: int) -> None:
+        if frame == self.current_frame:
+            return
+        self.scene.frame_set(frame)
+        for o in self.job["objects"]:
+            members = self.objects.get(o["uid"])
+            if not members:
+                continue
+            hide = frame not in o["_visible"]
+            if self.hidden.get(o["uid"]) == hide:
+                continue
+            self.hidden[o["uid"]] = hide
+            for ob in members:
+                ob.hide_render = hide
+        self.current_frame = frame
+
+    def set_camera(self, name: str, frame: int) -> None:
+        from usdscene.render.job import intrinsics_from_json, usd_camera_matrix
+
+        cam_job = self.job["cameras"][name]
+        pose = cam_job["poses"].get(str(frame), cam_job["pose"])
+        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        ob, data = self.camera, self.camera.data
+        import mathutils
+
+        # mathutils.Matrix takes rows; a bare nested list would be read column by column.
+        ob.matrix_world = mathutils.Matrix(usd_camera_matrix(pose))
+        data.clip_start, data.clip_end = cam_job["clip_m"]
+        apply_intrinsics(self.scene, data, render)
+
+    def render_pair(self, frame: int, camera: str) -> dict:
+        self.set_frame(frame)
+        self.set_camera(camera, frame)
+        started = time.perf_counter()
+        self.bpy.ops.render.render(write_still=True)
+        rendered = time.perf_counter()
+        rgb, ids = read_exr(self.exr_path)
+        rgb, ids = self._finish(camera, rgb, ids)
+        write_outputs(Path(self.job["out_dir"]), camera, frame, rgb, ids)
+        done = time.perf_counter()
+        return {"render_s": rendered - started, "post_s": done - rendered}
+
+    def _finish(self, camera: str, rgb, ids):
+        """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
+        import cv2
+        import numpy as np
+
+        from usdscene.model import LensModel
+        from usdscene.projection import pixel_rays, remap_grids
+        from usdscene.render.job import intrinsics_from_json
+
+        cam_job = self.job["cameras"][camera]
+        intr = intrinsics_from_json(cam_job["intrinsics"])
+        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
+            if camera not in self._remaps:
+                self._remaps[camera] = remap_grids(intr, render)
+            map_x, map_y = self._remaps[camera]
+            rgb = cv2.remap(rgb, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            ids = cv2.remap(ids, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        elif intr.lens in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
+            if camera not in self._fov_masks:
+                vs, us = np.mgrid[0:intr.height_px, 0:intr.width_px]
+                _, valid = pixel_rays(intr, np.stack([us.ravel(), vs.ravel()], 1).astype(float))
+                self._fov_masks[camera] = ~valid.reshape(intr.height_px, intr.width_px)
+            outside = self._fov_masks[camera]
+            rgb = rgb.copy()
+            ids = ids.copy()
+            rgb[outside] = 0.0
+            ids[outside] = 0
+        return rgb, ids
+
+
+def apply_intrinsics(scene, data, intr) -> None:
+    """Set the render resolution and the Blender camera data for ``intr`` (a native lens).
+
+    Blender measures lens shift in units of the fitted sensor dimension (the width with
+    ``sensor_fit = 'HORIZONTAL'``) and puts an unshifted optical axis at the image centre,
+    ``((W - 1) / 2, (H - 1) / 2)`` in OpenCV pixel coordinates; y shift points up.
+    """
+    from usdscene.model import LensModel
+
+    w, h = intr.width_px, intr.height_px
+    scene.render.resolution_x = w
+    scene.render.resolution_y = h
+    # Non-square pixels: Blender's pixel aspect is pixel width / pixel height = fy / fx.
+    if abs(intr.fx_px - intr.fy_px) > 1e-9 * intr.fx_px:
+        scene.render.pixel_aspect_x = intr.fy_px / intr.fx_px if intr.fy_px < intr.fx_px else 1.0
+        scene.render.pixel_aspect_y = intr.fx_px / intr.fy_px if intr.fy_px > intr.fx_px else 1.0
+    else:
+        scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
+    sensor_w = intr.sensor_width_mm
+    data.sensor_fit = "HORIZONTAL"
+    data.sensor_width = sensor_w
+    data.sensor_height = sensor_w * h / w
+    data.shift_x = ((w - 1) / 2.0 - intr.cx_px) / w
+    data.shift_y = (intr.cy_px - (h - 1) / 2.0) / w
+    lens = LensModel(intr.lens)
+    if lens is LensModel.PERSPECTIVE:
+        data.type = "PERSP"
+        data.lens = intr.fx_px * sensor_w / w
+    elif lens is LensModel.ORTHOGRAPHIC:
+        data.type = "ORTHO"
+        data.ortho_scale = w / intr.fx_px  # metres across the image width
+    elif lens is LensModel.FISHEYE_EQUISOLID:
+        data.type = "PANO"
+        data.panorama_type = "FISHEYE_EQUISOLID"
+        data.fisheye_lens = intr.fx_px * sensor_w / w
+        data.fisheye_fov = math.radians(min(intr.fov_deg or 360.0, 360.0))
+    elif lens is LensModel.FISHEYE_EQUIDISTANT:
+        # θ = -(k0 + k1·r) with r in millimetres on the sensor: equidistant is k1 = -1/f.
+        data.type = "PANO"
+        data.panorama_type = "FISHEYE_LENS_POLYNOMIAL"
+        data.fisheye_polynomial_k0 = 0.0
+        data.fisheye_polynomial_k1 = -w / (intr.fx_px * sensor_w)
+        data.fisheye_polynomial_k2 = 0.0
+        data.fisheye_polynomial_k3 = 0.0
+        data.fisheye_polynomial_k4 = 0.0
+        data.fisheye_fov = math.radians(min(intr.fov_deg or 360.0, 360.0))
+    else:
+        raise ValueError(f"lens {lens.value!r} is not native to Blender")
+
+
+def read_exr(path: Path):
+    """Read the beauty and object index of a multilayer EXR written by Blender.
+
+    Returns:
+        ``(rgb, ids)``: (H, W, 3) float32 linear RGB and (H, W) uint16 object indices.
+    """
+    import numpy as np
+    import OpenEXR
+
+    rgb = ids = None
+    with OpenEXR.File(str(path), separate_channels=True) as exr:
+        for part in exr.parts:
+            for name, channel in part.channels.items():
+                if name.endswith("Combined.R"):
+                    r = channel.pixels
+                elif name.endswith("Combined.G"):
+                    g = channel.pixels
+                elif name.endswith("Combined.B"):
+                    b = channel.pixels
+                elif name.endswith("IndexOB.X") or name.endswith("Object Index.X"):
+                    ids = channel.pixels
+        rgb = np.stack([r, g, b], axis=-1).astype(np.float32)
+    if ids is None:
+        raise RuntimeError(f"{path}: no object-index channel")
+    # The pass stores pass_index as float from the first sample only: exact small integers.
+    return rgb, np.rint(ids).astype(np.uint16)
+
+
+def linear_to_srgb8(rgb):
+    """(H, W, 3) linear float → (H, W, 3) uint8 sRGB (IEC 61966-2-1 OETF, round to nearest)."""
+    import numpy as np
+
+    x = np.clip(rgb, 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.floor(srgb * 255.0 + 0.5).astype(np.uint8)
+
+
+def write_outputs(out_dir: Path, camera: str, frame: int, rgb, ids) -> None:
+    """Write the image (8-bit sRGB PNG) and the mask (uint16 PNG) atomically."""
+    import cv2
+
+    from usdscene import layout
+    from usdscene.files import write_bytes_atomic
+
+    ok, image_png = cv2.imencode(".png", linear_to_srgb8(rgb)[:, :, ::-1],
+                                 [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    ok2, mask_png = cv2.imencode(".png", ids, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not (ok and ok2):
+        raise RuntimeError(f"PNG encoding failed for {camera} frame {frame}")
+    # Mask first: a pair counts as done only when both exist, and the driver records it only
+    # after this returns.
+    write_bytes_atomic(layout.mask_path(out_dir, camera, frame), mask_png.tobytes())
+    write_bytes_atomic(layout.image_path(out_dir, camera, frame), image_png.tobytes())
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 1:
+        sys.stderr.write("usage: python -m usdscene.render.worker JOB.json\n")
+        return 2
+    job = json.loads(Path(argv[0]).read_text())
+    for o in job["objects"]:
+        o["_visible"] = set(o["visible_frames"])
+    try:
+        session = Session(job)
+    except Exception as exc:  # reported to the driver as one line, then exit non-zero
+        _emit({"event": "error", "message": f"{type(exc).__name__}: {exc}"})
+        return 1
+    for frame, camera in job["pairs"]:
+        try:
+            timing = session.render_pair(int(frame), camera)
+        except Exception as exc:
+            _emit({"event": "error", "frame": frame, "camera": camera,
+                   "message": f"{type(exc).__name__}: {exc}"})
+            return 1
+        _emit({"event": "done", "frame": frame, "camera": camera, **timing})
+    try:
+        session.exr_path.unlink()
+    except FileNotFoundError:
+        pass
+    _emit({"event": "finished"})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
