@@ -1,0 +1,86 @@
+"""Validation against the official OpenLABEL 1.0.0 JSON schema (jsonschema, Draft 7).
+
+The schema is not shipped with usdscene: pass its path, or set ``$USDSCENE_OPENLABEL_SCHEMA``.
+The published ASAM file is ``openlabel_json_schema-v1.0.0.json``
+(``$id https://openlabel.asam.net/V1-0-0/schema#``).
+
+The schema has holes that :func:`converters.openlabel.read_openlabel` covers: it never checks
+``stream_properties`` (intrinsics), root ``frame_intervals`` items, ``matrix4x4`` length, or
+numbers that JSON cannot hold (NaN, Infinity).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+from collections import deque
+from pathlib import Path
+from typing import Mapping
+
+from usdscene.errors import DocumentError, Problem
+
+SCHEMA_ENV = "USDSCENE_OPENLABEL_SCHEMA"
+_MAX_MESSAGE = 240
+
+
+def schema_path_from_env() -> Path | None:
+    """``$USDSCENE_OPENLABEL_SCHEMA`` as a path, or None when unset/empty."""
+    value = os.environ.get(SCHEMA_ENV, "").strip()
+    return Path(value) if value else None
+
+
+@functools.lru_cache(maxsize=4)
+def _validator(path: str):
+    import jsonschema
+
+    try:
+        schema = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise DocumentError(f"cannot read the OpenLABEL schema: {exc.strerror or exc}", where=path) from None
+    except json.JSONDecodeError as exc:
+        raise DocumentError(f"the OpenLABEL schema is not valid JSON (line {exc.lineno}, column {exc.colno})",
+                            where=path) from None
+    return jsonschema.Draft7Validator(schema)
+
+
+def _json_path(parts: deque) -> str:
+    out = ""
+    for part in parts:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out or "document"
+
+
+def schema_problems(document: Mapping, schema_path: str | os.PathLike | None = None) -> list[Problem]:
+    """Every violation of the official schema, each with its JSON path.
+
+    Args:
+        document: the whole document (``{"openlabel": {...}}``); it is validated as
+            serialised JSON (tuples become lists), which is what a consumer reads.
+        schema_path: the schema file; default ``$USDSCENE_OPENLABEL_SCHEMA``.
+
+    Returns:
+        Problems sorted by path (empty when the document is valid).
+
+    Raises:
+        DocumentError: no schema path given and none in the environment, the schema file is
+            unreadable, or the document is not JSON data (NaN, Infinity, non-JSON types).
+    """
+    path = Path(schema_path) if schema_path is not None else schema_path_from_env()
+    if path is None:
+        raise DocumentError(f"no OpenLABEL schema given (pass a path or set ${SCHEMA_ENV})", where="schema")
+    validator = _validator(str(path.resolve()))
+    try:
+        data = json.loads(json.dumps(document, allow_nan=False))
+    except (TypeError, ValueError) as exc:
+        raise DocumentError(f"the document is not JSON data: {exc}", where="document") from None
+    problems = []
+    for error in validator.iter_errors(data):
+        message = error.message
+        if len(message) > _MAX_MESSAGE:
+            message = message[: _MAX_MESSAGE - 3] + "..."
+        problems.append(Problem(_json_path(error.absolute_path), f"schema: {message}"))
+    return sorted(problems, key=lambda p: p.where)

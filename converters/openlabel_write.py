@@ -1,0 +1,293 @@
+""":class:`usdscene.model.SceneSpec` → OpenLABEL 1.0.0 document. Pure module.
+
+The output validates against the official OpenLABEL 1.0.0 JSON schema, serialises with
+``allow_nan=False`` and reads back into an equal scene (``read_openlabel(write_openlabel(s))
+== s`` except ``provenance``, which always describes the document actually read).
+
+Normal form (what ``usdscene convert`` writes):
+
+* one root coordinate system ``world`` (``scene_cs``; renamed ``world_1``... if a camera is
+  called ``world``) with one ``sensor_cs`` per camera whose ``pose_wrt_parent`` is a
+  ``matrix4x4``; per-frame camera poses are ``frames[f].frame_properties.transforms``
+  ``<camera>_to_world`` (``src`` the camera, ``dst`` the world: X_world = M · X_camera);
+* calibrations in the schema dialect (``camera_matrix``, ``distortion_coeffs``,
+  ``lens_coeffs``, ``center_x_px``) plus the ``usdscene`` block that names the lens model;
+* poses of lights and objects as the vec ``pose_matrix4x4`` (exact; no angle round-off);
+* ``object_data_pointers`` for every object data entry, closed frame intervals, and the root
+  ``frame_intervals`` as the union of the scene range and every element's intervals.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Iterable
+
+from usdscene.errors import DocumentError, ProblemCollector
+from usdscene.model import FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
+
+from converters.openlabel_read import (
+    EQUISOLID_KB_COEFFS,
+    LIGHT_TYPE,
+    PLACE_TYPE,
+    SCHEMA_VERSION,
+    UID_PATTERN,
+)
+
+FISHEYE_LENSES = (LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
+
+
+def _matrix(pose: Pose) -> list[float]:
+    return [float(v) for v in pose.matrix]
+
+
+def _intervals(intervals: Iterable[FrameInterval]) -> list[dict]:
+    return [{"frame_start": int(iv.frame_start), "frame_end": int(iv.frame_end)} for iv in intervals]
+
+
+def _frames_to_intervals(frames: Iterable[int]) -> tuple[FrameInterval, ...]:
+    return union_intervals(FrameInterval(f, f) for f in frames)
+
+
+def write_openlabel(scene: SceneSpec) -> dict:
+    """Write ``scene`` as an OpenLABEL 1.0.0 document.
+
+    Args:
+        scene: the scene; its uids must be integer strings or UUIDs (the schema's rule).
+
+    Returns:
+        ``{"openlabel": {...}}``: plain JSON data (dicts, lists, str, int, float, bool).
+
+    Raises:
+        DocumentError: the scene cannot be written as valid OpenLABEL (bad or duplicate uids,
+            negative frame numbers in per-frame data, non-finite numbers, a distortion
+            vector of a length the lens model does not have).
+    """
+    problems = ProblemCollector()
+    body: dict[str, Any] = {"metadata": _metadata(scene)}
+    frames: dict[int, dict] = {}
+
+    if scene.cameras:
+        names = {c.name for c in scene.cameras}
+        root = "world"
+        index = 1
+        while root in names:
+            root = f"world_{index}"
+            index += 1
+        systems: dict[str, Any] = {root: {"type": "scene_cs", "parent": "", "children": [c.name for c in scene.cameras]}}
+        streams: dict[str, Any] = {}
+        for cam in scene.cameras:
+            systems[cam.name] = {"type": "sensor_cs", "parent": root, "children": [],
+                                 "pose_wrt_parent": {"matrix4x4": _matrix(cam.pose)}}
+            streams[cam.name] = {"type": "camera", "description": cam.description, "uri": "",
+                                 "stream_properties": _calibration(cam, problems)}
+            for frame, pose in cam.frame_poses:
+                if frame < 0:
+                    problems.add(f"cameras.{cam.name}.frame_poses", f"frame {frame} is negative")
+                    continue
+                transforms = frames.setdefault(frame, {}).setdefault("frame_properties", {}).setdefault("transforms", {})
+                transforms[f"{cam.name}_to_{root}"] = {"src": cam.name, "dst": root,
+                                                       "transform_src_to_dst": {"matrix4x4": _matrix(pose)}}
+        body["coordinate_systems"] = systems
+        body["streams"] = streams
+
+    objects: dict[str, Any] = {}
+    seen: dict[str, str] = {}
+
+    def claim(uid: str, what: str) -> bool:
+        if not isinstance(uid, str) or not UID_PATTERN.match(uid):
+            problems.add(f"{what}.uid", f"uid {uid!r} must be an integer string or a UUID for OpenLABEL")
+            return False
+        if uid in seen:
+            problems.add(f"{what}.uid", f"uid {uid!r} is also used by {seen[uid]}")
+            return False
+        seen[uid] = what
+        return True
+
+    for light in scene.lights:
+        if not claim(light.uid, f"lights.{light.name}"):
+            continue
+        data = _Data()
+        data.add("text", "kind", light.kind.value)
+        for key in ("power_w", "radius_m", "spot_angle_deg", "spot_blend", "sun_angle_deg"):
+            data.add("num", key, float(getattr(light, key)))
+        data.add("vec", "color_rgb", [float(v) for v in light.color_rgb])
+        data.add("vec", "size_m", [float(v) for v in light.size_m])
+        data.add("vec", "pose_matrix4x4", _matrix(light.pose))
+        objects[light.uid] = _element(light.name, LIGHT_TYPE, light.frame_intervals, data)
+
+    for place in scene.places:
+        if claim(place.uid, f"places.{place.name}"):
+            objects[place.uid] = {"name": place.name, "type": PLACE_TYPE}
+
+    for obj in scene.objects:
+        if not claim(obj.uid, f"objects.{obj.uid}"):
+            continue
+        data = _Data()
+        if obj.appearance is not None:
+            data.add("text", "appearance", obj.appearance)
+        if obj.color_rgb is not None:
+            data.add("vec", "color_rgb", [float(v) for v in obj.color_rgb])
+        knobs = obj.randomization
+        if knobs.position_noise_m:
+            data.add("num", "position_noise_m", float(knobs.position_noise_m))
+        if knobs.rotation_noise_deg:
+            data.add("num", "rotation_noise_deg", float(knobs.rotation_noise_deg))
+        if knobs.random_color:
+            data.add("boolean", "random_color", True)
+        if knobs.random_appearance:
+            data.add("boolean", "random_appearance", True)
+        if obj.pose is not None:
+            data.add("vec", "pose_matrix4x4", _matrix(obj.pose))
+        element = _element(obj.name, obj.class_name, obj.frame_intervals, data)
+        if obj.frame_poses:
+            for frame, pose in obj.frame_poses:
+                if frame < 0:
+                    problems.add(f"objects.{obj.uid}.frame_poses", f"frame {frame} is negative")
+                    continue
+                entry = frames.setdefault(frame, {}).setdefault("objects", {})
+                entry[obj.uid] = {"object_data": {"vec": [{"name": "pose_matrix4x4", "val": _matrix(pose)}]}}
+            pointers = element.setdefault("object_data_pointers", {})
+            pointers["pose_matrix4x4"] = {
+                "type": "vec",
+                "frame_intervals": _intervals(_frames_to_intervals(f for f, _ in obj.frame_poses if f >= 0))}
+        objects[obj.uid] = element
+    if objects:
+        body["objects"] = objects
+
+    relations: dict[str, Any] = {}
+    for rel in scene.relations:
+        if not isinstance(rel.uid, str) or not UID_PATTERN.match(rel.uid):
+            problems.add(f"relations.{rel.uid}.uid", f"uid {rel.uid!r} must be an integer string or a UUID")
+            continue
+        if rel.uid in relations:
+            problems.add(f"relations.{rel.uid}.uid", f"duplicate relation uid {rel.uid!r}")
+            continue
+        for side, uid in (("subject_uid", rel.subject_uid), ("object_uid", rel.object_uid)):
+            if uid not in seen:
+                problems.add(f"relations.{rel.uid}.{side}", f"relation {rel.uid} refers to {uid!r}, which is "
+                                                            f"not a light, place or object of the scene")
+        entry: dict[str, Any] = {"name": "", "type": rel.type,
+                                 "rdf_subjects": [{"uid": rel.subject_uid, "type": "object"}],
+                                 "rdf_objects": [{"uid": rel.object_uid, "type": "object"}]}
+        if rel.frame_intervals:
+            entry["frame_intervals"] = _intervals(rel.frame_intervals)
+        relations[rel.uid] = entry
+    if relations:
+        body["relations"] = relations
+
+    if frames:
+        body["frames"] = {str(f): frames[f] for f in sorted(frames)}
+    every = [FrameInterval(scene.frame_start, scene.frame_end)]
+    for element in (*scene.lights, *scene.objects, *scene.relations):
+        every.extend(element.frame_intervals)
+    every.extend(FrameInterval(f, f) for f in frames)
+    body["frame_intervals"] = _intervals(union_intervals(every))
+    problems.raise_if_any(DocumentError)
+    return {"openlabel": body}
+
+
+class _Data:
+    """object_data under construction, with its pointers (names are unique per element)."""
+
+    def __init__(self) -> None:
+        self.data: dict[str, list] = {}
+        self.pointers: dict[str, dict] = {}
+
+    def add(self, kind: str, name: str, value: Any) -> None:
+        self.data.setdefault(kind, []).append({"name": name, "val": value})
+        self.pointers[name] = {"type": kind, "frame_intervals": []}
+
+
+def _element(name: str, otype: str, intervals, data: _Data) -> dict:
+    element: dict[str, Any] = {"name": name, "type": otype}
+    if intervals:
+        element["frame_intervals"] = _intervals(intervals)
+    if data.data:
+        element["object_data"] = data.data
+        element["object_data_pointers"] = data.pointers
+    return element
+
+
+def _metadata(scene: SceneSpec) -> dict:
+    render: RenderSettings = scene.render
+    block: dict[str, Any] = {"seed": int(scene.seed)}
+    if scene.environment is not None:
+        block["environment"] = scene.environment
+    block["asset_paths"] = list(scene.asset_paths)
+    block["render"] = {
+        "engine": render.engine, "device": render.device, "samples": int(render.samples),
+        "adaptive_threshold": float(render.adaptive_threshold), "denoise": bool(render.denoise),
+        "denoiser": render.denoiser, "max_bounces": int(render.max_bounces), "caustics": bool(render.caustics),
+        "tile_size_px": int(render.tile_size_px), "resolution_px": [int(v) for v in render.resolution_px],
+        "seed": int(render.seed)}
+    block["exports"] = list(scene.exports)
+    block["roi_rules"] = dict(scene.roi_rules)
+    block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
+    meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
+    if scene.description:
+        meta["comment"] = scene.description
+    meta["usdscene"] = block
+    return meta
+
+
+def _calibration(cam, problems: ProblemCollector) -> dict:
+    """stream_properties of a camera: the calibration that reproduces its image + the usdscene
+    block that names the exact lens model."""
+    k = cam.intrinsics
+    where = f"cameras.{cam.name}.intrinsics"
+    friendly: dict[str, Any] = {"model": k.lens.value,
+                                "sensor_size_mm": [float(k.sensor_width_mm), float(k.sensor_height_mm)]}
+    props: dict[str, Any] = {}
+    size = {"width_px": int(k.width_px), "height_px": int(k.height_px)}
+    if k.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+        dist = [float(v) for v in k.distortion] if k.lens is LensModel.OPENCV_PINHOLE else []
+        if dist and len(dist) not in (4, 5, 8):
+            problems.add(f"{where}.distortion", f"OpenCV pinhole distortion has 4, 5 or 8 coefficients, got {len(dist)}")
+        # The schema asks for at least 5 coefficients: pad k3 (and zeros for no distortion).
+        dist = dist + [0.0] * (5 - len(dist)) if len(dist) < 5 else dist
+        props["intrinsics_pinhole"] = {
+            **size,
+            "camera_matrix": [float(k.fx_px), 0.0, float(k.cx_px), 0.0, 0.0, float(k.fy_px), float(k.cy_px), 0.0,
+                              0.0, 0.0, 1.0, 0.0],
+            "distortion_coeffs": dist}
+    elif k.lens in FISHEYE_LENSES:
+        if k.lens is LensModel.OPENCV_FISHEYE:
+            coeffs = [float(v) for v in k.distortion]
+            if len(coeffs) != 4:
+                problems.add(f"{where}.distortion", f"opencv_fisheye has 4 coefficients k1..k4, got {len(coeffs)}")
+        elif k.lens is LensModel.FISHEYE_EQUISOLID:
+            coeffs = list(EQUISOLID_KB_COEFFS)
+        else:
+            coeffs = [0.0, 0.0, 0.0, 0.0]
+        props["intrinsics_fisheye"] = {
+            **size, "focal_length_x": float(k.fx_px), "focal_length_y": float(k.fy_px),
+            "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px), "lens_coeffs": coeffs,
+            "model": "opencv_fisheye"}
+        if k.fov_deg is not None:
+            friendly["fov_deg"] = float(k.fov_deg)
+    else:
+        props["intrinsics_custom"] = {
+            "model": "orthographic", **size, "scale_x_px_per_m": float(k.fx_px),
+            "scale_y_px_per_m": float(k.fy_px), "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px)}
+    if cam.model_name:
+        friendly["model_name"] = cam.model_name
+    friendly["clip_range_m"] = [float(cam.clip_near_m), float(cam.clip_far_m)]
+    if cam.custom:
+        friendly["custom"] = dict(cam.custom)
+    props["usdscene"] = friendly
+    return props
+
+
+def write_document(path: str | os.PathLike, document: dict):
+    """Write a document atomically as canonical JSON (2-space indent, no NaN/Infinity).
+
+    Raises:
+        DocumentError: the document holds a non-finite number or a value JSON cannot hold
+            (nothing is written then).
+    """
+    from usdscene.files import write_json_atomic
+
+    try:
+        return write_json_atomic(path, document)
+    except (ValueError, TypeError) as exc:
+        raise DocumentError(f"cannot write the document as JSON: {exc}", where=str(path)) from None
