@@ -1,0 +1,36 @@
+"""``usdscene convert DOC -o OUT``: normalise a scene document to OpenLABEL 1.0.0."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+NAME = "convert"
+HELP = "normalise an OpenLABEL 1.0.0 / VCD 4.3 scene document to usdscene's OpenLABEL 1.0.0 form"
+ORDER = 11
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands.validate import add_common_arguments
+
+    parser.add_argument("document", help="scene document (.json, root 'openlabel' or 'vcd')")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT",
+                        help="output file (written atomically; nothing is written when the input is invalid)")
+    add_common_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from converters.openlabel import schema_problems, write_document, write_openlabel
+    from usdscene.commands.validate import check_document
+    from usdscene.errors import DocumentError
+
+    scene, schema, _ = check_document(args)
+    document = write_openlabel(scene)
+    if schema is not None:
+        problems = schema_problems(document, schema)
+        if problems:  # a writer bug; never leave an invalid file behind
+            raise DocumentError([*problems])
+    path = write_document(args.output, document)
+    print(f"{args.document} → {path}: OpenLABEL {document['openlabel']['metadata']['schema_version']}, "
+          f"{len(scene.cameras)} cameras, {len(scene.objects)} objects", file=sys.stdout)
+    return 0

@@ -1,0 +1,102 @@
+"""``usdscene validate DOC``: check a scene document and list every problem at once."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+NAME = "validate"
+HELP = "check an OpenLABEL 1.0.0 / VCD 4.3 scene document and list every problem"
+ORDER = 10
+
+log = logging.getLogger(__name__)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("document", help="scene document (.json, root 'openlabel' or 'vcd')")
+    add_common_arguments(parser)
+    parser.epilog = (
+        "Exit status: 0 valid, 1 invalid (one 'usdscene: error: <JSON path>: <message>' line per "
+        "problem), 2 bad usage.")
+
+
+def add_common_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options shared by ``validate`` and ``convert``."""
+    parser.add_argument(
+        "--schema", metavar="PATH",
+        help="official OpenLABEL 1.0.0 JSON schema file to validate against as well; default: "
+             "$USDSCENE_OPENLABEL_SCHEMA. Without either, only usdscene's own checks run "
+             "(they cover intrinsics, poses, intervals, uids and the usdscene vocabulary, but "
+             "not every schema rule)")
+    parser.add_argument(
+        "--no-catalog", action="store_true",
+        help="do not check object classes, place names and relations against the asset catalog "
+             "(shipped library + metadata.usdscene.asset_paths)")
+
+
+def schema_path(args: argparse.Namespace):
+    """The schema chosen by ``--schema`` or the environment, or None."""
+    from pathlib import Path
+
+    from converters.openlabel import schema_path_from_env
+
+    return Path(args.schema) if args.schema else schema_path_from_env()
+
+
+def check_document(args: argparse.Namespace):
+    """Read ``args.document`` with every check that applies.
+
+    Returns:
+        (scene, schema_used, catalog_used).
+
+    Raises:
+        DocumentError: all problems (schema + usdscene checks) at once.
+    """
+    from pathlib import Path
+
+    from converters.openlabel import load_document, read_openlabel, schema_problems
+    from usdscene.errors import DocumentError, UsdSceneError
+
+    document = load_document(args.document)  # bad JSON stops here with line and column
+    problems = []
+    schema = schema_path(args)
+    if schema is not None:
+        problems.extend(schema_problems(document, schema))
+    catalog = None if args.no_catalog else _catalog_for(document, Path(args.document).parent)
+    try:
+        scene = read_openlabel(args.document, catalog=catalog)
+    except DocumentError as exc:
+        problems.extend(exc.problems)
+        scene = None
+    if problems:
+        raise DocumentError(problems)
+    return scene, schema, catalog
+
+
+def _catalog_for(document: dict, base_dir):
+    """The asset catalog the document would be composed with, or None (with a warning) when
+    there is none to check against."""
+    from usdscene.catalog import CATALOG_FILE, default_asset_folder, load_catalog
+
+    block = document["openlabel"].get("metadata", {})
+    block = block.get("usdscene", {}) if isinstance(block, dict) else {}
+    extra = block.get("asset_paths", []) if isinstance(block, dict) else []
+    extra = [p for p in extra if isinstance(p, str)] if isinstance(extra, list) else []
+    include_default = (default_asset_folder() / CATALOG_FILE).is_file()
+    if not include_default and not extra:
+        log.warning("no asset catalog found (%s); object classes and places are not checked",
+                    default_asset_folder() / CATALOG_FILE)
+        return None
+    return load_catalog(extra, include_default=include_default, base_dir=base_dir)
+
+
+def run(args: argparse.Namespace) -> int:
+    scene, schema, catalog = check_document(args)
+    checks = ["usdscene checks"]
+    checks.append(f"schema {schema.name}" if schema is not None else "no official schema (use --schema)")
+    checks.append("asset catalog" if catalog is not None else "no asset catalog")
+    print(f"{args.document}: valid: {len(scene.cameras)} cameras, {len(scene.lights)} lights, "
+          f"{len(scene.objects)} objects, {len(scene.places)} places, {len(scene.relations)} relations, "
+          f"frames {scene.frame_start}..{scene.frame_end} ({', '.join(checks)})", file=sys.stdout)
+    return 0
