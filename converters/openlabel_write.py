@@ -19,6 +19,7 @@ Normal form (what ``usdscene convert`` writes):
 
 from __future__ import annotations
 
+import logging
 import os
 from typing import Any, Iterable
 
@@ -32,6 +33,8 @@ from converters.openlabel_read import (
     SCHEMA_VERSION,
     UID_PATTERN,
 )
+
+log = logging.getLogger(__name__)
 
 FISHEYE_LENSES = (LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
 
@@ -92,11 +95,11 @@ def write_openlabel(scene: SceneSpec) -> dict:
 
     objects: dict[str, Any] = {}
     seen: dict[str, str] = {}
+    uid_map = openlabel_uids([*(e.uid for e in scene.lights), *(e.uid for e in scene.places),
+                              *(e.uid for e in scene.objects)])
+    relation_uids = openlabel_uids([r.uid for r in scene.relations])
 
     def claim(uid: str, what: str) -> bool:
-        if not isinstance(uid, str) or not UID_PATTERN.match(uid):
-            problems.add(f"{what}.uid", f"uid {uid!r} must be an integer string or a UUID for OpenLABEL")
-            return False
         if uid in seen:
             problems.add(f"{what}.uid", f"uid {uid!r} is also used by {seen[uid]}")
             return False
@@ -113,11 +116,11 @@ def write_openlabel(scene: SceneSpec) -> dict:
         data.add("vec", "color_rgb", [float(v) for v in light.color_rgb])
         data.add("vec", "size_m", [float(v) for v in light.size_m])
         data.add("vec", "pose_matrix4x4", _matrix(light.pose))
-        objects[light.uid] = _element(light.name, LIGHT_TYPE, light.frame_intervals, data)
+        objects[uid_map[light.uid]] = _element(light.name, LIGHT_TYPE, light.frame_intervals, data)
 
     for place in scene.places:
         if claim(place.uid, f"places.{place.name}"):
-            objects[place.uid] = {"name": place.name, "type": PLACE_TYPE}
+            objects[uid_map[place.uid]] = {"name": place.name, "type": PLACE_TYPE}
 
     for obj in scene.objects:
         if not claim(obj.uid, f"objects.{obj.uid}"):
@@ -145,33 +148,33 @@ def write_openlabel(scene: SceneSpec) -> dict:
                     problems.add(f"objects.{obj.uid}.frame_poses", f"frame {frame} is negative")
                     continue
                 entry = frames.setdefault(frame, {}).setdefault("objects", {})
-                entry[obj.uid] = {"object_data": {"vec": [{"name": "pose_matrix4x4", "val": _matrix(pose)}]}}
+                entry[uid_map[obj.uid]] = {"object_data": {"vec": [{"name": "pose_matrix4x4", "val": _matrix(pose)}]}}
             pointers = element.setdefault("object_data_pointers", {})
             pointers["pose_matrix4x4"] = {
                 "type": "vec",
                 "frame_intervals": _intervals(_frames_to_intervals(f for f, _ in obj.frame_poses if f >= 0))}
-        objects[obj.uid] = element
+        objects[uid_map[obj.uid]] = element
     if objects:
         body["objects"] = objects
 
     relations: dict[str, Any] = {}
     for rel in scene.relations:
-        if not isinstance(rel.uid, str) or not UID_PATTERN.match(rel.uid):
-            problems.add(f"relations.{rel.uid}.uid", f"uid {rel.uid!r} must be an integer string or a UUID")
-            continue
-        if rel.uid in relations:
+        if relation_uids[rel.uid] in relations:
             problems.add(f"relations.{rel.uid}.uid", f"duplicate relation uid {rel.uid!r}")
             continue
-        for side, uid in (("subject_uid", rel.subject_uid), ("object_uid", rel.object_uid)):
-            if uid not in seen:
-                problems.add(f"relations.{rel.uid}.{side}", f"relation {rel.uid} refers to {uid!r}, which is "
-                                                            f"not a light, place or object of the scene")
+        dangling = [(side, uid) for side, uid in (("subject_uid", rel.subject_uid), ("object_uid", rel.object_uid))
+                    if uid not in seen]
+        for side, uid in dangling:
+            problems.add(f"relations.{rel.uid}.{side}", f"relation {rel.uid} refers to {uid!r}, which is "
+                                                        f"not a light, place or object of the scene")
+        if dangling:
+            continue
         entry: dict[str, Any] = {"name": "", "type": rel.type,
-                                 "rdf_subjects": [{"uid": rel.subject_uid, "type": "object"}],
-                                 "rdf_objects": [{"uid": rel.object_uid, "type": "object"}]}
+                                 "rdf_subjects": [{"uid": uid_map[rel.subject_uid], "type": "object"}],
+                                 "rdf_objects": [{"uid": uid_map[rel.object_uid], "type": "object"}]}
         if rel.frame_intervals:
             entry["frame_intervals"] = _intervals(rel.frame_intervals)
-        relations[rel.uid] = entry
+        relations[relation_uids[rel.uid]] = entry
     if relations:
         body["relations"] = relations
 
@@ -184,6 +187,35 @@ def write_openlabel(scene: SceneSpec) -> dict:
     body["frame_intervals"] = _intervals(union_intervals(every))
     problems.raise_if_any(DocumentError)
     return {"openlabel": body}
+
+
+def openlabel_uids(uids: Iterable[str]) -> dict[str, str]:
+    """uid → the uid written to OpenLABEL.
+
+    The schema only allows integer strings and UUIDs as element keys. Such uids are kept;
+    any other uid (e.g. ``"backpack_003"`` from a scene built in code) gets the smallest
+    unused non-negative integer, in scene order, so the same scene always gets the same
+    numbers. Element names are written unchanged. Duplicates map to the first assignment
+    (the caller reports them).
+    """
+    uids = list(uids)
+    used = {u for u in uids if isinstance(u, str) and UID_PATTERN.match(u)}
+    out: dict[str, str] = {}
+    counter = 0
+    for uid in uids:
+        if uid in out:
+            continue
+        if uid in used:
+            out[uid] = uid
+            continue
+        while str(counter) in used:
+            counter += 1
+        out[uid] = str(counter)
+        used.add(str(counter))
+    if any(k != v for k, v in out.items()):
+        log.info("uids that are not integers or UUIDs were renumbered for OpenLABEL: %s",
+                 {k: v for k, v in out.items() if k != v})
+    return out
 
 
 class _Data:
