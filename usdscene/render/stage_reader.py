@@ -171,7 +171,9 @@ def _read_cameras(stage, frames, settings: RenderSettings, problems) -> list[Cam
                      for p in _self_and_ancestors(prim) if p.IsA(UsdGeom.Xformable))
         base = pose_at(Usd.TimeCode.Default().GetValue() if not moving else frames[0])
         frame_poses = tuple((f, pose_at(f)) for f in frames) if moving else ()
-        clip = geom.GetClippingRangeAttr().Get() or (0.01, 1000.0)
+        clip = _attr(prim, getattr(names, "ATTR_CAMERA_CLIPPING", ""), None)  # exact doubles
+        if clip is None:
+            clip = geom.GetClippingRangeAttr().Get() or (0.01, 1000.0)
         cameras.append(Camera(name=prim.GetName(), intrinsics=intr, pose=base, frame_poses=frame_poses,
                               clip_near_m=float(clip[0]), clip_far_m=float(clip[1]),
                               model_name=str(_attr(prim, names.ATTR_CAMERA_MODEL_NAME, "") or "")))
