@@ -222,3 +222,22 @@ def test_coco_categories_from_catalog_classes(annotated):
     data = coco_dataset(document, classes=["suitcase", "passenger", "backpack"])
     assert [(c["id"], c["name"]) for c in data["categories"]] == [(1, "backpack"), (2, "passenger"), (3, "suitcase")]
     assert {a["category_id"] for a in data["annotations"]} == {1, 3}
+
+
+def test_annotated_document_from_writer_validates_and_reads_back(openlabel_schema_path, tmp_path):
+    from converters.openlabel import read_openlabel, schema_problems, write_openlabel
+
+    scene = _scene()
+    images = []
+    for frame in (0, 1):
+        for camera in CAMERAS:
+            mask, amodal = _masks(frame, camera)
+            images.append(label_image(mask, IDS, amodal, classes=CLASSES, camera=camera, frame=frame))
+    document = add_annotations(write_openlabel(scene), scene, label_images(images), tmp_path)
+    document = json.loads(json.dumps(document, allow_nan=False))
+    assert schema_problems(document, openlabel_schema_path) == []
+    again = read_openlabel(document)
+    assert [o.uid for o in again.objects] == [o.uid for o in scene.objects]
+    assert [c.name for c in again.cameras] == list(CAMERAS)
+    assert (again.frame_start, again.frame_end) == (0, 1)
+    assert labels_in(document, 0, "cam_a")[0]["bbox"] is not None

@@ -1,0 +1,224 @@
+"""ROI crops for place classification (is a bag stowed correctly?), from an annotated document.
+
+For every image of the document (frame × camera) and every region of every place the document
+names (``seat_03A`` → its ``is_on``, ``is_below``, ``is_in_front_of`` ... regions in the asset
+catalog), the region's box (catalog pose and size, see :class:`usdscene.catalog.PlaceRegion`)
+is projected through the camera (:func:`usdscene.projection.project_points`, every lens model)
+and cropped from the image when the camera sees it:
+
+* all 8 corners are valid for the lens (in front of the camera, inside its field of view);
+* at least ``min_inside_fraction`` of the projected box lies inside the image;
+* the clipped crop is at least ``min_size_px`` wide and high.
+
+Label of a crop: the document's ``roi_rules`` (``metadata.usdscene.roi_rules``) applied to the
+relation of the region when some present object holds that relation with the place at that
+frame (rule keys ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the
+relation name itself), and ``empty`` when no object is there. Example rules for taxi, take-off
+and landing: ``{"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"}``.
+
+Output (an image-folder dataset)::
+
+    exports/rois/<label>/<camera>_<frame:06d>_<place>_<relation>.png
+    exports/rois/index.csv   path,label,camera,frame,place,place_kind,relation,objects,x,y,w,h,image
+
+``x, y, w, h`` is the crop in the source image (pixels, top-left corner, pixel ``i`` covers
+``[i, i + 1)``), ``objects`` the uids in the region separated by ``;``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from converters.openlabel_annotations import image_records
+from usdscene import layout
+from usdscene.catalog import Catalog, PlaceRegion
+from usdscene.errors import AssetError, DocumentError, OutputError
+from usdscene.files import write_bytes_atomic, write_text_atomic
+from usdscene.model import Camera, SceneSpec, in_intervals
+
+log = logging.getLogger(__name__)
+
+ROIS_DIR = "rois"
+INDEX_FILE = "index.csv"
+EMPTY_LABEL = "empty"
+CSV_COLUMNS = ("path", "label", "camera", "frame", "place", "place_kind", "relation", "objects",
+               "x", "y", "w", "h", "image")
+
+
+@dataclass(frozen=True)
+class RoiCrop:
+    """One crop.
+
+    Attributes:
+        camera, frame: the source image.
+        place: place name; place_kind: its kind (seat, bin, aisle).
+        relation: the region's relation (``is_below`` ...).
+        label: class label (rule result or ``empty``).
+        objects: uids of the objects in the region.
+        x_min, y_min, x_max, y_max: inclusive pixel bounds of the crop in the image.
+    """
+
+    camera: str
+    frame: int
+    place: str
+    place_kind: str
+    relation: str
+    label: str
+    objects: tuple[str, ...]
+    x_min: int
+    y_min: int
+    x_max: int
+    y_max: int
+
+
+def region_corners(region: PlaceRegion) -> np.ndarray:
+    """(8, 3) world corners of a region box (its frame: z = 0 support plane, z up)."""
+    sx, sy, sz = region.size_m
+    local = np.array([[x, y, z] for x in (-sx / 2, sx / 2) for y in (-sy / 2, sy / 2) for z in (0.0, sz)])
+    return region.pose.transform_points(local)
+
+
+def region_crop_box(camera: Camera, region: PlaceRegion, frame: int, *, min_size_px: int = 8,
+                    min_inside_fraction: float = 0.5) -> tuple[int, int, int, int] | None:
+    """Inclusive pixel bounds ``(x_min, y_min, x_max, y_max)`` of the region's projected box
+    clipped to the image, or None when the camera does not see it (see the module docstring)."""
+    from usdscene.projection import project_points
+
+    uv, valid = project_points(camera, region_corners(region), frame)
+    if not valid.all():
+        return None
+    width, height = camera.intrinsics.width_px, camera.intrinsics.height_px
+    # Pixel-centre coordinates → pixel edges: pixel i spans [i - 0.5, i + 0.5].
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    full_area = max(hi[0] - lo[0], 1e-9) * max(hi[1] - lo[1], 1e-9)
+    clo = np.maximum(lo, -0.5)
+    chi = np.minimum(hi, [width - 0.5, height - 0.5])
+    if (chi <= clo).any():
+        return None
+    if (chi[0] - clo[0]) * (chi[1] - clo[1]) < min_inside_fraction * full_area:
+        return None
+    # Pixels that the clipped box overlaps: the one holding each clipped edge.
+    x0, y0 = (int(v) for v in np.floor(clo + 0.5))
+    x1, y1 = (int(v) for v in np.ceil(chi + 0.5) - 1)
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, width - 1), min(y1, height - 1)
+    if x1 - x0 + 1 < min_size_px or y1 - y0 + 1 < min_size_px:
+        return None
+    return (x0, y0, x1, y1)
+
+
+def _occupants(scene: SceneSpec, place_uid: str, relation: str, frame: int) -> tuple[str, ...]:
+    present = {o.uid for o in scene.objects_present(frame)}
+    uids = []
+    for rel in scene.relations:
+        if rel.object_uid != place_uid or rel.type != relation or rel.subject_uid not in present:
+            continue
+        if rel.frame_intervals and not in_intervals(frame, rel.frame_intervals):
+            continue
+        uids.append(rel.subject_uid)
+    return tuple(sorted(set(uids)))
+
+
+def _label(rules, kind: str, relation: str, occupied: bool) -> str:
+    if not occupied:
+        return EMPTY_LABEL
+    return str(rules.get(f"{kind}:{relation}", rules.get(relation, relation)))
+
+
+def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
+              min_inside_fraction: float = 0.5) -> list[RoiCrop]:
+    """Every crop of an annotated document, sorted by (frame, camera, place, relation).
+
+    Raises:
+        DocumentError: the document does not read as a scene.
+        AssetError: its environment or one of its places is not in the catalog.
+    """
+    from converters.openlabel import read_openlabel
+
+    scene = read_openlabel(document)
+    if not scene.places:
+        return []
+    if scene.environment is None or scene.environment not in catalog:
+        raise AssetError(f"environment {scene.environment!r} is not in the asset catalog",
+                         where="openlabel.metadata.usdscene.environment")
+    env_places = catalog.places(scene.environment)
+    missing = [p.name for p in scene.places if p.name not in env_places]
+    if missing:
+        raise AssetError(f"places {missing} are not in environment {scene.environment!r}",
+                         where="openlabel.objects")
+    if not scene.roi_rules:
+        log.warning("the document has no roi_rules; occupied regions are labelled by relation name")
+    cameras = {c.name: c for c in scene.cameras}
+    crops = []
+    for record in image_records(document):
+        camera = cameras.get(record["camera"])
+        if camera is None:
+            raise DocumentError(f"image of unknown camera {record['camera']!r}",
+                                where=f"openlabel.frames.{record['frame']}.frame_properties.streams")
+        for place_ref in scene.places:
+            place = env_places[place_ref.name]
+            for relation, region in sorted(place.regions.items()):
+                box = region_crop_box(camera, region, record["frame"], min_size_px=min_size_px,
+                                      min_inside_fraction=min_inside_fraction)
+                if box is None:
+                    continue
+                occupants = _occupants(scene, place_ref.uid, relation, record["frame"])
+                crops.append(RoiCrop(camera=camera.name, frame=record["frame"], place=place.name,
+                                     place_kind=place.kind, relation=relation,
+                                     label=_label(scene.roi_rules, place.kind, relation, bool(occupants)),
+                                     objects=occupants, x_min=box[0], y_min=box[1], x_max=box[2], y_max=box[3]))
+    return sorted(crops, key=lambda c: (c.frame, c.camera, c.place, c.relation))
+
+
+def export_rois(document: dict, out_dir: str | os.PathLike, catalog: Catalog, *, min_size_px: int = 8,
+                min_inside_fraction: float = 0.5) -> Path:
+    """Crop every visible place region of every image; write the dataset and its CSV index.
+
+    Args:
+        document: annotated OpenLABEL document (image uris relative to ``out_dir``).
+        out_dir: the output folder holding the document and ``images/``.
+        catalog: asset catalog with the environment's places.
+        min_size_px: smallest crop side kept, pixels.
+        min_inside_fraction: smallest part of the projected box that must lie in the image.
+
+    Returns:
+        The ``exports/rois`` folder.
+
+    Raises:
+        OutputError: an image the document names cannot be read.
+    """
+    import cv2
+
+    out = Path(out_dir)
+    root = out / layout.EXPORTS_DIR / ROIS_DIR
+    uris = {(r["frame"], r["camera"]): r["uri"] for r in image_records(document)}
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    loaded: dict[str, np.ndarray] = {}
+    for crop in plan_rois(document, catalog, min_size_px=min_size_px, min_inside_fraction=min_inside_fraction):
+        uri = uris[(crop.frame, crop.camera)]
+        if uri not in loaded:
+            loaded.clear()  # one image at a time: crops are sorted by image
+            image = cv2.imread(str(out / uri), cv2.IMREAD_UNCHANGED)
+            if image is None:
+                raise OutputError(f"cannot read image {uri!r}", where=str(out / uri))
+            loaded[uri] = image
+        pixels = loaded[uri][crop.y_min:crop.y_max + 1, crop.x_min:crop.x_max + 1]
+        name = f"{crop.camera}_{layout.frame_file(crop.frame)[:-4]}_{crop.place}_{crop.relation}.png"
+        relative = Path(crop.label) / name
+        ok, encoded = cv2.imencode(".png", pixels)
+        if not ok:
+            raise OutputError(f"cannot encode crop {name!r}", where=str(root / relative))
+        write_bytes_atomic(root / relative, encoded.tobytes())
+        writer.writerow([relative.as_posix(), crop.label, crop.camera, crop.frame, crop.place,
+                         crop.place_kind, crop.relation, ";".join(crop.objects), crop.x_min, crop.y_min,
+                         crop.x_max - crop.x_min + 1, crop.y_max - crop.y_min + 1, uri])
+    write_text_atomic(root / INDEX_FILE, buffer.getvalue())
+    return root
