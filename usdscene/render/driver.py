@@ -35,7 +35,8 @@ log = logging.getLogger(__name__)
 
 ENGINES = ("cycles", "eevee", "workbench")
 # Settings the worker knows beyond RenderSettings (benchmarked in benchmarks/render_settings.py).
-EXTRA_SETTINGS = {"denoising_quality": "FAST", "denoising_prefilter": "FAST"}
+# resolution_scale scales every camera's image (previews); 1 = the calibrated resolution.
+EXTRA_SETTINGS = {"denoising_quality": "FAST", "denoising_prefilter": "FAST", "resolution_scale": 1.0}
 
 
 @dataclass(frozen=True)
@@ -106,9 +107,25 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
                          ("denoising_prefilter", ("NONE", "FAST", "ACCURATE"))):
         if settings[key] not in allowed:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
+    if not 0 < float(settings["resolution_scale"]) <= 4:
+        problems.append(Problem("render.resolution_scale",
+                                f"resolution_scale {settings['resolution_scale']!r} must be in (0, 4]"))
     if problems:
         raise RenderError(problems)
     return settings
+
+
+def scale_intrinsics(intr, scale: float):
+    """The same lens at ``scale`` times the resolution (pixel centres at integers: a pixel
+    position p maps to ``(p + 0.5) · s' - 0.5`` with s' the exact per-axis size ratio)."""
+    if scale == 1.0:
+        return intr
+    w = max(1, round(intr.width_px * scale))
+    h = max(1, round(intr.height_px * scale))
+    sx, sy = w / intr.width_px, h / intr.height_px
+    return dataclasses.replace(intr, width_px=w, height_px=h, fx_px=intr.fx_px * sx, fy_px=intr.fy_px * sy,
+                               cx_px=(intr.cx_px + 0.5) * sx - 0.5, cy_px=(intr.cy_px + 0.5) * sy - 0.5,
+                               sensor_width_mm=intr.sensor_width_mm)
 
 
 def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = None,
@@ -165,7 +182,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     cam_json = {}
     for name in camera_list:
         cam = by_name[name]
-        intr = cam.intrinsics
+        intr = scale_intrinsics(cam.intrinsics, float(settings["resolution_scale"]))
         render_intr = intr if intr.lens in NATIVE_LENSES and _centred(intr) else undistorted_render_intrinsics(intr)
         cam_json[name] = {
             "intrinsics": intrinsics_to_json(intr),
