@@ -1,0 +1,50 @@
+"""``usdscene export-openlabel STAGE -o DOC``: Scene2VCD, a USD stage or .blend → OpenLABEL."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "export-openlabel"
+HELP = "read a USD stage (.usd/.usda/.usdc) or a .blend back into an OpenLABEL scene document"
+ORDER = 60
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("stage", metavar="STAGE", help="composed or DCC-edited stage, or a .blend file")
+    parser.add_argument("-o", "--out", metavar="DOC", required=True, help="OpenLABEL document to write (.json)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import importlib
+    from pathlib import Path
+
+    from rich.console import Console
+
+    from converters.openlabel import write_document, write_openlabel
+    from usdscene.errors import DocumentError
+
+    source = Path(args.stage)
+    suffix = source.suffix.lower()
+    if suffix in USD_SUFFIXES:
+        from converters.usd_stage import scene_from_stage
+
+        scene = scene_from_stage(source)
+    elif suffix == ".blend":
+        try:
+            blend_io = importlib.import_module("usdscene.render.blend_io")
+            scene_from_blend = blend_io.scene_from_blend
+        except (ImportError, AttributeError):
+            raise DocumentError("reading .blend files needs usdscene.render.blend_io.scene_from_blend, "
+                                "which this installation lacks; export the scene to USD from Blender "
+                                "and pass the .usd file instead", where=str(source)) from None
+        scene = scene_from_blend(source)
+    else:
+        raise DocumentError(f"unsupported file type {suffix or '(none)'!r}; expected one of "
+                            f"{', '.join(USD_SUFFIXES)} or .blend", where=str(source))
+    write_document(Path(args.out), write_openlabel(scene))
+    Console(highlight=False).print(
+        f"wrote {args.out}: {len(scene.cameras)} cameras, {len(scene.lights)} lights, "
+        f"{len(scene.objects)} objects, frames {scene.frame_start}..{scene.frame_end}")
+    return 0

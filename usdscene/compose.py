@@ -1,0 +1,591 @@
+"""VCD2Scene: compose the layered USD stage of a :class:`~usdscene.model.SceneSpec`.
+
+:func:`compose_stage` writes the layers named in :mod:`usdscene.stage_schema`::
+
+    scene.usda        root: sublayers strongest first, upAxis Z, metersPerUnit 1, start/end
+                      time codes = frame range, renderSettingsPrimPath, customLayerData
+                      provenance (source hash, seed, toolkit version) and the document-level
+                      fields without prims (places, relations, exports, ...)
+    render.usda       /Render/Settings (UsdRender.Settings + usdscene:render:* knobs),
+                      /Render/Products/<camera> with the camera's resolution
+    cameras.usda      /World/Cameras/<camera>: UsdGeom.Camera + usdscene:lens:* attributes
+    lights.usda       /World/Lights/<light>: UsdLux lights + usdscene:light:* attributes
+    objects.usda      /World/Objects/<class>_<uid>: reference to the asset, time-sampled
+                      transform and visibility, appearance variant, colour opinion, identity
+    environment.usda  /World/Environment: reference to the environment asset (and its places)
+
+Conventions of the authored stage:
+
+* Frame number = time code. Transforms are one ``xformOp:transform`` (matrix4d, exact
+  doubles). An attribute that never changes gets a default value only; one that changes gets
+  the default (the document's base value) plus time samples at the first and last frame of
+  every run of equal values, so values are exact at every integer frame whatever
+  interpolation a reader uses. Visibility (a token, never interpolated) gets a sample at each
+  change.
+* Cameras: ``focalLength``, apertures and aperture offsets are in *tenths of a scene unit*
+  as the UsdGeom.Camera spec says; with ``metersPerUnit = 1`` a 4 mm lens is authored as
+  ``0.04``. Blender 5.0's importer reads them exactly so (``lens_mm = focalLength · 100 ·
+  metersPerUnit``, ``shift = offset / max(aperture)``). The principal point maps to the
+  aperture offsets with OpenCV pixel centres at integer coordinates::
+
+      horizontalApertureOffset = ((w - 1) / 2 - cx) · horizontalAperture / w
+      verticalApertureOffset   = (cy - (h - 1) / 2) · verticalAperture / h
+
+  Orthographic cameras use the same unit for the view width (``horizontalAperture = 10 ·
+  width_m``); Blender's importer takes ``ortho_scale = max(aperture)`` without that factor, so
+  the Blender worker reads ``usdscene:lens:*`` instead. Fisheye and distorted lenses are
+  authored as the pinhole with the same focal length; the exact model is in the lens
+  attributes.
+* Lights: ``inputs:intensity = power_w / π`` for sphere (point, spot) and rect (area) lights
+  and ``inputs:intensity = irradiance / 4`` for the distant (sun) light, with
+  ``inputs:exposure = 0`` and ``inputs:normalize = true``. Blender 5.0's importer
+  (``usd_reader_light``) sets ``energy = π · intensity`` (``4 · intensity`` for suns), so an
+  imported light gets the document's watts. π is also the physical factor: a normalised
+  Lambertian emitter of radiance ``L`` emits ``Φ = π · L``. Spot cones: ``shaping:cone:angle``
+  = half the full spot angle, ``shaping:cone:softness`` = blend. ``DistantLight.angle`` is the
+  angular diameter (USD spec); Blender's importer doubles it, so the worker sets
+  ``sun_angle`` from ``usdscene:light:sunAngleDeg``.
+* Objects: references are not instanceable (Blender realises instances badly). The colour
+  opinion goes to the asset's colour shader (``Looks/Body/Surface.inputs:diffuseColor``, see
+  :mod:`usdscene.stage_schema`), to ``primvars:displayColor`` for viewers and, exact, to
+  ``userProperties:usdscene_color``.
+
+Everything random (appearance, colour, placement) is drawn from one
+``numpy.random.Generator`` seeded with ``scene.seed``, in a fixed order (appearance and colour
+per object in document order, then placement frame by frame), so the same scene and seed give
+byte-identical layers.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import logging
+import math
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from usdscene import __version__
+from usdscene import stage_schema as ss
+from usdscene.catalog import Catalog
+from usdscene.errors import CompositionError, ProblemCollector
+from usdscene.files import write_text_atomic
+from usdscene.layout import mask_ids
+from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
+                            Randomization, SceneObject, SceneSpec, cv_pose_to_usd_pose, union_intervals)
+from usdscene.placement import ObjectPlacement, check_placement_inputs, place_objects
+
+log = logging.getLogger(__name__)
+
+MM_PER_TENTH_METRE = 100.0
+"""USD camera lengths are tenths of a scene unit; with metersPerUnit = 1 that is 100 mm."""
+
+
+@dataclass(frozen=True)
+class ComposeResult:
+    """What :func:`compose_stage` wrote.
+
+    Attributes:
+        stage_dir: folder of the stage.
+        root_layer: ``<stage_dir>/scene.usda`` (open this one).
+        layers: every layer written: the root first, then the sublayers strongest first.
+        frame_start, frame_end: closed frame range (= start/end time codes).
+        objects_per_class: asset class → number of objects, sorted by class.
+        placements: uid → resolved placement of every object (document order).
+        resolved: the scene as composed: every object with explicit poses, its appearance and
+            colour fixed and no randomization left; cameras and lights with canonical
+            per-frame poses and presence. Reading the stage back gives this scene.
+    """
+
+    stage_dir: Path
+    root_layer: Path
+    layers: tuple[Path, ...]
+    frame_start: int
+    frame_end: int
+    objects_per_class: Mapping[str, int]
+    placements: Mapping[str, ObjectPlacement]
+    resolved: SceneSpec
+
+    @property
+    def frame_count(self) -> int:
+        return self.frame_end - self.frame_start + 1
+
+
+def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike, *,
+                  rng: np.random.Generator | None = None) -> ComposeResult:
+    """Write the layered USD stage of ``scene`` into ``out_dir``.
+
+    The root layer is removed first and written last, each layer atomically, so an
+    interrupted compose leaves no ``scene.usda`` that looks valid.
+
+    Args:
+        scene: the scene.
+        catalog: asset catalog with every class the scene uses (and its environment).
+        out_dir: stage folder (created if needed), e.g. ``<run>/stage``.
+        rng: generator for every random choice; default ``numpy.random.default_rng(scene.seed)``.
+
+    Returns:
+        What was written.
+
+    Raises:
+        CompositionError: unknown class, relation to a missing place, cyclic relations,
+            over-full place, clashing prim names... (every problem names the element uid).
+    """
+    from pxr import Sdf  # noqa: F401  (fail early with a clear ImportError if usd-core is absent)
+
+    if rng is None:
+        rng = np.random.default_rng(scene.seed)
+    if scene.frame_end < scene.frame_start:
+        raise CompositionError(f"frame range [{scene.frame_start}, {scene.frame_end}] is empty",
+                               where="frame_end")
+    check_placement_inputs(scene, catalog)
+    _check_prim_names(scene)
+    choices = _draw_looks(scene, catalog, rng)
+    placements = place_objects(scene, catalog, rng)
+    resolved = resolved_scene(scene, placements, choices)
+
+    stage_dir = Path(out_dir).resolve()
+    stage_dir.mkdir(parents=True, exist_ok=True)
+    texts = {
+        "render.usda": _render_layer(resolved),
+        "cameras.usda": _cameras_layer(resolved),
+        "lights.usda": _lights_layer(resolved),
+        "objects.usda": _objects_layer(resolved, catalog, stage_dir, mask_ids(scene)),
+        "environment.usda": _environment_layer(resolved, catalog, stage_dir),
+    }
+    assert tuple(texts) == ss.SUBLAYERS  # the schema's order is the strength order
+    root = stage_dir / ss.ROOT_LAYER
+    try:
+        root.unlink()
+    except FileNotFoundError:
+        pass
+    written = [write_text_atomic(stage_dir / name, text) for name, text in texts.items()]
+    write_text_atomic(root, _root_layer(resolved))
+    counts = collections.Counter(o.class_name for o in scene.objects)
+    return ComposeResult(
+        stage_dir=stage_dir, root_layer=root, layers=(root, *written),
+        frame_start=scene.frame_start, frame_end=scene.frame_end,
+        objects_per_class=dict(sorted(counts.items())), placements=placements, resolved=resolved)
+
+
+# --------------------------------------------------------------------------------------------
+# Decisions
+
+
+def _check_prim_names(scene: SceneSpec) -> None:
+    """Two elements must not map to the same prim (prim names are sanitised)."""
+    problems = ProblemCollector()
+    seen: dict[str, str] = {}
+    items = ([(ss.camera_prim_path(c.name), f"cameras.{c.name}", c.name) for c in scene.cameras]
+             + [(ss.light_prim_path(lt.name), f"lights.{lt.uid}", lt.uid) for lt in scene.lights]
+             + [(ss.object_prim_path(o.class_name, o.uid), f"objects.{o.uid}", o.uid) for o in scene.objects])
+    for path, where, ident in items:
+        if path in seen:
+            problems.add(where, f"{ident!r} maps to prim {path}, which {seen[path]!r} already uses; "
+                                "rename one of them")
+        else:
+            seen[path] = ident
+    problems.raise_if_any(CompositionError)
+
+
+def _draw_looks(scene: SceneSpec, catalog: Catalog,
+                rng: np.random.Generator) -> dict[str, tuple[str | None, tuple[float, float, float] | None]]:
+    """uid → (appearance variant, colour) as composed (document order of draws)."""
+    out = {}
+    for obj in scene.objects:
+        entry = catalog[obj.class_name]
+        variants = entry.variants.get(ss.VARIANT_SET_APPEARANCE, ())
+        appearance = obj.appearance
+        if appearance is None and obj.randomization.random_appearance and variants:
+            appearance = variants[int(rng.integers(len(variants)))]
+        if appearance is None and variants:
+            appearance = entry.default_variants.get(ss.VARIANT_SET_APPEARANCE, variants[0])
+        color = obj.color_rgb
+        if color is None and obj.randomization.random_color:
+            color = tuple(float(v) for v in rng.random(3))
+        out[obj.uid] = (appearance, tuple(float(c) for c in color) if color is not None else None)
+    return out
+
+
+def canonical_intervals(intervals, frame_start: int, frame_end: int) -> tuple[FrameInterval, ...]:
+    """Presence clipped to the scene range, merged; no intervals = the whole range."""
+    if not intervals:
+        return (FrameInterval(frame_start, frame_end),)
+    clipped = [FrameInterval(max(iv.frame_start, frame_start), min(iv.frame_end, frame_end))
+               for iv in intervals if iv.frame_end >= frame_start and iv.frame_start <= frame_end]
+    return union_intervals(clipped)
+
+
+def _canonical_camera(cam: Camera, frames: range) -> Camera:
+    frame_poses = tuple((f, cam.pose_at(f)) for f in frames if cam.pose_at(f).matrix != cam.pose.matrix)
+    return replace(cam, frame_poses=frame_poses, custom=dict(cam.custom))
+
+
+def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
+                   looks: Mapping[str, tuple[str | None, tuple[float, float, float] | None]]) -> SceneSpec:
+    """The scene as composed (see :attr:`ComposeResult.resolved`)."""
+    objects = []
+    for obj in scene.objects:
+        spans = placements[obj.uid].spans
+        appearance, color = looks[obj.uid]
+        if spans:
+            base = spans[0].pose
+            frame_poses = tuple((f, span.pose) for span in spans if span.pose.matrix != base.matrix
+                                for f in span.frames())
+        else:
+            base, frame_poses = obj.pose or Pose(), ()
+        objects.append(replace(
+            obj, frame_intervals=canonical_intervals(obj.frame_intervals, scene.frame_start, scene.frame_end),
+            pose=base, frame_poses=frame_poses, appearance=appearance, color_rgb=color,
+            randomization=Randomization()))
+    lights = tuple(replace(lt, frame_intervals=canonical_intervals(lt.frame_intervals, scene.frame_start,
+                                                                   scene.frame_end))
+                   for lt in scene.lights)
+    return replace(scene, cameras=tuple(_canonical_camera(c, scene.frames) for c in scene.cameras),
+                   lights=lights, objects=tuple(objects))
+
+
+# --------------------------------------------------------------------------------------------
+# Layer authoring (Sdf: fast, and the text output is sorted, hence deterministic)
+
+
+def _new_layer():
+    from pxr import Sdf
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.pseudoRoot.SetInfo("upAxis", "Z")
+    layer.pseudoRoot.SetInfo("metersPerUnit", 1.0)
+    return layer
+
+
+def _prim(parent, name: str, type_name: str = "", specifier=None):
+    from pxr import Sdf
+
+    spec = Sdf.PrimSpec(parent, name, specifier if specifier is not None else Sdf.SpecifierDef, type_name)
+    return spec
+
+
+def _world(layer, child: str | None = None, child_type: str = "Scope"):
+    world = _prim(layer, ss.WORLD.strip("/"), "Xform")
+    return _prim(world, child.rsplit("/", 1)[-1], child_type) if child else world
+
+
+def _attr(prim, name: str, type_name, value=None, *, uniform: bool = False, custom: bool = False):
+    from pxr import Sdf
+
+    variability = Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying
+    spec = Sdf.AttributeSpec(prim, name, type_name, variability)
+    if custom:
+        spec.custom = True
+    if value is not None:
+        spec.default = value
+    return spec
+
+
+def _identity(prim, uid: str, class_name: str, name: str) -> None:
+    from pxr import Sdf
+
+    prim.customData = {ss.LAYER_DATA_KEY: {ss.CUSTOM_UID.split(":")[1]: uid,
+                                           ss.CUSTOM_CLASS.split(":")[1]: class_name,
+                                           ss.CUSTOM_NAME.split(":")[1]: name}}
+    _attr(prim, ss.ATTR_USER_UID, Sdf.ValueTypeNames.String, uid, custom=True)
+    _attr(prim, ss.ATTR_USER_CLASS, Sdf.ValueTypeNames.String, class_name, custom=True)
+    _attr(prim, ss.ATTR_USER_NAME, Sdf.ValueTypeNames.String, name, custom=True)
+
+
+def _gf_matrix(matrix16: tuple[float, ...]):
+    """Row-major column-vector 4x4 (model.Pose) → Gf.Matrix4d (row-vector convention)."""
+    from pxr import Gf
+
+    m = matrix16
+    return Gf.Matrix4d(m[0], m[4], m[8], m[12], m[1], m[5], m[9], m[13],
+                       m[2], m[6], m[10], m[14], m[3], m[7], m[11], m[15])
+
+
+def _runs(values: list) -> list[tuple[int, int]]:
+    """Index ranges ``[start, end]`` of runs of equal consecutive values."""
+    runs: list[tuple[int, int]] = []
+    start = 0
+    for i in range(1, len(values) + 1):
+        if i == len(values) or values[i] != values[start]:
+            runs.append((start, i - 1))
+            start = i
+    return runs
+
+
+def _author_transform(layer, prim, base: tuple[float, ...], per_frame: list[tuple[float, ...]],
+                      frame_start: int) -> None:
+    """Default = base; samples at both ends of every run when the value changes."""
+    from pxr import Sdf, Vt
+
+    spec = _attr(prim, "xformOp:transform", Sdf.ValueTypeNames.Matrix4d, _gf_matrix(base))
+    _attr(prim, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Vt.TokenArray(["xformOp:transform"]),
+          uniform=True)
+    if per_frame and any(v != base for v in per_frame):
+        cache: dict[tuple[float, ...], object] = {}
+        for start, end in _runs(per_frame):
+            value = per_frame[start]
+            gf = cache.get(value)
+            if gf is None:
+                gf = cache[value] = _gf_matrix(value)
+            layer.SetTimeSample(spec.path, float(frame_start + start), gf)
+            if end != start:
+                layer.SetTimeSample(spec.path, float(frame_start + end), gf)
+
+
+def _author_visibility(layer, prim, present: list[bool], frame_start: int) -> None:
+    from pxr import Sdf
+
+    if all(present):
+        return
+    spec = _attr(prim, "visibility", Sdf.ValueTypeNames.Token, "inherited")
+    previous = None
+    for i, here in enumerate(present):
+        if here != previous:
+            layer.SetTimeSample(spec.path, float(frame_start + i), "inherited" if here else "invisible")
+            previous = here
+
+
+def _presence(intervals, frames: range) -> list[bool]:
+    return [any(iv.frame_start <= f <= iv.frame_end for iv in intervals) for f in frames]
+
+
+def _root_layer(scene: SceneSpec) -> str:
+    layer = _new_layer()
+    layer.startTimeCode = float(scene.frame_start)
+    layer.endTimeCode = float(scene.frame_end)
+    layer.defaultPrim = ss.WORLD.strip("/")
+    layer.pseudoRoot.SetInfo("renderSettingsPrimPath", ss.RENDER_SETTINGS)
+    for name in ss.SUBLAYERS:
+        layer.subLayerPaths.append(f"./{name}")
+    prov = scene.provenance
+    layer.customLayerData = {ss.LAYER_DATA_KEY: {
+        "toolkitVersion": __version__,
+        "seed": int(scene.seed),
+        "sourceSha256": prov.source_sha256,
+        "source": prov.source,
+        "sourceFormat": prov.source_format,
+        "sceneName": scene.name,
+        "description": scene.description,
+        "environment": scene.environment or "",
+        "assetPathsJson": json.dumps(list(scene.asset_paths)),
+        "exportsJson": json.dumps(list(scene.exports)),
+        "roiRulesJson": json.dumps(dict(scene.roi_rules)),
+        "placesJson": json.dumps([{"uid": p.uid, "name": p.name} for p in scene.places]),
+        "relationsJson": json.dumps([
+            {"uid": r.uid, "type": r.type, "subject": r.subject_uid, "object": r.object_uid,
+             "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals]}
+            for r in scene.relations]),
+    }}
+    return layer.ExportToString()
+
+
+def _render_layer(scene: SceneSpec) -> str:
+    from pxr import Gf, Sdf
+
+    layer = _new_layer()
+    render = _prim(layer, ss.RENDER_SETTINGS.split("/")[1], "Scope")
+    settings = _prim(render, ss.RENDER_SETTINGS.rsplit("/", 1)[1], "RenderSettings")
+    products = _prim(render, ss.RENDER_PRODUCTS.rsplit("/", 1)[1], "Scope")
+    rs = scene.render
+    T = Sdf.ValueTypeNames
+    _attr(settings, "resolution", T.Int2, Gf.Vec2i(*rs.resolution_px), uniform=True)
+    for name, type_name, value in (
+            (ss.ATTR_RENDER_ENGINE, T.Token, rs.engine), (ss.ATTR_RENDER_DEVICE, T.Token, rs.device),
+            (ss.ATTR_RENDER_SAMPLES, T.Int, int(rs.samples)),
+            (ss.ATTR_RENDER_ADAPTIVE_THRESHOLD, T.Double, float(rs.adaptive_threshold)),
+            (ss.ATTR_RENDER_DENOISE, T.Bool, bool(rs.denoise)), (ss.ATTR_RENDER_DENOISER, T.Token, rs.denoiser),
+            (ss.ATTR_RENDER_MAX_BOUNCES, T.Int, int(rs.max_bounces)),
+            (ss.ATTR_RENDER_CAUSTICS, T.Bool, bool(rs.caustics)),
+            (ss.ATTR_RENDER_TILE_SIZE, T.Int, int(rs.tile_size_px)),
+            (ss.ATTR_RENDER_RESOLUTION, T.Int2, Gf.Vec2i(*rs.resolution_px)),
+            (ss.ATTR_RENDER_SEED, T.Int, int(rs.seed))):
+        _attr(settings, name, type_name, value, custom=True)
+    rel = Sdf.RelationshipSpec(settings, "products", custom=False)
+    for cam in scene.cameras:
+        product = _prim(products, ss.prim_name(cam.name), "RenderProduct")
+        _attr(product, "resolution", T.Int2, Gf.Vec2i(cam.intrinsics.width_px, cam.intrinsics.height_px),
+              uniform=True)
+        _attr(product, "productName", T.Token, f"images/{cam.name}", uniform=True)
+        cam_rel = Sdf.RelationshipSpec(product, "camera", custom=False)
+        cam_rel.targetPathList.explicitItems.append(Sdf.Path(ss.camera_prim_path(cam.name)))
+        rel.targetPathList.explicitItems.append(product.path)
+    if scene.cameras:
+        cam_rel = Sdf.RelationshipSpec(settings, "camera", custom=False)
+        cam_rel.targetPathList.explicitItems.append(Sdf.Path(ss.camera_prim_path(scene.cameras[0].name)))
+    return layer.ExportToString()
+
+
+def camera_apertures(intr: Intrinsics) -> dict[str, float]:
+    """USD camera attributes (tenths of a metre) of an Intrinsics; see the module docstring.
+
+    Returns:
+        ``focalLength``, ``horizontalAperture``, ``verticalAperture``,
+        ``horizontalApertureOffset``, ``verticalApertureOffset`` as floats.
+    """
+    w, h = intr.width_px, intr.height_px
+    if intr.lens == LensModel.ORTHOGRAPHIC:
+        # fx/fy are pixels per metre; apertures are the view size in tenths of a metre.
+        h_ap, v_ap = 10.0 * w / intr.fx_px, 10.0 * h / intr.fy_px
+        focal = intr.sensor_width_mm / MM_PER_TENTH_METRE
+    else:
+        focal_mm = intr.fx_px * intr.sensor_width_mm / w
+        focal = focal_mm / MM_PER_TENTH_METRE
+        h_ap = intr.sensor_width_mm / MM_PER_TENTH_METRE
+        v_ap = focal * h / intr.fy_px
+    return {"focalLength": focal, "horizontalAperture": h_ap, "verticalAperture": v_ap,
+            "horizontalApertureOffset": ((w - 1) / 2.0 - intr.cx_px) * h_ap / w,
+            "verticalApertureOffset": (intr.cy_px - (h - 1) / 2.0) * v_ap / h}
+
+
+def _cameras_layer(scene: SceneSpec) -> str:
+    from pxr import Gf, Sdf, Vt
+
+    T = Sdf.ValueTypeNames
+    layer = _new_layer()
+    parent = _world(layer, ss.CAMERAS)
+    for cam in scene.cameras:
+        prim = _prim(parent, ss.prim_name(cam.name), "Camera")
+        _identity(prim, cam.name, "camera", cam.name)
+        base = cv_pose_to_usd_pose(cam.pose).matrix
+        per_frame = [cv_pose_to_usd_pose(cam.pose_at(f)).matrix for f in scene.frames] if cam.frame_poses else []
+        _author_transform(layer, prim, base, per_frame, scene.frame_start)
+        intr = cam.intrinsics
+        _attr(prim, "projection", T.Token,
+              "orthographic" if intr.lens == LensModel.ORTHOGRAPHIC else "perspective")
+        for name, value in camera_apertures(intr).items():
+            _attr(prim, name, T.Float, value)
+        _attr(prim, "clippingRange", T.Float2, Gf.Vec2f(cam.clip_near_m, cam.clip_far_m))
+        _attr(prim, ss.ATTR_CAMERA_CLIPPING, T.Double2, Gf.Vec2d(cam.clip_near_m, cam.clip_far_m), custom=True)
+        _attr(prim, ss.ATTR_LENS_MODEL, T.Token, intr.lens.value, custom=True)
+        _attr(prim, ss.ATTR_LENS_WIDTH, T.Int, int(intr.width_px), custom=True)
+        _attr(prim, ss.ATTR_LENS_HEIGHT, T.Int, int(intr.height_px), custom=True)
+        _attr(prim, ss.ATTR_LENS_FX, T.Double, float(intr.fx_px), custom=True)
+        _attr(prim, ss.ATTR_LENS_FY, T.Double, float(intr.fy_px), custom=True)
+        _attr(prim, ss.ATTR_LENS_CX, T.Double, float(intr.cx_px), custom=True)
+        _attr(prim, ss.ATTR_LENS_CY, T.Double, float(intr.cy_px), custom=True)
+        _attr(prim, ss.ATTR_LENS_DISTORTION, T.DoubleArray,
+              Vt.DoubleArray([float(v) for v in intr.distortion]), custom=True)
+        if intr.fov_deg is not None:
+            _attr(prim, ss.ATTR_LENS_FOV, T.Double, float(intr.fov_deg), custom=True)
+        _attr(prim, ss.ATTR_LENS_SENSOR_WIDTH, T.Double, float(intr.sensor_width_mm), custom=True)
+        _attr(prim, ss.ATTR_CAMERA_MODEL_NAME, T.String, cam.model_name, custom=True)
+        _attr(prim, ss.ATTR_CAMERA_DESCRIPTION, T.String, cam.description, custom=True)
+        _attr(prim, ss.ATTR_CAMERA_CUSTOM, T.String, json.dumps(dict(cam.custom), sort_keys=True), custom=True)
+    return layer.ExportToString()
+
+
+_LIGHT_TYPES = {LightKind.POINT: "SphereLight", LightKind.SPOT: "SphereLight",
+                LightKind.SUN: "DistantLight", LightKind.AREA: "RectLight"}
+
+
+def light_intensity(light: Light) -> float:
+    """UsdLux ``inputs:intensity`` for a document light (see the module docstring)."""
+    if light.kind == LightKind.SUN:
+        return light.power_w / 4.0
+    return light.power_w / math.pi
+
+
+def _lights_layer(scene: SceneSpec) -> str:
+    from pxr import Gf, Sdf
+
+    T = Sdf.ValueTypeNames
+    layer = _new_layer()
+    parent = _world(layer, ss.LIGHTS)
+    for light in scene.lights:
+        prim = _prim(parent, ss.prim_name(light.name), _LIGHT_TYPES[light.kind])
+        _identity(prim, light.uid, "light", light.name)
+        _author_transform(layer, prim, light.pose.matrix, [], scene.frame_start)
+        _author_visibility(layer, prim, _presence(light.frame_intervals, scene.frames), scene.frame_start)
+        _attr(prim, "inputs:intensity", T.Float, light_intensity(light))
+        _attr(prim, "inputs:exposure", T.Float, 0.0)
+        _attr(prim, "inputs:normalize", T.Bool, True)
+        _attr(prim, "inputs:color", T.Color3f, Gf.Vec3f(*light.color_rgb))
+        if light.kind in (LightKind.POINT, LightKind.SPOT):
+            _attr(prim, "inputs:radius", T.Float, light.radius_m)
+        if light.kind == LightKind.SPOT:
+            prim.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["ShapingAPI"]))
+            _attr(prim, "inputs:shaping:cone:angle", T.Float, light.spot_angle_deg / 2.0)
+            _attr(prim, "inputs:shaping:cone:softness", T.Float, light.spot_blend)
+        if light.kind == LightKind.SUN:
+            _attr(prim, "inputs:angle", T.Float, light.sun_angle_deg)
+        if light.kind == LightKind.AREA:
+            _attr(prim, "inputs:width", T.Float, light.size_m[0])
+            _attr(prim, "inputs:height", T.Float, light.size_m[1])
+        _attr(prim, ss.ATTR_LIGHT_KIND, T.Token, light.kind.value, custom=True)
+        _attr(prim, ss.ATTR_LIGHT_POWER_W, T.Double, float(light.power_w), custom=True)
+        _attr(prim, ss.ATTR_LIGHT_COLOR, T.Double3, Gf.Vec3d(*light.color_rgb), custom=True)
+        _attr(prim, ss.ATTR_LIGHT_RADIUS, T.Double, float(light.radius_m), custom=True)
+        _attr(prim, ss.ATTR_LIGHT_SPOT_ANGLE, T.Double, float(light.spot_angle_deg), custom=True)
+        _attr(prim, ss.ATTR_LIGHT_SPOT_BLEND, T.Double, float(light.spot_blend), custom=True)
+        _attr(prim, ss.ATTR_LIGHT_SIZE, T.Double2, Gf.Vec2d(*light.size_m), custom=True)
+        _attr(prim, ss.ATTR_LIGHT_SUN_ANGLE, T.Double, float(light.sun_angle_deg), custom=True)
+    return layer.ExportToString()
+
+
+def asset_reference_path(usd_path: Path, stage_dir: Path) -> str:
+    """Path of an asset as the stage references it: relative to the stage folder when
+    possible (the stage folder moves with its assets), forward slashes."""
+    try:
+        rel = os.path.relpath(Path(usd_path).resolve(), stage_dir)
+    except ValueError:  # another drive
+        return Path(usd_path).resolve().as_posix()
+    return Path(rel).as_posix()
+
+
+def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Mapping[str, int]) -> str:
+    from pxr import Gf, Sdf, Vt
+
+    T = Sdf.ValueTypeNames
+    layer = _new_layer()
+    parent = _world(layer, ss.OBJECTS)
+    frames = scene.frames
+    for obj in scene.objects:
+        entry = catalog[obj.class_name]
+        prim = _prim(parent, ss.object_prim_path(obj.class_name, obj.uid).rsplit("/", 1)[1], "Xform")
+        prim.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
+        _identity(prim, obj.uid, obj.class_name, obj.name)
+        _attr(prim, ss.ATTR_MASK_ID, T.Int, ids[obj.uid], custom=True)
+        _attr(prim, ss.ATTR_USER_MASK_ID, T.Int, ids[obj.uid], custom=True)
+        present = _presence(obj.frame_intervals, frames)
+        base = (obj.pose or Pose()).matrix
+        per_frame: list[tuple[float, ...]] = []
+        if obj.frame_poses:
+            by_frame = {f: p.matrix for f, p in obj.frame_poses}
+            # Absent frames hold the last pose so they add no samples.
+            held = base
+            for i, f in enumerate(frames):
+                if present[i]:
+                    held = by_frame.get(f, base)
+                per_frame.append(held)
+        _author_transform(layer, prim, base, per_frame, scene.frame_start)
+        _author_visibility(layer, prim, present, scene.frame_start)
+        if obj.appearance is not None:
+            prim.variantSelections[ss.VARIANT_SET_APPEARANCE] = obj.appearance
+        if obj.color_rgb is not None:
+            rgb = tuple(float(c) for c in obj.color_rgb)
+            color = _attr(prim, ss.ATTR_COLOR, T.Color3fArray, Vt.Vec3fArray([Gf.Vec3f(*rgb)]))
+            color.SetInfo("interpolation", "constant")
+            _attr(prim, ss.ATTR_USER_COLOR, T.Double3, Gf.Vec3d(*rgb), custom=True)
+            shader = prim
+            for part in ss.ASSET_COLOR_SHADER.split("/"):
+                shader = _prim(shader, part, specifier=Sdf.SpecifierOver)
+            _attr(shader, ss.ATTR_ASSET_COLOR, T.Color3f, Gf.Vec3f(*rgb))
+    return layer.ExportToString()
+
+
+def _environment_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path) -> str:
+    from pxr import Sdf
+
+    layer = _new_layer()
+    world = _world(layer)
+    if scene.environment is not None:
+        entry = catalog[scene.environment]
+        env = _prim(world, ss.ENVIRONMENT.rsplit("/", 1)[1], "Xform")
+        env.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
+        _identity(env, scene.environment, "environment", scene.environment)
+    return layer.ExportToString()

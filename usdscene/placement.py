@@ -1,0 +1,616 @@
+"""Placement from relations: where every dynamic object stands in every frame.
+
+Pure module (numpy only). :func:`place_objects` turns the spatial relations of a
+:class:`~usdscene.model.SceneSpec` (``backpack is_below seat_03A``, ``cup is_on tray_box``)
+into one object → world pose per object and frame, grouped in spans of consecutive frames that
+share a pose.
+
+Rules, in order of precedence:
+
+1. An explicit pose in the document wins: ``frame_poses`` for that frame, else ``pose``.
+2. Otherwise the first placement relation (document order) that holds in the frame places
+   the object in a *support region*: a box whose z = 0 plane is the support surface.
+
+   * Relation to a place: the region ``catalog.places(env)[place].regions[relation]``.
+   * Relation to another object (``T`` with asset extent ``[lo, hi]``, pose of that frame):
+     ``is_on`` → T's top face (z = hi.z, footprint = T's x/y extent, unlimited height);
+     ``is_in`` → T's inside (z = lo.z, footprint and height of T's extent);
+     ``is_in_front_of`` → a strip of depth :data:`FRONT_DEPTH_M` in front of T on T's
+     support plane (z = lo.z). An asset's *front* is its -Y side, as in Blender's front view.
+     ``is_below`` another object is refused (the floor under an object is unknown).
+
+3. Inside the region the object gets a yaw about the region's Z axis drawn from
+   ``N(0, rotation_noise_deg)``, and a position whose footprint (asset x/y extent after the
+   yaw) lies inside the region and whose lowest point (asset ``extent_min_m`` z) lies on the
+   support surface. The first try puts the footprint centre at the region centre displaced by
+   ``N(0, position_noise_m)`` on x and y (clamped into the region), so a lone object sits
+   predictably in the middle of its place; when that spot is taken, further tries draw
+   uniform positions in the region. A try is rejected when the object's oriented box
+   interpenetrates (by more than :data:`CONTACT_TOLERANCE_M`) any other object already placed
+   in that frame; after :data:`MAX_TRIES` rejections a :class:`CompositionError` names the
+   object, the place and how full it is.
+4. Without explicit pose or relation the object stays at the world origin (logged).
+
+Over time an object keeps its sampled pose *relative to its support region* for as long as it
+stays present under the same relation; it follows a support object that moves, and is
+re-sampled when the relation changes, when it re-appears after an absence, or when following a
+moving support would make it interpenetrate something.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from usdscene.catalog import AssetEntry, Catalog
+from usdscene.errors import CompositionError, ProblemCollector
+from usdscene.model import Pose, RelationType, SceneObject, SceneSpec
+
+log = logging.getLogger(__name__)
+
+MAX_TRIES = 200
+"""Reject-and-resample budget per object and frame."""
+
+CONTACT_TOLERANCE_M = 1e-6
+"""Boxes may touch (a box resting on another) or overlap by this much without counting as
+interpenetration."""
+
+FRONT_DEPTH_M = 0.6
+"""Depth of the strip in front of an object that ``is_in_front_of`` another object uses."""
+
+PLACEMENT_RELATIONS = tuple(r.value for r in RelationType)
+
+_IDENTITY = Pose().matrix
+
+
+@dataclass(frozen=True)
+class PoseSpan:
+    """One pose held over consecutive frames.
+
+    Attributes:
+        frame_start, frame_end: closed frame range of the span.
+        pose: object → world.
+        relation_uid: the relation that placed the object; None for an explicit pose (or an
+            object without relation, left at the origin).
+        support: human label of the support, e.g. ``place 'seat_03A' (is_below)`` or
+            ``object 'o2' (is_on)``; "" for explicit poses.
+        support_pose: support region frame → world (z = 0 is the support surface); None for
+            explicit poses.
+        support_size_m: (x, y, z) size of the support region in metres (z may be ``inf``).
+    """
+
+    frame_start: int
+    frame_end: int
+    pose: Pose
+    relation_uid: str | None = None
+    support: str = ""
+    support_pose: Pose | None = None
+    support_size_m: tuple[float, float, float] | None = None
+
+    def frames(self) -> range:
+        return range(self.frame_start, self.frame_end + 1)
+
+
+@dataclass(frozen=True)
+class ObjectPlacement:
+    """Where one object is, frame by frame.
+
+    Attributes:
+        uid: object uid.
+        class_name: asset class.
+        spans: spans of the frames where the object is present, sorted, non-overlapping.
+    """
+
+    uid: str
+    class_name: str
+    spans: tuple[PoseSpan, ...] = ()
+
+    def span_at(self, frame: int) -> PoseSpan | None:
+        for span in self.spans:
+            if span.frame_start <= frame <= span.frame_end:
+                return span
+        return None
+
+    def pose_at(self, frame: int) -> Pose | None:
+        """Pose at ``frame``; None when the object is absent."""
+        span = self.span_at(frame)
+        return span.pose if span is not None else None
+
+
+# --------------------------------------------------------------------------------------------
+# Oriented boxes
+
+
+@dataclass(frozen=True)
+class _Box:
+    centre: np.ndarray  # (3,) world
+    axes: np.ndarray    # (3, 3) columns = box axes in world
+    half: np.ndarray    # (3,) half sizes, metres
+
+
+def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World oriented box of an asset at a pose.
+
+    Args:
+        entry: catalog entry (its ``extent_min_m``/``extent_max_m`` bound the asset).
+        pose_matrix: (4, 4) object → world.
+
+    Returns:
+        ``(centre (3,), axes (3, 3) with the box axes as columns, half_sizes (3,))`` in metres.
+    """
+    lo = np.asarray(entry.extent_min_m, dtype=np.float64)
+    hi = np.asarray(entry.extent_max_m, dtype=np.float64)
+    rot = pose_matrix[:3, :3]
+    return rot @ ((lo + hi) / 2.0) + pose_matrix[:3, 3], rot.copy(), (hi - lo) / 2.0
+
+
+def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
+                  centres: np.ndarray, axes_k: np.ndarray, halves: np.ndarray,
+                  tolerance_m: float = CONTACT_TOLERANCE_M) -> np.ndarray:
+    """Separating-axis test of one oriented box against K others.
+
+    Args:
+        centre, axes, half: the box: (3,), (3, 3) axes as columns, (3,) half sizes.
+        centres, axes_k, halves: the others: (K, 3), (K, 3, 3), (K, 3).
+        tolerance_m: penetration depth still counted as contact.
+
+    Returns:
+        (K,) bool: True where the boxes interpenetrate by more than ``tolerance_m``.
+    """
+    k = centres.shape[0]
+    if k == 0:
+        return np.zeros(0, dtype=bool)
+    a = np.broadcast_to(axes.T, (k, 3, 3))             # rows = axes of the box
+    b = np.transpose(axes_k, (0, 2, 1))                 # rows = axes of the others
+    cross = np.cross(a[:, :, None, :], b[:, None, :, :]).reshape(k, 9, 3)
+    cand = np.concatenate([a, b, cross], axis=1)        # (K, 15, 3)
+    norm = np.linalg.norm(cand, axis=2)
+    valid = norm > 1e-9
+    cand = cand / np.where(valid, norm, 1.0)[:, :, None]
+    r_a = np.abs(np.einsum("kij,knj->kni", a, cand)) @ half               # (K, 15)
+    r_b = np.einsum("kni,ki->kn", np.abs(np.einsum("kij,knj->kni", b, cand)), halves)
+    dist = np.abs(np.einsum("knj,kj->kn", cand, centres - centre))
+    separated = valid & (dist >= r_a + r_b - tolerance_m)
+    return ~separated.any(axis=1)
+
+
+# --------------------------------------------------------------------------------------------
+# Validation
+
+
+def _frame_mask(intervals, frame_start: int, n_frames: int) -> np.ndarray:
+    """(n_frames,) bool presence over the scene range; no intervals = every frame."""
+    if not intervals:
+        return np.ones(n_frames, dtype=bool)
+    mask = np.zeros(n_frames, dtype=bool)
+    for iv in intervals:
+        lo = max(iv.frame_start - frame_start, 0)
+        hi = min(iv.frame_end - frame_start, n_frames - 1)
+        if lo <= hi:
+            mask[lo:hi + 1] = True
+    return mask
+
+
+def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
+    """Refuse unknown classes, relations to missing places or objects and cyclic relations.
+
+    Raises:
+        CompositionError: every problem at once; each names the element uid.
+    """
+    problems = ProblemCollector()
+    objects = scene.object_by_uid()
+    places = scene.place_by_uid()
+    env_places: Mapping = {}
+    if scene.environment is not None:
+        if scene.environment not in catalog:
+            problems.add("environment", f"environment class {scene.environment!r} is not in the "
+                                        f"asset catalog (known: {', '.join(catalog.classes('environment')) or 'none'})")
+        else:
+            env_places = catalog.places(scene.environment)
+    for obj in scene.objects:
+        if obj.class_name not in catalog:
+            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has unknown class {obj.class_name!r} "
+                                                f"(known classes: {', '.join(catalog.classes()) or 'none'})")
+        elif catalog[obj.class_name].kind == "environment":
+            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has class {obj.class_name!r}, "
+                                                "which is an environment, not a placeable object")
+        elif obj.appearance is not None:
+            choices = catalog[obj.class_name].variants.get("appearance", ())
+            if obj.appearance not in choices:
+                problems.add(f"objects.{obj.uid}.appearance",
+                             f"object {obj.uid!r}: appearance {obj.appearance!r} is not a variant of "
+                             f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+    for rel in scene.relations:
+        if rel.type not in PLACEMENT_RELATIONS:
+            continue
+        where = f"relations.{rel.uid}"
+        if rel.subject_uid not in objects:
+            problems.add(where, f"relation {rel.uid!r} ({rel.type}) places {rel.subject_uid!r}, "
+                                "which is not a dynamic object of the document")
+            continue
+        if rel.object_uid in places:
+            place = places[rel.object_uid]
+            if scene.environment is None:
+                problems.add(where, f"relation {rel.uid!r}: object {rel.subject_uid!r} {rel.type} place "
+                                    f"{place.name!r}, but the document names no environment")
+            elif scene.environment in catalog and place.name not in env_places:
+                problems.add(where, f"relation {rel.uid!r}: object {rel.subject_uid!r} {rel.type} place "
+                                    f"{place.name!r}, which environment {scene.environment!r} lacks")
+            elif place.name in env_places and rel.type not in env_places[place.name].regions:
+                have = ", ".join(sorted(env_places[place.name].regions)) or "none"
+                problems.add(where, f"relation {rel.uid!r}: place {place.name!r} has no region for "
+                                    f"{rel.type!r} (it has: {have}); cannot place {rel.subject_uid!r}")
+        elif rel.object_uid in objects:
+            if rel.type == RelationType.IS_BELOW.value:
+                problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} is_below another object "
+                                    f"({rel.object_uid!r}) is not supported; relate it to a place")
+            elif rel.object_uid == rel.subject_uid:
+                problems.add(where, f"relation {rel.uid!r}: object {rel.subject_uid!r} is related to itself")
+        else:
+            problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
+                                "which is neither a place nor an object of the document")
+    # Cycles among object → object relations.
+    graph: dict[str, list[tuple[str, str]]] = {}
+    for rel in scene.relations:
+        if (rel.type in PLACEMENT_RELATIONS and rel.subject_uid in objects and rel.object_uid in objects
+                and rel.subject_uid != rel.object_uid):
+            graph.setdefault(rel.subject_uid, []).append((rel.object_uid, rel.uid))
+    for cycle in _find_cycles(graph, [o.uid for o in scene.objects]):
+        chain = " → ".join(repr(u) for u in cycle)
+        problems.add(f"objects.{cycle[0]}", f"cyclic placement relations: {chain}; object "
+                                            f"{cycle[0]!r} would rest on itself")
+    problems.raise_if_any(CompositionError)
+
+
+def _find_cycles(graph: Mapping[str, list[tuple[str, str]]], order: list[str]) -> list[list[str]]:
+    """Each elementary cycle reached by a depth-first search, as uid lists (first = last)."""
+    state: dict[str, int] = {}  # 1 = on stack, 2 = done
+    cycles: list[list[str]] = []
+    for start in order:
+        if state.get(start):
+            continue
+        stack: list[tuple[str, int]] = [(start, 0)]
+        path: list[str] = [start]
+        state[start] = 1
+        while stack:
+            node, index = stack[-1]
+            edges = graph.get(node, [])
+            if index < len(edges):
+                stack[-1] = (node, index + 1)
+                nxt = edges[index][0]
+                if state.get(nxt) == 1:
+                    cycles.append(path[path.index(nxt):] + [nxt])
+                elif not state.get(nxt):
+                    state[nxt] = 1
+                    stack.append((nxt, 0))
+                    path.append(nxt)
+            else:
+                state[node] = 2
+                stack.pop()
+                path.pop()
+    return cycles
+
+
+# --------------------------------------------------------------------------------------------
+# Sampling
+
+
+def _translation(x: float, y: float, z: float) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def object_support_region(relation: str, target: AssetEntry,
+                          target_pose: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """Support region that ``relation`` defines on another object (see the module docstring).
+
+    Args:
+        relation: ``is_on``, ``is_in`` or ``is_in_front_of``.
+        target: catalog entry of the related object.
+        target_pose: (4, 4) its object → world pose.
+
+    Returns:
+        ``(region → world (4, 4), (x, y, z) size in metres)``; z may be ``inf``.
+    """
+    lo = np.asarray(target.extent_min_m, dtype=np.float64)
+    hi = np.asarray(target.extent_max_m, dtype=np.float64)
+    cx, cy = (lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0
+    sx, sy = hi[0] - lo[0], hi[1] - lo[1]
+    if relation == RelationType.IS_ON.value:
+        local, size = _translation(cx, cy, hi[2]), (sx, sy, math.inf)
+    elif relation == RelationType.IS_IN.value:
+        local, size = _translation(cx, cy, lo[2]), (sx, sy, hi[2] - lo[2])
+    elif relation == RelationType.IS_IN_FRONT_OF.value:
+        local, size = _translation(cx, lo[1] - FRONT_DEPTH_M / 2.0, lo[2]), (sx, FRONT_DEPTH_M, math.inf)
+    else:
+        raise ValueError(f"no object support region for relation {relation!r}")
+    return target_pose @ local, (float(size[0]), float(size[1]), float(size[2]))
+
+
+@dataclass
+class _Info:
+    """Per object, fixed over the frames."""
+
+    obj: SceneObject
+    entry: AssetEntry
+    present: np.ndarray            # (n_frames,) bool
+    relation_index: np.ndarray     # (n_frames,) int, -1 = none; index into scene.relations
+    level: int
+    footprint_area_m2: float
+
+
+@dataclass
+class _State:
+    """What an object was doing in the previous frame."""
+
+    frame: int
+    key: tuple
+    local: np.ndarray | None       # (4, 4) object → region
+    world: tuple[float, ...]       # 16 floats
+    region: tuple[float, ...] | None
+    label: str
+    size: tuple[float, float, float] | None
+
+
+def place_objects(scene: SceneSpec, catalog: Catalog,
+                  rng: np.random.Generator) -> dict[str, ObjectPlacement]:
+    """Resolve every object's pose in every frame it is present.
+
+    Args:
+        scene: the scene (relations, places, explicit poses, randomization knobs).
+        catalog: asset catalog (extents of the classes, places of the environment).
+        rng: the generator all random draws come from (draw order: frames ascending, then
+            objects by support depth and document order).
+
+    Returns:
+        uid → :class:`ObjectPlacement`, in document order.
+
+    Raises:
+        CompositionError: unknown class, relation to a missing place/object, cyclic or
+            unsupported relation, an object that does not fit its region, an over-full place.
+    """
+    check_placement_inputs(scene, catalog)
+    frame_start, n_frames = scene.frame_start, len(scene.frames)
+    objects = scene.object_by_uid()
+    places = scene.place_by_uid()
+    env_places = catalog.places(scene.environment) if scene.environment in catalog else {}
+
+    infos: dict[str, _Info] = {}
+    for obj in scene.objects:
+        entry = catalog[obj.class_name]
+        rel_index = np.full(n_frames, -1, dtype=np.int64)
+        present = _frame_mask(obj.frame_intervals, frame_start, n_frames)
+        # Reverse document order so the first relation that holds wins.
+        for index in range(len(scene.relations) - 1, -1, -1):
+            rel = scene.relations[index]
+            if rel.subject_uid == obj.uid and rel.type in PLACEMENT_RELATIONS:
+                rel_index[_frame_mask(rel.frame_intervals, frame_start, n_frames)] = index
+        size = entry.size_m
+        infos[obj.uid] = _Info(obj, entry, present, rel_index, 0, float(size[0] * size[1]))
+    # Support depth: an object is placed after everything it rests on.
+    for info in infos.values():
+        info.level = _level(info.obj.uid, scene, objects, {})
+    order = sorted(infos.values(), key=lambda i: i.level)  # stable: document order per level
+
+    explicit: dict[str, dict[int, tuple[float, ...]]] = {
+        o.uid: {f: p.matrix for f, p in o.frame_poses} for o in scene.objects}
+    spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
+    states: dict[str, _State] = {}
+    warned_unplaced: set[str] = set()
+    problems = ProblemCollector()
+
+    for fi in range(n_frames):
+        frame = frame_start + fi
+        boxes = _FrameBoxes()
+        done: dict[str, _State] = {}
+        pending: list[_Info] = []
+        # Phase A: objects that keep exactly what they had (same key, support unchanged).
+        for info in order:
+            uid = info.obj.uid
+            if not info.present[fi]:
+                continue
+            key = _key(info, fi, frame, scene, explicit)
+            prev = states.get(uid)
+            if prev is not None and prev.frame == frame - 1 and prev.key == key:
+                ri = int(info.relation_index[fi])
+                target = scene.relations[ri].object_uid if key[0] == "rel" else None
+                # A support object counts as unchanged only when it was itself carried over.
+                if target is None or target in places or target in done:
+                    state = _State(frame, key, prev.local, prev.world, prev.region, prev.label, prev.size)
+                    done[uid] = state
+                    boxes.add(uid, info, np.asarray(prev.world).reshape(4, 4), prev.label)
+                    continue
+            pending.append(info)
+        # Phase B: everything else, supports first.
+        for info in pending:
+            uid = info.obj.uid
+            key = _key(info, fi, frame, scene, explicit)
+            if key[0] == "explicit":
+                world = key[1]
+                done[uid] = _State(frame, key, None, world, None, "", None)
+                boxes.add(uid, info, np.asarray(world).reshape(4, 4), "")
+                continue
+            if key[0] == "none":
+                if uid not in warned_unplaced:
+                    log.warning("object %r has neither a pose nor a placement relation at frame %d; "
+                                "it stays at the world origin", uid, frame)
+                    warned_unplaced.add(uid)
+                done[uid] = _State(frame, key, None, _IDENTITY, None, "", None)
+                boxes.add(uid, info, np.eye(4), "")
+                continue
+            rel = scene.relations[key[1]]
+            if rel.object_uid in places:
+                place_name = places[rel.object_uid].name
+                region = env_places[place_name].regions[rel.type]
+                region_pose, size = region.pose.as_array(), tuple(float(v) for v in region.size_m)
+                label = f"place {place_name!r} ({rel.type})"
+                exclude = None
+            else:
+                target = done.get(rel.object_uid)
+                if target is None:
+                    problems.add(f"relations.{rel.uid}",
+                                 f"relation {rel.uid!r}: object {uid!r} {rel.type} object {rel.object_uid!r} "
+                                 f"at frame {frame}, but {rel.object_uid!r} is not present in that frame")
+                    continue
+                region_pose, size = object_support_region(rel.type, infos[rel.object_uid].entry,
+                                                          np.asarray(target.world).reshape(4, 4))
+                label = f"object {rel.object_uid!r} ({rel.type})"
+                exclude = rel.object_uid
+            height = info.entry.extent_max_m[2] - info.entry.extent_min_m[2]
+            if height > size[2] + 1e-9:
+                problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {height:.3f} m tall) "
+                                               f"does not fit under the {size[2]:.3f} m clearance of {label}")
+                continue
+            prev = states.get(uid)
+            local = None
+            if prev is not None and prev.frame == frame - 1 and prev.key == key and prev.local is not None:
+                # Follow a moved support while that stays collision free.
+                world = region_pose @ prev.local
+                if not boxes.collides(info, world, exclude):
+                    local = prev.local
+            if local is None:
+                local = _sample(info, region_pose, size, rng, boxes, exclude)
+                if local is None:
+                    problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
+                    problems.raise_if_any(CompositionError)
+            world_m = region_pose @ local
+            world = tuple(float(v) for v in world_m.reshape(16))
+            done[uid] = _State(frame, key, local, world, tuple(float(v) for v in region_pose.reshape(16)),
+                               label, size)
+            boxes.add(uid, info, world_m, label)
+        problems.raise_if_any(CompositionError)
+        for uid, state in done.items():
+            rel_uid = scene.relations[state.key[1]].uid if state.key[0] == "rel" else None
+            runs = spans[uid]
+            if runs and runs[-1][1] == frame - 1 and runs[-1][2] == state.world and runs[-1][3] == rel_uid:
+                runs[-1][1] = frame
+            else:
+                runs.append([frame, frame, state.world, rel_uid, state.label, state.region, state.size])
+        states.update(done)
+
+    return {
+        o.uid: ObjectPlacement(
+            uid=o.uid, class_name=o.class_name,
+            spans=tuple(PoseSpan(frame_start=s, frame_end=e, pose=Pose(world), relation_uid=rel_uid,
+                                 support=label, support_pose=Pose(region) if region is not None else None,
+                                 support_size_m=size)
+                        for s, e, world, rel_uid, label, region, size in spans[o.uid]))
+        for o in scene.objects}
+
+
+def _level(uid: str, scene: SceneSpec, objects: Mapping[str, SceneObject], memo: dict[str, int]) -> int:
+    """Support depth (cycles were refused before)."""
+    if uid in memo:
+        return memo[uid]
+    level = 0
+    for rel in scene.relations:
+        if rel.subject_uid == uid and rel.type in PLACEMENT_RELATIONS and rel.object_uid in objects:
+            level = max(level, 1 + _level(rel.object_uid, scene, objects, memo))
+    memo[uid] = level
+    return level
+
+
+def _key(info: _Info, fi: int, frame: int, scene: SceneSpec,
+         explicit: Mapping[str, Mapping[int, tuple[float, ...]]]) -> tuple:
+    obj = info.obj
+    frame_pose = explicit[obj.uid].get(frame)
+    if frame_pose is not None:
+        return ("explicit", frame_pose)
+    if obj.pose is not None:
+        return ("explicit", obj.pose.matrix)
+    ri = int(info.relation_index[fi])
+    if ri < 0:
+        return ("none",)
+    return ("rel", ri)
+
+
+class _FrameBoxes:
+    """Oriented boxes of the objects placed so far in one frame."""
+
+    def __init__(self) -> None:
+        self.uids: list[str] = []
+        self.centres: list[np.ndarray] = []
+        self.axes: list[np.ndarray] = []
+        self.halves: list[np.ndarray] = []
+        self.labels: list[str] = []
+        self.areas: list[float] = []
+
+    def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
+        centre, axes, half = object_box(info.entry, world)
+        self.uids.append(uid)
+        self.centres.append(centre)
+        self.axes.append(axes)
+        self.halves.append(half)
+        self.labels.append(label)
+        self.areas.append(info.footprint_area_m2)
+
+    def collides(self, info: _Info, world: np.ndarray, exclude: str | None) -> bool:
+        if not self.uids:
+            return False
+        centre, axes, half = object_box(info.entry, world)
+        hits = boxes_overlap(centre, axes, half, np.asarray(self.centres), np.asarray(self.axes),
+                             np.asarray(self.halves))
+        if exclude is not None:
+            hits &= np.asarray([u != exclude for u in self.uids])
+        return bool(hits.any())
+
+
+def _footprint_range(entry: AssetEntry, yaw_rad: float, size: tuple[float, float, float]):
+    """Allowed origin x/y range in the region for a yaw, or None when the footprint is wider."""
+    lo, hi = entry.extent_min_m, entry.extent_max_m
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    rx = corners[:, 0] * c - corners[:, 1] * s
+    ry = corners[:, 0] * s + corners[:, 1] * c
+    x_lo, x_hi = -size[0] / 2.0 - rx.min(), size[0] / 2.0 - rx.max()
+    y_lo, y_hi = -size[1] / 2.0 - ry.min(), size[1] / 2.0 - ry.max()
+    if x_lo > x_hi + 1e-12 or y_lo > y_hi + 1e-12:
+        return None
+    return (x_lo, max(x_lo, x_hi)), (y_lo, max(y_lo, y_hi))
+
+
+def _sample(info: _Info, region_pose: np.ndarray, size: tuple[float, float, float],
+            rng: np.random.Generator, boxes: _FrameBoxes, exclude: str | None) -> np.ndarray | None:
+    """Local pose (object → region) that fits and collides with nothing, or None."""
+    rand = info.obj.randomization
+    sigma_pos = max(float(rand.position_noise_m), 0.0)
+    sigma_yaw = math.radians(max(float(rand.rotation_noise_deg), 0.0))
+    z = -info.entry.extent_min_m[2]
+    for attempt in range(MAX_TRIES):
+        yaw = float(rng.normal(0.0, sigma_yaw)) if sigma_yaw > 0 else 0.0
+        dx, dy = (rng.normal(0.0, sigma_pos, 2) if sigma_pos > 0 else (0.0, 0.0))
+        u, v = rng.random(2)
+        ranges = _footprint_range(info.entry, yaw, size)
+        if ranges is None:
+            continue
+        (x_lo, x_hi), (y_lo, y_hi) = ranges
+        if attempt == 0:
+            x = min(max((x_lo + x_hi) / 2.0 + dx, x_lo), x_hi)
+            y = min(max((y_lo + y_hi) / 2.0 + dy, y_lo), y_hi)
+        else:
+            x, y = x_lo + u * (x_hi - x_lo), y_lo + v * (y_hi - y_lo)
+        c, s = math.cos(yaw), math.sin(yaw)
+        local = np.array([[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]])
+        if not boxes.collides(info, region_pose @ local, exclude):
+            return local
+    return None
+
+
+def _overfull_message(uid: str, info: _Info, label: str, size: tuple[float, float, float],
+                      frame: int, boxes: _FrameBoxes) -> str:
+    lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
+    own = f"{hi[0] - lo[0]:.2f} × {hi[1] - lo[1]:.2f} m"
+    region_area = size[0] * size[1]
+    sharing = [a for lab, a in zip(boxes.labels, boxes.areas) if lab == label]
+    if _footprint_range(info.entry, 0.0, size) is None and not sharing:
+        return (f"object {uid!r} ({info.obj.class_name}, footprint {own}) does not fit {label}, "
+                f"whose region is {size[0]:.2f} × {size[1]:.2f} m")
+    full = 100.0 * sum(sharing) / region_area if region_area > 0 else 100.0
+    return (f"object {uid!r} ({info.obj.class_name}, footprint {own}) finds no free spot on {label} at "
+            f"frame {frame} after {MAX_TRIES} tries: the {size[0]:.2f} × {size[1]:.2f} m region already "
+            f"holds {len(sharing)} object(s) covering {full:.0f}% of its area")
