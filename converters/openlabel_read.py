@@ -1465,14 +1465,24 @@ def friendly_camera_rotation(yaw_rad: float, pitch_rad: float, roll_rad: float):
 
 
 def fov_mismatch_message(focal_mm: float, sensor_w_mm: float, fov_deg: float, implied_deg: float) -> str:
-    """The message for an over-determined pinhole whose FOV disagrees with focal and sensor."""
+    """The message for an over-determined pinhole whose FOV disagrees with focal and sensor.
+
+    It gives the FOV the numbers imply for a perspective lens and for the two fisheye
+    projections, and names the lens model that makes the three consistent: the equidistant
+    fisheye when its FOV matches, else the equisolid fisheye, whose ``fov_deg`` is the image
+    circle (it only crops), so any FOV is consistent with its focal length and sensor.
+    """
     ratio = sensor_w_mm / focal_mm
-    candidates = [("fisheye_equidistant", math.degrees(ratio))]
+    equidistant = math.degrees(ratio)
+    text = (f"focal_length_mm {focal_mm:g} on sensor_size_mm {sensor_w_mm:g} implies a horizontal FOV of "
+            f"{implied_deg:.1f}° for a perspective lens, not {fov_deg:g}°; across the sensor width a "
+            f"fisheye_equidistant lens gives {equidistant:.1f}°")
     if ratio / 4 <= 1:
-        candidates.append(("fisheye_equisolid", math.degrees(4 * math.asin(ratio / 4))))
-    name, value = min(candidates, key=lambda c: abs(c[1] - fov_deg))
-    others = "; ".join(f"a {n} lens gives {v:.1f}°" for n, v in candidates)
-    return (f"focal_length_mm {focal_mm:g} on sensor_size_mm {sensor_w_mm:g} implies a horizontal FOV of "
-            f"{implied_deg:.1f}° for a perspective lens, not {fov_deg:g}°; {others} — "
-            f"{'use model ' + repr(name) if abs(value - fov_deg) <= 5 else 'check the numbers'} "
-            f"(or give only two of focal_length_mm, sensor_size_mm, fov_deg)")
+        text += f" and a fisheye_equisolid lens gives {math.degrees(4 * math.asin(ratio / 4)):.1f}°"
+    if abs(equidistant - fov_deg) <= FOV_TOLERANCE_DEG:
+        hint = "model 'fisheye_equidistant' makes the three consistent"
+    else:
+        hint = ("model 'fisheye_equisolid' makes the three consistent (its fov_deg is the image circle, "
+                "which only crops)")
+    return f"{text}. If this is a fisheye lens, {hint}; otherwise give only two of focal_length_mm, " \
+           f"sensor_size_mm, fov_deg"
