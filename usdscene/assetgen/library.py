@@ -57,11 +57,14 @@ def write_object_asset(cls: ObjectClass, folder: Path) -> AssetEntry:
     default = cls.variants[0]
     shapes = {v.name: _centre_on_bottom(cls.build({**cls.defaults, **v.params})) for v in cls.variants}
     used = sorted({name for parts in shapes.values() for name in parts} - {stage_schema.ASSET_MAIN_MATERIAL})
+    varied = {name for v in cls.variants for name in v.colors}
     materials = {stage_schema.ASSET_MAIN_MATERIAL: define_material(
         stage, f"{looks}/{stage_schema.ASSET_MAIN_MATERIAL}",
-        MaterialSpec(default.colors[stage_schema.ASSET_MAIN_MATERIAL], roughness=BODY_ROUGHNESS))}
+        MaterialSpec(default.colors[stage_schema.ASSET_MAIN_MATERIAL], roughness=BODY_ROUGHNESS),
+        color_from_variants=True)}
     for name in used:
-        materials[name] = define_material(stage, f"{looks}/{name}", SHARED_MATERIALS[name])
+        materials[name] = define_material(stage, f"{looks}/{name}", SHARED_MATERIALS[name],
+                                          color_from_variants=name in varied)
     geom = f"{root_path}/Geom"
     UsdGeom.Xform.Define(stage, geom)
     shared_shape = all(dict(v.params) == dict(default.params) for v in cls.variants)

@@ -152,7 +152,9 @@ def write_passenger_asset(folder: Path) -> AssetEntry:
         "Shoes": MaterialSpec((0.03, 0.02, 0.02), roughness=0.4),
         "Hair": MaterialSpec(HAIR[hair], roughness=0.7),
     }
-    materials = {name: define_material(stage, f"{looks}/{name}", spec) for name, spec in specs.items()}
+    materials = {name: define_material(stage, f"{looks}/{name}", spec,
+                                       color_from_variants=name != "Shoes")
+                 for name, spec in specs.items()}
     UsdGeom.Xform.Define(stage, f"{root_path}/Geom")
     for pose_name, pose in POSES.items():
         with in_variant(root, stage_schema.VARIANT_SET_POSE, pose_name):

@@ -58,17 +58,24 @@ def new_asset_stage(root_name: str, kind: str) -> tuple[Usd.Stage, Usd.Prim]:
     return stage, root
 
 
-def define_material(stage: Usd.Stage, path: str, spec: MaterialSpec) -> UsdShade.Material:
+def define_material(stage: Usd.Stage, path: str, spec: MaterialSpec, *,
+                    color_from_variants: bool = False) -> UsdShade.Material:
     """A Material at ``path`` with a UsdPreviewSurface shader named ``Surface``.
 
     The shader's ``inputs:diffuseColor`` holds the colour directly (no primvar reader):
     Blender's USD importer reads a directly authored value in any composed layer, so a
     stronger layer can recolour an object by overriding that one attribute.
+
+    Args:
+        color_from_variants: leave ``diffuseColor`` unauthored here because variants author
+            it; a local opinion in the same layer would be stronger than any variant (LIVRPS).
     """
     material = UsdShade.Material.Define(stage, path)
     shader = UsdShade.Shader.Define(stage, f"{path}/{stage_schema.ASSET_SURFACE_SHADER}")
     shader.CreateIdAttr("UsdPreviewSurface")
-    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*spec.color))
+    color = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+    if not color_from_variants:
+        color.Set(Gf.Vec3f(*spec.color))
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(spec.roughness))
     shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(spec.metallic))
     if spec.opacity < 1.0:
