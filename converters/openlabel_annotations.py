@@ -139,6 +139,20 @@ def _intervals_of(raw: Any) -> list[FrameInterval]:
     return out
 
 
+def _document_key(uid: str, objects: dict, scene: SceneSpec) -> str | None:
+    """The document's key of a scene object: the uid itself, or, for scenes built in code whose
+    uids the writer renumbered (OpenLABEL keys are integers or UUIDs), the object of the same
+    name and class."""
+    if uid in objects:
+        return uid
+    obj = scene.object_by_uid().get(uid)
+    if obj is None:
+        return None
+    matches = [k for k, e in objects.items()
+               if isinstance(e, dict) and e.get("name") == obj.name and e.get("type") == obj.class_name]
+    return matches[0] if len(matches) == 1 else None
+
+
 def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                     out_dir: str | os.PathLike) -> dict:
     """The document plus per-frame image/mask uris and per-camera labels (a new dict).
@@ -178,7 +192,8 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
         ours[image.camera] = {"mask_uri": _relative_uri(layout.mask_path(out_dir, image.camera, image.frame), out_dir),
                               "width_px": int(image.width_px), "height_px": int(image.height_px)}
         for label in image.objects:
-            if label.uid not in objects:
+            key = _document_key(label.uid, objects, scene)
+            if key is None:
                 problems.add(f"openlabel.objects.{label.uid}",
                              f"labelled object uid {label.uid!r} is not an object of the document")
                 continue
@@ -186,8 +201,8 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
             if not data:
                 continue
             frame_objects = frame.setdefault("objects", {})
-            object_data = frame_objects.setdefault(label.uid, {}).setdefault("object_data", {})
-            pointers = pointer_frames.setdefault(label.uid, {})
+            object_data = frame_objects.setdefault(key, {}).setdefault("object_data", {})
+            pointers = pointer_frames.setdefault(key, {})
             for kind, items in data.items():
                 existing = object_data.setdefault(kind, [])
                 replaced = {item["name"] for item in items}
