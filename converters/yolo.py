@@ -65,18 +65,21 @@ def yolo_lines(document: dict, frame: int, camera: str, width_px: int, height_px
     return detect, segment
 
 
-def _link_or_copy(source: Path, target: Path) -> None:
+def _link_or_copy(source: Path, target: Path, copy: bool) -> None:
     target.parent.mkdir(parents=True, exist_ok=True)
     if target.is_symlink() or target.exists():
         target.unlink()
-    try:
-        target.symlink_to(os.path.relpath(source, target.parent))
-    except OSError:  # file systems without symlinks
-        shutil.copyfile(source, target)
+    if not copy:
+        try:
+            target.symlink_to(os.path.relpath(source, target.parent))
+            return
+        except OSError:  # file systems without symlinks
+            pass
+    shutil.copyfile(source, target)
 
 
 def export_yolo(document: dict, out_dir: str | os.PathLike, classes: Iterable[str] | None = None, *,
-                link_images: bool = True) -> Path:
+                link_images: bool = True, copy_images: bool = False) -> Path:
     """Write the detection and segmentation datasets under ``<out_dir>/exports/yolo``.
 
     Args:
@@ -85,6 +88,7 @@ def export_yolo(document: dict, out_dir: str | os.PathLike, classes: Iterable[st
         classes: class names (catalog); None = the labelled types of the document.
         link_images: link (relative symlink, copy where impossible) each image into the
             dataset; False writes labels and ``data.yaml`` only.
+        copy_images: copy the images instead of linking them.
 
     Returns:
         The ``exports/yolo`` folder.
@@ -103,7 +107,8 @@ def export_yolo(document: dict, out_dir: str | os.PathLike, classes: Iterable[st
             if link_images:
                 source = out / record["uri"]
                 if source.exists():
-                    _link_or_copy(source, root / task / "images" / stem.with_suffix(Path(record["uri"]).suffix))
+                    _link_or_copy(source, root / task / "images" / stem.with_suffix(Path(record["uri"]).suffix),
+                                  copy_images)
                 else:
                     log.warning("image %s is missing; labels written without it", source)
     for task in TASKS:

@@ -79,3 +79,25 @@ def test_rendered_labels_reach_the_document_and_exports(annotated, openlabel_sch
     coco = coco_dataset(document)
     assert len(coco["annotations"]) == 3 and coco["images"][0]["file_name"] == "images/top/000000.png"
     assert (out / coco["images"][0]["file_name"]).is_file()
+
+
+def test_cli_annotate_export_stats(annotated, capsys):
+    from usdscene.cli import main
+
+    out, _, _ = annotated
+    assert main(["annotate", str(out), "--no-progress"]) == 0
+    document = json.loads((out / "annotations.openlabel.json").read_text())
+    assert "usdscene_annotations" in document["openlabel"]["metadata"]
+    assert main(["export", "coco", "yolo", "rois", str(out), "--document-classes"]) == 0
+    coco = json.loads((out / "exports" / "coco" / "annotations.json").read_text())
+    assert [c["name"] for c in coco["categories"]] == ["ball"] and len(coco["annotations"]) == 3
+    assert len((out / "exports" / "yolo" / "detect" / "labels" / "top" / "000000.txt").read_text().splitlines()) == 3
+    assert (out / "exports" / "rois" / "index.csv").read_text().startswith("path,label")
+    assert main(["stats", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "ball" in printed and "top" in printed
+    import cv2
+
+    chart = cv2.imread(str(out / "stats.png"))
+    assert chart is not None and chart.shape[1] == 720
+    assert main(["stats", str(out / "missing")]) == 1

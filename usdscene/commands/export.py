@@ -1,0 +1,117 @@
+"""``usdscene export coco|yolo|rois OUT``: training sets from ``OUT/annotations.openlabel.json``.
+
+Exporters read only the annotated document (and the asset catalog for class lists and place
+regions), never internal state:
+
+* ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`converters.coco`);
+* ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`converters.yolo`);
+* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`converters.rois`).
+
+Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
+the same for every scene built from one library; the catalog is the shipped library plus the
+document's asset folders (relative to the source document recorded in the stage) plus
+``--assets``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "export"
+HELP = "export the annotated output as COCO, YOLO or ROI crops (from OUT/annotations.openlabel.json)"
+ORDER = 50
+FORMATS = ("coco", "yolo", "rois")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("format", choices=FORMATS, nargs="+", help="one or more formats")
+    parser.add_argument("output", metavar="OUT", help="output folder with annotations.openlabel.json")
+    parser.add_argument("--assets", nargs="+", default=[], metavar="DIR",
+                        help="extra asset catalog folders (classes, place regions)")
+    parser.add_argument("--document-classes", action="store_true",
+                        help="COCO/YOLO classes from the labelled object types of the document "
+                             "instead of the catalog")
+    parser.add_argument("--copy-images", action="store_true",
+                        help="YOLO: copy images instead of linking them")
+    parser.add_argument("--min-roi-px", type=int, default=8, metavar="PX",
+                        help="ROIs: smallest crop side in pixels (default 8)")
+
+
+def _source_folder(out_dir):
+    """Folder of the stage's source document (asset paths are relative to it), else None."""
+    import json
+    import re
+    from pathlib import Path
+
+    from usdscene import layout
+
+    root = layout.stage_root(out_dir)
+    if not root.is_file():
+        return None
+    try:
+        from pxr import Sdf
+    except ImportError:  # a text search of the root layer is enough for one string
+        match = re.search(r'string source = "((?:[^"\\]|\\.)*)"', root.read_text(encoding="utf-8"))
+        source = json.loads(f'"{match.group(1)}"') if match else ""
+    else:
+        layer = Sdf.Layer.FindOrOpen(str(root))
+        source = ((layer.customLayerData or {}).get("usdscene", {}) if layer else {}).get("source", "")
+    return Path(source).parent if source else None
+
+
+def load_export_catalog(document: dict, out_dir, extra_folders=()):
+    """The catalog for an annotated document (see the module docstring)."""
+    from pathlib import Path
+
+    from converters.openlabel import read_openlabel
+    from usdscene.catalog import load_catalog
+
+    scene = read_openlabel(document)
+    base = _source_folder(out_dir) or Path(out_dir)
+    folders = [*(base / p if not Path(p).is_absolute() else Path(p) for p in scene.asset_paths),
+               *(Path(p).resolve() for p in extra_folders)]
+    return load_catalog(folders)
+
+
+def run(args: argparse.Namespace) -> int:
+    import logging
+    from pathlib import Path
+
+    from converters.openlabel import load_document
+    from usdscene import layout
+    from usdscene.errors import AssetError, OutputError
+
+    out = Path(args.output)
+    path = out / layout.ANNOTATIONS_FILE
+    if not path.is_file():
+        raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
+    document = load_document(path)
+    catalog = None
+    try:
+        catalog = load_export_catalog(document, out, args.assets)
+    except AssetError:
+        if "rois" in args.format or not args.document_classes:
+            raise
+    classes = None
+    if catalog is not None and not args.document_classes:
+        classes = [*catalog.classes("object"), *catalog.classes("passenger")]
+        unknown = sorted({e.get("type", "") for e in document["openlabel"].get("objects", {}).values()
+                          if e.get("object_data_pointers")} - set(classes))
+        if unknown:
+            logging.getLogger(__name__).warning("labelled types %s are not object classes of the catalog; "
+                                                "they are left out (use --document-classes)", unknown)
+    for fmt in dict.fromkeys(args.format):
+        if fmt == "coco":
+            from converters.coco import export_coco
+
+            target = export_coco(document, out, classes)
+        elif fmt == "yolo":
+            from converters.yolo import export_yolo
+
+            target = export_yolo(document, out, classes, link_images=True, copy_images=args.copy_images)
+        else:
+            from converters.rois import export_rois
+
+            target = export_rois(document, out, catalog, min_size_px=args.min_roi_px)
+        print(f"{fmt}: {target}")
+    return 0
