@@ -179,18 +179,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     if problems:
         raise RenderError(problems)
 
-    cam_json = {}
-    for name in camera_list:
-        cam = by_name[name]
-        intr = scale_intrinsics(cam.intrinsics, float(settings["resolution_scale"]))
-        render_intr = intr if intr.lens in NATIVE_LENSES and _centred(intr) else undistorted_render_intrinsics(intr)
-        cam_json[name] = {
-            "intrinsics": intrinsics_to_json(intr),
-            "render_intrinsics": intrinsics_to_json(render_intr),
-            "pose": list(cam.pose.matrix),
-            "poses": {str(f): list(p.matrix) for f, p in cam.frame_poses if f in set(frame_list)},
-            "clip_m": [cam.clip_near_m, cam.clip_far_m],
-        }
+    cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
     print_settings = {k: v for k, v in settings.items() if k != "device"}
     manifest = Manifest.load(out_dir, fingerprint({
         "stage": _stage_digest(plan.stage_path), "settings": print_settings,
@@ -269,6 +258,47 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         manifest.save()
     return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
                         totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"])
+
+
+def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict:
+    """Per camera: its intrinsics, the native lens to render (a wider undistorted view for
+    OpenCV models), its base pose and per-frame poses (OpenCV axes, 16 row-major numbers)."""
+    by_name = {c.name: c for c in plan.cameras}
+    wanted = set(frames)
+    out = {}
+    for name in camera_names:
+        cam = by_name[name]
+        intr = scale_intrinsics(cam.intrinsics, scale)
+        render_intr = intr if intr.lens in NATIVE_LENSES and _centred(intr) else undistorted_render_intrinsics(intr)
+        out[name] = {
+            "intrinsics": intrinsics_to_json(intr),
+            "render_intrinsics": intrinsics_to_json(render_intr),
+            "pose": list(cam.pose.matrix),
+            "poses": {str(f): list(p.matrix) for f, p in cam.frame_poses if f in wanted},
+            "clip_m": [cam.clip_near_m, cam.clip_far_m],
+        }
+    return out
+
+
+def run_job(job: dict, what: str) -> list[dict]:
+    """Run one worker on ``job`` (any mode) and return its events.
+
+    Raises:
+        RenderError: the worker failed (its message, or the tail of its log).
+    """
+    scratch = Path(tempfile.mkdtemp(prefix="usdscene-job-", dir=_scratch_root()))
+    events: list[dict] = []
+    try:
+        job = dict(job, scratch_dir=str(scratch))
+        job_path = scratch / "job-0.json"
+        job_path.write_text(json.dumps(job))
+        errors = _run_workers([job_path], scratch, events.append,
+                              {"startup_s": 0.0})
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    if errors:
+        raise RenderError([Problem(what, e) for e in errors])
+    return events
 
 
 def _centred(intr) -> bool:
