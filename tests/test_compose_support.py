@@ -67,6 +67,8 @@ def _asset_usda(name: str, lo, hi, variants) -> str:
             for i, v in enumerate(variants))
         variant_block = f'    variantSet "appearance" = {{\n{entries}\n    }}\n'
         meta = f' (\n    variants = {{ string appearance = "{variants[0]}" }}\n    prepend variantSets = "appearance"\n)'
+    # Variant opinions are weaker than local ones (LIVRPS): with variants, only they set the colour.
+    local_colour = "" if variants else "                color3f inputs:diffuseColor = (0.5, 0.5, 0.5)\n"
     return f"""#usda 1.0
 (
     defaultPrim = "{name}"
@@ -96,8 +98,7 @@ def Xform "{name}"{meta}
             def Shader "Surface"
             {{
                 uniform token info:id = "UsdPreviewSurface"
-                color3f inputs:diffuseColor = (0.5, 0.5, 0.5)
-                token outputs:surface
+{local_colour}                token outputs:surface
             }}
         }}
     }}
@@ -269,3 +270,66 @@ def test_test_catalog_loads_and_assets_open(tmp_path):
 
 
 test_test_catalog_loads_and_assets_open = pytest.mark.usd(test_test_catalog_loads_and_assets_open)
+
+
+# --------------------------------------------------------------------------------------------
+# Comparing scenes with a tolerance (poses within 1e-6 m / 1e-4 degrees)
+
+POSITION_TOL_M = 1e-6
+ANGLE_TOL_DEG = 1e-4
+
+
+def pose_difference(a: m.Pose, b: m.Pose) -> tuple[float, float]:
+    """(translation distance in metres, rotation angle between the two in degrees)."""
+    dt = float(np.linalg.norm(a.translation_m - b.translation_m))
+    r = a.rotation.T @ b.rotation
+    cos = max(-1.0, min(1.0, (np.trace(r) - 1.0) / 2.0))
+    # acos is ill-conditioned near 0: use the skew part for small angles.
+    sin = np.linalg.norm([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / 2.0
+    return dt, math.degrees(math.atan2(sin, cos))
+
+
+def scene_differences(a, b, where: str = "scene", rel: float = 1e-6) -> list[str]:
+    """Every difference between two scene-model values (dataclasses, tuples, mappings, poses,
+    floats with relative tolerance ``rel``); provenance is ignored."""
+    import dataclasses
+    import enum
+
+    out: list[str] = []
+    if isinstance(a, m.Pose) and isinstance(b, m.Pose):
+        dt, da = pose_difference(a, b)
+        if dt > POSITION_TOL_M or da > ANGLE_TOL_DEG:
+            out.append(f"{where}: poses differ by {dt:.3g} m / {da:.3g} deg")
+        return out
+    if isinstance(a, m.Provenance):
+        return out
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        if type(a) is not type(b):
+            return [f"{where}: {type(a).__name__} vs {type(b).__name__}"]
+        for f in dataclasses.fields(a):
+            out += scene_differences(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}", rel)
+        return out
+    if isinstance(a, enum.Enum) or isinstance(b, enum.Enum):
+        return [] if a == b else [f"{where}: {a!r} != {b!r}"]
+    if isinstance(a, (tuple, list)) and isinstance(b, (tuple, list)):
+        if len(a) != len(b):
+            return [f"{where}: {len(a)} items vs {len(b)}: {a!r} vs {b!r}"[:300]]
+        for i, (x, y) in enumerate(zip(a, b)):
+            out += scene_differences(x, y, f"{where}[{i}]", rel)
+        return out
+    if isinstance(a, dict) or hasattr(a, "keys"):
+        if not hasattr(b, "keys") or set(a.keys()) != set(b.keys()):
+            return [f"{where}: keys {sorted(a)} vs {sorted(b) if hasattr(b, 'keys') else b!r}"]
+        for k in a:
+            out += scene_differences(a[k], b[k], f"{where}[{k!r}]", rel)
+        return out
+    if isinstance(a, float) or isinstance(b, float):
+        if a is None or b is None or not math.isclose(float(a), float(b), rel_tol=rel, abs_tol=1e-9):
+            return [f"{where}: {a!r} != {b!r}"]
+        return out
+    return [] if a == b else [f"{where}: {a!r} != {b!r}"]
+
+
+def assert_scenes_close(a, b, rel: float = 1e-6) -> None:
+    diffs = scene_differences(a, b, rel=rel)
+    assert not diffs, "\n".join(diffs[:20])
