@@ -1,0 +1,89 @@
+"""End to end on the shipped cabin: document → composed stage → Cycles → annotate → exports.
+
+A laptop stowed below seat_01A is hidden by the seat from the corridor camera: it gets an
+amodal box but no visible pixel; the ROI of that seat's below region is ``correct``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+pytestmark = [pytest.mark.usd, pytest.mark.blender]
+
+W, H = 128, 96
+
+
+def _document() -> dict:
+    return {"openlabel": {
+        "metadata": {"schema_version": "1.0.0", "name": "labels_cabin", "usdscene": {
+            "seed": 3, "environment": "aircraft_cabin",
+            "render": {"samples": 1, "denoise": False, "resolution_px": [W, H]},
+            "roi_rules": {"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"},
+            "frame_range": {"frame_start": 0, "frame_end": 0}}},
+        "streams": {"corridor": {"type": "camera", "uri": "", "stream_properties": {"usdscene": {
+            "model": "perspective", "resolution_px": [W, H], "sensor_size_mm": [5.6, 4.2], "fov_deg": 90.0,
+            "position_m": [3.0, 0.0, 1.95], "target_m": [1.0, 0.0, 0.6], "clip_range_m": [0.05, 50.0]}}}},
+        "objects": {
+            "0": {"name": "ceiling_light", "type": "light", "object_data": {
+                "text": [{"name": "kind", "val": "point"}],
+                "num": [{"name": "power_w", "val": 60.0}],
+                "vec": [{"name": "position_m", "val": [1.5, 0.0, 2.0]}]}},
+            "1": {"name": "seat_01A", "type": "place"},
+            "2": {"name": "laptop_under_seat", "type": "laptop",
+                  "frame_intervals": [{"frame_start": 0, "frame_end": 0}]},
+            "3": {"name": "passenger_aisle", "type": "passenger",
+                  "frame_intervals": [{"frame_start": 0, "frame_end": 0}],
+                  "object_data": {"vec": [{"name": "position_m", "val": [2.0, 0.0, 0.0]},
+                                          {"name": "rotation_xyz_deg", "val": [0.0, 0.0, 90.0]}]}},
+        },
+        "relations": {"0": {"name": "laptop below seat", "type": "is_below",
+                            "rdf_subjects": [{"uid": "2", "type": "object"}],
+                            "rdf_objects": [{"uid": "1", "type": "object"}]}},
+        "frame_intervals": [{"frame_start": 0, "frame_end": 0}],
+    }}
+
+
+@pytest.fixture(scope="module")
+def output(tmp_path_factory):
+    from usdscene.cli import main
+
+    root = tmp_path_factory.mktemp("cabin")
+    doc = root / "scene.openlabel.json"
+    doc.write_text(json.dumps(_document()))
+    out = root / "out"
+    assert main(["render", str(doc), "-o", str(out), "--no-progress"]) == 0
+    assert main(["annotate", str(out), "--no-progress"]) == 0
+    assert main(["export", "coco", "yolo", "rois", str(out)]) == 0
+    return out
+
+
+def test_seat_hides_the_stowed_laptop(output):
+    from converters.openlabel_annotations import labels_in
+
+    document = json.loads((output / "annotations.openlabel.json").read_text())
+    assert document["openlabel"]["metadata"]["name"] == "labels_cabin"  # the source document
+    labels = {lab["name"]: lab for lab in labels_in(document, 0, "corridor")}
+    laptop = labels["laptop_under_seat"]
+    assert laptop["amodal_bbox"] is not None and laptop["attributes"]["amodal_pixel_count"] > 0
+    assert laptop["bbox"] is None and laptop["attributes"]["visible_fraction"] == 0.0
+    passenger = labels["passenger_aisle"]
+    assert passenger["bbox"] is not None and passenger["attributes"]["pixel_count"] > 100
+
+
+def test_document_valid_and_exports_consistent(output, openlabel_schema_path):
+    from converters.openlabel import read_openlabel, schema_problems
+
+    document = json.loads((output / "annotations.openlabel.json").read_text())
+    assert schema_problems(document, openlabel_schema_path) == []
+    assert read_openlabel(document).relations[0].type == "is_below"
+    coco = json.loads((output / "exports" / "coco" / "annotations.json").read_text())
+    names = [c["name"] for c in coco["categories"]]
+    assert names == sorted(names) and "laptop" in names and "passenger" in names
+    assert "aircraft_cabin" not in names  # environments are not detection classes
+    rows = list(csv.DictReader((output / "exports" / "rois" / "index.csv").open()))
+    below = [r for r in rows if r["place"] == "seat_01A" and r["relation"] == "is_below"]
+    assert below and below[0]["label"] == "correct" and below[0]["objects"] == "2"
+    assert all(r["label"] == "empty" for r in rows if r["relation"] != "is_below")
