@@ -241,3 +241,19 @@ def test_annotated_document_from_writer_validates_and_reads_back(openlabel_schem
     assert [c.name for c in again.cameras] == list(CAMERAS)
     assert (again.frame_start, again.frame_end) == (0, 1)
     assert labels_in(document, 0, "cam_a")[0]["bbox"] is not None
+
+
+def test_label_statistics_counts(annotated):
+    from usdscene.commands.stats import draw_chart, label_statistics
+
+    _, document, annotations, _ = annotated
+    stats = label_statistics(document)
+    assert stats["images"] == 4
+    assert stats["classes"]["backpack"] == {"labels": 7, "hidden": 1, "objects": 2}
+    assert stats["classes"]["suitcase"] == {"labels": 4, "hidden": 0, "objects": 1}
+    assert stats["cameras"]["cam_b"] == {"images": 2, "labels": 5, "hidden": 1}
+    fractions = [o.visible_fraction for image in annotations for o in image.objects]
+    assert sum(stats["visibility"]) == len(fractions)
+    assert stats["visibility"][0] >= 1  # the hidden bag
+    chart = draw_chart(stats)
+    assert chart.ndim == 3 and chart.shape[2] == 3 and (chart < 255).any()

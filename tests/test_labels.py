@@ -208,3 +208,23 @@ def test_bridge_rings_keeps_area_and_holes():
     cv2.fillPoly(canvas, [np.round(ring).astype(np.int32)], 1)  # even-odd fill
     # Hole interior stays empty, the thick part of the ring is filled.
     assert canvas[20, 12] == 0 and canvas[7, 20] == 1 and canvas[19, 19] == 1
+
+
+def test_contours_exact_for_arbitrary_masks_property():
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+    from hypothesis.extra.numpy import arrays
+
+    @settings(max_examples=80, deadline=None)
+    @given(arrays(np.bool_, st.tuples(st.integers(1, 12), st.integers(1, 12))))
+    def check(region):
+        back = rasterize_contours(contours_of(region, epsilon_px=0), region.shape)
+        assert np.array_equal(back, region)
+        box = box_of(region)
+        if region.any():
+            ys, xs = np.nonzero(region)
+            assert (box.x_min, box.y_min, box.x_max, box.y_max) == (xs.min(), ys.min(), xs.max(), ys.max())
+        else:
+            assert box is None
+
+    check()
