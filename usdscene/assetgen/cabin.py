@@ -333,7 +333,7 @@ def cabin_places(config: CabinConfig) -> dict[str, tuple[str, dict[str, PlaceReg
                 below_x = front - 0.28
                 pocket = pocket_local + [front, y, 0.0]
             regions.update([
-                _region("below", np.array([below_x, y, 0.0]), (0.40, 0.40, clearance)),
+                _region("below", np.array([below_x, y, 0.0]), (0.42, 0.40, clearance)),
                 _region("back_pocket", pocket, pocket_size),
             ])
             places[f"seat_{r:02d}{letter}"] = ("seat", regions)

@@ -78,17 +78,12 @@ def write_object_asset(cls: ObjectClass, folder: Path) -> AssetEntry:
             if not shared_shape:
                 for name, mesh in sorted(shapes[variant.name].items()):
                     define_mesh(stage, f"{geom}/{name}", mesh, materials[name])
-    vset = root.GetVariantSets().GetVariantSet(stage_schema.VARIANT_SET_APPEARANCE)
-    lows, highs = [], []
-    for variant in cls.variants:
-        vset.SetVariantSelection(variant.name)
-        lo, hi = bounds_of_stage(stage)
-        lows.append(lo)
-        highs.append(hi)
-    vset.SetVariantSelection(default.name)
+    # The catalog extent is the default variant's: shape variants may be larger or smaller
+    # (every mesh's own extent is authored in the USD for per-variant checks).
+    root.GetVariantSets().GetVariantSet(stage_schema.VARIANT_SET_APPEARANCE).SetVariantSelection(default.name)
+    lo, hi = _rounded_extent(*bounds_of_stage(stage))
     path = folder / "objects" / f"{cls.name}.usda"
     save_stage(stage, path)
-    lo, hi = _rounded_extent(np.min(lows, axis=0), np.max(highs, axis=0))
     return AssetEntry(
         class_name=cls.name, kind="object", usd_path=path,
         description=(f"{cls.description} Origin at the bottom-face centre, +X front. Recolour: "

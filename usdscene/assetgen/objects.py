@@ -94,10 +94,10 @@ def _wheels(sx: float, sy: float, radius: float) -> list[m.MeshData]:
 def _backpack(p: Mapping[str, float]) -> Parts:
     w, d, h = p["width"], p["depth"], p["height"]
     body = m.rounded_box((d, w, h), 0.06).translated((0, 0, h / 2))
-    pocket = m.rounded_box((0.06, w * 0.75, h * 0.45), 0.025).translated((d / 2 + 0.01, 0, h * 0.3))
-    straps = [m.sweep([(-d / 2 - 0.005, y, h * 0.85), (-d / 2 - 0.035, y, h * 0.5), (-d / 2 - 0.01, y, h * 0.12)], 0.012, 6)
+    pocket = m.rounded_box((0.05, w * 0.75, h * 0.45), 0.02).translated((d / 2 + 0.01, 0, h * 0.3))
+    straps = [m.sweep([(-d / 2 - 0.005, y, h * 0.85), (-d / 2 - 0.025, y, h * 0.5), (-d / 2 - 0.01, y, h * 0.12)], 0.012, 6)
               for y in (-w * 0.28, w * 0.28)]
-    handle = _arc_handle(0.08, 0.04, h - 0.005, 0.008, plane="yz", offset=-d * 0.2)
+    handle = _arc_handle(0.08, 0.025, h - 0.005, 0.008, plane="yz", offset=-d * 0.2)
     return {"Body": [body, pocket], "Trim": straps + [handle]}
 
 
@@ -108,8 +108,8 @@ def _trolley(p: Mapping[str, float]) -> Parts:
     ribs = [m.rounded_box((d + 0.006, 0.012, h * 0.9), 0.004, 1).translated((0, y, wheel_r * 2 + h / 2))
             for y in (-w * 0.25, 0.0, w * 0.25)]
     top = wheel_r * 2 + h
-    rods = [m.cylinder(0.008, 0.04, 8).translated((-d / 2 + 0.025, y, top)) for y in (-w * 0.3, w * 0.3)]
-    grip = m.rounded_box((0.03, w * 0.66, 0.025), 0.01, 1).translated((-d / 2 + 0.025, 0, top + 0.045))
+    rods = [m.cylinder(0.008, 0.02, 8).translated((-d / 2 + 0.025, y, top)) for y in (-w * 0.3, w * 0.3)]
+    grip = m.rounded_box((0.03, w * 0.66, 0.025), 0.01, 1).translated((-d / 2 + 0.025, 0, top + 0.025))
     side_handle = _arc_handle(0.12, 0.025, top - 0.002, 0.008, plane="xz", offset=0.0).transformed(m.rotation_z(90.0))
     return {"Body": [body] + ribs, "Trim": _wheels(d, w, wheel_r) + [grip, side_handle], "Metal": rods}
 
@@ -291,16 +291,16 @@ NAVY, RED, BLACK, GREY = (0.02, 0.04, 0.12), (0.45, 0.03, 0.03), (0.02, 0.02, 0.
 SILVER, BLUE, GREEN, TAN = (0.6, 0.6, 0.62), (0.04, 0.12, 0.45), (0.05, 0.25, 0.08), (0.45, 0.28, 0.14)
 
 OBJECT_CLASSES: tuple[ObjectClass, ...] = (
-    ObjectClass("backpack", "Daypack backpack, about 0.30 x 0.20 x 0.45 m.", _backpack,
-                {"width": 0.30, "depth": 0.20, "height": 0.45},
+    ObjectClass("backpack", "Daypack backpack, about 0.30 x 0.26 x 0.41 m with pocket, straps and handle.", _backpack,
+                {"width": 0.30, "depth": 0.18, "height": 0.38},
                 (_v("navy", NAVY), _v("red", RED), _v("black_large", BLACK, {"width": 0.33, "depth": 0.23, "height": 0.52}),
                  _v("grey", GREY))),
     ObjectClass("trolley_suitcase", "Cabin-size trolley suitcase, 0.40 x 0.23 x 0.55 m body on wheels.", _trolley,
                 {"width": 0.40, "depth": 0.23, "height": 0.55},
                 (_v("black", BLACK), _v("silver", SILVER), _v("red", RED),
                  _v("blue_oversize", BLUE, {"width": 0.45, "depth": 0.27, "height": 0.65}))),
-    ObjectClass("small_suitcase", "Under-seat wheeled bag, 0.35 x 0.20 x 0.40 m.", _trolley,
-                {"width": 0.35, "depth": 0.20, "height": 0.36},
+    ObjectClass("small_suitcase", "Under-seat wheeled bag, 0.35 x 0.20 x 0.38 m with wheels.", _trolley,
+                {"width": 0.35, "depth": 0.20, "height": 0.31},
                 (_v("teal", (0.02, 0.25, 0.25)), _v("black", BLACK), _v("pink", (0.6, 0.15, 0.25)))),
     ObjectClass("briefcase", "Hard briefcase, 0.42 x 0.11 x 0.32 m.", _briefcase,
                 {"width": 0.42, "depth": 0.11, "height": 0.32},

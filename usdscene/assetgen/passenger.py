@@ -167,18 +167,13 @@ def write_passenger_asset(folder: Path) -> AssetEntry:
             set_material_color(stage, f"{looks}/Trousers", trousers)
             set_material_color(stage, f"{looks}/Hair", HAIR[hair])
     sets = root.GetVariantSets()
-    lows, highs = [], []
-    for pose_name in POSES:
-        sets.GetVariantSet(stage_schema.VARIANT_SET_POSE).SetVariantSelection(pose_name)
-        lo, hi = bounds_of_stage(stage)
-        lows.append(lo)
-        highs.append(hi)
     sets.GetVariantSet(stage_schema.VARIANT_SET_POSE).SetVariantSelection(DEFAULT_POSE)
     sets.GetVariantSet(stage_schema.VARIANT_SET_APPEARANCE).SetVariantSelection(DEFAULT_APPEARANCE)
+    lo_m, hi_m = bounds_of_stage(stage)  # default pose, like every catalog extent
     path = folder / "passengers" / "passenger.usda"
     save_stage(stage, path)
-    lo = tuple(round(float(v), 4) + 0.0 for v in np.min(lows, axis=0))
-    hi = tuple(round(float(v), 4) + 0.0 for v in np.max(highs, axis=0))
+    lo = tuple(round(float(v), 4) + 0.0 for v in lo_m)
+    hi = tuple(round(float(v), 4) + 0.0 for v in hi_m)
     return AssetEntry(
         class_name="passenger", kind="passenger", usd_path=path,
         description=("Seated adult passenger. Origin at the seated hip contact point on the cushion, "

@@ -62,7 +62,8 @@ def _list(args: argparse.Namespace) -> int:
 
     catalog = load_catalog(args.catalog, include_default=not args.no_default)
     table = Table(title="usdscene asset catalog")
-    for column in ("class", "kind", "size x*y*z (m)", "variants", "relations", "places", "usd"):
+    table.add_column("class", no_wrap=True)
+    for column in ("kind", "size x*y*z (m)", "variants", "relations", "places", "usd"):
         table.add_column(column, overflow="fold")
     base = default_asset_folder().resolve()
     for name in catalog.classes():
