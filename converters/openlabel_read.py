@@ -182,7 +182,9 @@ def _load(source: str | os.PathLike | Mapping) -> tuple[dict, Provenance]:
         _find_non_finite(data, "", problems)
     problems.raise_if_any(DocumentError)
     body = data[root_key]
-    if not isinstance(body, Mapping):
+    if isinstance(body, Mapping) and not isinstance(body, dict):
+        body = dict(body)
+    if not isinstance(body, dict):
         raise DocumentError(f"expected a JSON object, got {describe(body)}", where=root_key)
     if root_key == "vcd":
         body = _vcd_to_openlabel(body)
@@ -195,7 +197,7 @@ def _find_non_finite(value: Any, where: str, problems: ProblemCollector) -> None
     if isinstance(value, float):
         if not math.isfinite(value):
             problems.add(where or "document", f"non-finite number {value!r} (JSON has no NaN or Infinity)")
-    elif isinstance(value, Mapping):
+    elif isinstance(value, dict):
         for key, item in value.items():
             _find_non_finite(item, f"{where}.{key}" if where else str(key), problems)
     elif isinstance(value, (list, tuple)):
@@ -206,31 +208,31 @@ def _find_non_finite(value: Any, where: str, problems: ProblemCollector) -> None
 def _vcd_to_openlabel(vcd: Mapping) -> dict:
     """VCD 4.3 → OpenLABEL 1.0.0 (copies what it changes; the input is not modified)."""
     out = dict(vcd)
-    metadata = dict(out.get("metadata") or {}) if isinstance(out.get("metadata"), Mapping) else out.get("metadata")
+    metadata = dict(out.get("metadata") or {}) if isinstance(out.get("metadata"), dict) else out.get("metadata")
     if isinstance(metadata, dict):
         metadata["schema_version"] = SCHEMA_VERSION
         out["metadata"] = metadata
     elif "metadata" not in out:
         out["metadata"] = {"schema_version": SCHEMA_VERSION}
     systems = out.get("coordinate_systems")
-    if isinstance(systems, Mapping):
+    if isinstance(systems, dict):
         converted = {}
         for name, cs in systems.items():
-            if isinstance(cs, Mapping) and isinstance(cs.get("pose_wrt_parent"), list):
+            if isinstance(cs, dict) and isinstance(cs.get("pose_wrt_parent"), list):
                 cs = dict(cs)
                 cs["pose_wrt_parent"] = {"matrix4x4": cs["pose_wrt_parent"]}
             converted[name] = cs
         out["coordinate_systems"] = converted
     frames = out.get("frames")
-    if isinstance(frames, Mapping):
+    if isinstance(frames, dict):
         new_frames = {}
         for key, frame in frames.items():
-            props = frame.get("frame_properties") if isinstance(frame, Mapping) else None
-            transforms = props.get("transforms") if isinstance(props, Mapping) else None
-            if isinstance(transforms, Mapping):
+            props = frame.get("frame_properties") if isinstance(frame, dict) else None
+            transforms = props.get("transforms") if isinstance(props, dict) else None
+            if isinstance(transforms, dict):
                 new_transforms = {}
                 for tname, t in transforms.items():
-                    if isinstance(t, Mapping) and "transform_src_to_dst_4x4" in t:
+                    if isinstance(t, dict) and "transform_src_to_dst_4x4" in t:
                         t = dict(t)
                         t["transform_src_to_dst"] = {"matrix4x4": t.pop("transform_src_to_dst_4x4")}
                     new_transforms[tname] = t
@@ -283,7 +285,7 @@ class _Reader:
 
     def section(self, key: str) -> Mapping:
         value = self.body.get(key, {})
-        if not isinstance(value, Mapping):
+        if not isinstance(value, dict):
             self.add(f"{self.root}.{key}", f"expected a JSON object, got {describe(value)}")
             return {}
         return value
@@ -324,7 +326,7 @@ class _Reader:
         if meta is None:
             self.add(where, f"missing 'metadata' with 'schema_version': '{SCHEMA_VERSION}'")
             return out
-        if not isinstance(meta, Mapping):
+        if not isinstance(meta, dict):
             self.add(where, f"expected a JSON object, got {describe(meta)}")
             return out
         version = meta.get("schema_version")
@@ -341,7 +343,7 @@ class _Reader:
         if block is None:
             return out
         where = f"{where}.usdscene"
-        if not isinstance(block, Mapping):
+        if not isinstance(block, dict):
             self.add(where, f"expected a JSON object, got {describe(block)}")
             return out
         for key in block:
@@ -385,8 +387,8 @@ class _Reader:
         return tuple(out)
 
     def read_frame_range(self, value: Any, where: str) -> FrameInterval | None:
-        intervals = read_intervals([value] if isinstance(value, Mapping) else value, where, self.problems)
-        if isinstance(value, Mapping):
+        intervals = read_intervals([value] if isinstance(value, dict) else value, where, self.problems)
+        if isinstance(value, dict):
             return intervals[0] if intervals else None
         if intervals is not None:
             self.add(where, f"expected {{'frame_start': int, 'frame_end': int}}, got {describe(value)}")
@@ -444,7 +446,7 @@ class _Reader:
             if not isinstance(key, str) or not key.isdigit():
                 self.add(where, f"frame keys are frame numbers (digits), got {key!r}")
                 continue
-            if not isinstance(frame, Mapping):
+            if not isinstance(frame, dict):
                 self.add(where, f"expected a JSON object, got {describe(frame)}")
                 continue
             out[int(key)] = frame
@@ -483,7 +485,7 @@ class _Reader:
         systems = self.section("coordinate_systems")
         for name, cs in systems.items():
             where = f"{R}.coordinate_systems.{name}"
-            if not isinstance(cs, Mapping):
+            if not isinstance(cs, dict):
                 self.add(where, f"expected a JSON object, got {describe(cs)}")
                 continue
             parent = cs.get("parent")
@@ -520,18 +522,18 @@ class _Reader:
             if props is None:
                 continue
             where = f"{R}.frames.{number}.frame_properties"
-            if not isinstance(props, Mapping):
+            if not isinstance(props, dict):
                 self.add(where, f"expected a JSON object, got {describe(props)}")
                 continue
             transforms = props.get("transforms")
             if transforms is None:
                 continue
-            if not isinstance(transforms, Mapping):
+            if not isinstance(transforms, dict):
                 self.add(f"{where}.transforms", f"expected a JSON object, got {describe(transforms)}")
                 continue
             for tname, t in transforms.items():
                 here = f"{where}.transforms.{tname}"
-                if not isinstance(t, Mapping):
+                if not isinstance(t, dict):
                     self.add(here, f"expected a JSON object, got {describe(t)}")
                     continue
                 src, dst = t.get("src"), t.get("dst")
@@ -578,14 +580,14 @@ class _Reader:
         streams = self.section("streams")
         for name in parents:
             cs = self.section("coordinate_systems").get(name)
-            cs_type = cs.get("type") if isinstance(cs, Mapping) else None
+            cs_type = cs.get("type") if isinstance(cs, dict) else None
             if cs_type in ("sensor_cs", "sensor") and name not in streams:
                 self.add(f"{R}.coordinate_systems.{name}",
                          f"sensor coordinate system {name!r} has no stream of the same name")
         cameras = []
         for name, stream in streams.items():
             where = f"{R}.streams.{name}"
-            if not isinstance(stream, Mapping):
+            if not isinstance(stream, dict):
                 self.add(where, f"expected a JSON object, got {describe(stream)}")
                 continue
             if stream.get("type") != "camera":
@@ -601,12 +603,12 @@ class _Reader:
     def read_camera(self, name, stream, where, render, parents, static, per_frame) -> Camera | None:
         R = self.root
         props = stream.get("stream_properties", {})
-        if not isinstance(props, Mapping):
+        if not isinstance(props, dict):
             self.add(f"{where}.stream_properties", f"expected a JSON object, got {describe(props)}")
             return None
         where_props = f"{where}.stream_properties"
         friendly = props.get("usdscene")
-        if friendly is not None and not isinstance(friendly, Mapping):
+        if friendly is not None and not isinstance(friendly, dict):
             self.add(f"{where_props}.usdscene", f"expected a JSON object, got {describe(friendly)}")
             return None
         friendly = friendly or {}
@@ -714,7 +716,7 @@ class _Reader:
         """Intrinsics, None (no usable intrinsics) or _BAD (problem recorded)."""
         where_f = f"{where}.usdscene"
         custom = props.get("intrinsics_custom")
-        ortho_custom = isinstance(custom, Mapping) and custom.get("model") == "orthographic"
+        ortho_custom = isinstance(custom, dict) and custom.get("model") == "orthographic"
         present = [k for k in ("intrinsics_pinhole", "intrinsics_fisheye") if k in props]
         if ortho_custom:
             present.append("intrinsics_custom")
@@ -754,7 +756,7 @@ class _Reader:
         kind = present[0]
         block = props[kind]
         here = f"{where}.{kind}"
-        if not isinstance(block, Mapping):
+        if not isinstance(block, dict):
             self.add(here, f"expected a JSON object, got {describe(block)}")
             return _BAD
         fov = None
@@ -1064,7 +1066,7 @@ class _Reader:
         """
         if data is None:
             return {}
-        if not isinstance(data, Mapping):
+        if not isinstance(data, dict):
             self.add(where, f"expected a JSON object, got {describe(data)}")
             return None
         out: dict = {}
@@ -1075,7 +1077,7 @@ class _Reader:
                 continue
             for index, item in enumerate(items):
                 here = f"{where}.{kind}[{index}]"
-                if not isinstance(item, Mapping):
+                if not isinstance(item, dict):
                     self.add(here, f"expected a JSON object, got {describe(item)}")
                     continue
                 name = item.get("name")
@@ -1163,7 +1165,7 @@ class _Reader:
             uids[uid] = "other"
             if not UID_PATTERN.match(uid):
                 self.add(where, f"object uid {uid!r} must be an integer string or a UUID")
-            if not isinstance(obj, Mapping):
+            if not isinstance(obj, dict):
                 self.add(where, f"expected a JSON object, got {describe(obj)}")
                 continue
             name = obj.get("name")
@@ -1214,14 +1216,14 @@ class _Reader:
         out: dict[str, list] = {}
         R = self.root
         known = self.body.get("objects", {})
-        known = known if isinstance(known, Mapping) else {}
+        known = known if isinstance(known, dict) else {}
         dangling: set = set()
         for number in sorted(frames):
             objs = frames[number].get("objects")
             if objs is None:
                 continue
             where = f"{R}.frames.{number}.objects"
-            if not isinstance(objs, Mapping):
+            if not isinstance(objs, dict):
                 self.add(where, f"expected a JSON object, got {describe(objs)}")
                 continue
             for uid, entry in objs.items():
@@ -1232,7 +1234,7 @@ class _Reader:
                     continue
                 if not entry:
                     continue
-                if not isinstance(entry, Mapping):
+                if not isinstance(entry, dict):
                     self.add(f"{where}.{uid}", f"expected a JSON object, got {describe(entry)}")
                     continue
                 items = self.data_items(entry.get("object_data"), f"{where}.{uid}.object_data", POSE_DATA,
@@ -1337,7 +1339,7 @@ class _Reader:
             where = f"{R}.relations.{ruid}"
             if not UID_PATTERN.match(ruid):
                 self.add(where, f"relation uid {ruid!r} must be an integer string or a UUID")
-            if not isinstance(rel, Mapping):
+            if not isinstance(rel, dict):
                 self.add(where, f"expected a JSON object, got {describe(rel)}")
                 continue
             rtype = rel.get("type")
@@ -1355,7 +1357,7 @@ class _Reader:
                 agents[side] = []
                 for index, agent in enumerate(entries):
                     here = f"{where}.{side}[{index}]"
-                    if not isinstance(agent, Mapping) or not isinstance(agent.get("uid"), str):
+                    if not isinstance(agent, dict) or not isinstance(agent.get("uid"), str):
                         self.add(here, f"expected {{'uid': str, 'type': 'object'}}, got {describe(agent)}")
                         ok = False
                         continue
