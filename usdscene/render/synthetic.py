@@ -35,6 +35,8 @@ class SphereSpec:
         frames: frames where the sphere is visible; empty = always.
         frame_centres: per-frame positions ``(frame, (x, y, z))`` (time-sampled translate).
         class_name: class part of the prim name.
+        opacity: UsdPreviewSurface opacity (1 = opaque).
+        emissive: flat emissive colour (True) or a diffuse surface of that colour (False).
     """
 
     uid: str
@@ -45,6 +47,8 @@ class SphereSpec:
     frames: tuple[int, ...] = ()
     frame_centres: tuple[tuple[int, tuple[float, float, float]], ...] = ()
     class_name: str = "sphere"
+    opacity: float = 1.0
+    emissive: bool = True
 
 
 @dataclass(frozen=True)
@@ -119,7 +123,7 @@ def _box(size_m, inward: bool):
     return pts, [4] * 6, [i for f in faces for i in f]
 
 
-def _material(stage, path: str, *, emissive=None, diffuse=(0.0, 0.0, 0.0)):
+def _material(stage, path: str, *, emissive=None, diffuse=(0.0, 0.0, 0.0), opacity: float = 1.0):
     from pxr import Gf, Sdf, UsdShade
 
     material = UsdShade.Material.Define(stage, path)
@@ -129,6 +133,8 @@ def _material(stage, path: str, *, emissive=None, diffuse=(0.0, 0.0, 0.0)):
     if emissive is not None:
         shader.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*emissive))
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(1.0)
+    if opacity < 1.0:
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(opacity))
     shader.CreateInput("specular", Sdf.ValueTypeNames.Float).Set(0.0)
     material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
     return material
@@ -237,7 +243,12 @@ def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
             vis = mesh.CreateVisibilityAttr()
             for f in frames:
                 vis.Set(UsdGeom.Tokens.inherited if f in sphere.frames else UsdGeom.Tokens.invisible, f)
-        material = _material(stage, f"{prim_path}/Looks/Flat", emissive=sphere.color_rgb)
+        if sphere.emissive:
+            material = _material(stage, f"{prim_path}/Looks/Flat", emissive=sphere.color_rgb,
+                                 opacity=sphere.opacity)
+        else:
+            material = _material(stage, f"{prim_path}/Looks/Flat", diffuse=sphere.color_rgb,
+                                 opacity=sphere.opacity)
         from pxr import UsdShade
         UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
     for box in scene.boxes:
@@ -262,3 +273,50 @@ def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
     write_render_settings(stage, scene.render or RenderSettings())
     stage.GetRootLayer().Save()
     return path
+
+
+def cabin_like_scene(*, frames: int = 5, cameras: int = 4, objects: int = 60, rows: int = 20,
+                     width_px: int = 640, height_px: int = 480, seed: int = 0,
+                     sphere_segments: tuple[int, int] = (48, 24)) -> SyntheticScene:
+    """An enclosed, cabin-like benchmark scene: a 3.6 m wide, 2.2 m high tube of ``rows`` seat
+    rows (boxes), 16 ceiling point lights, ``objects`` diffuse spheres of assorted colours
+    (bags and passengers stand-ins; some appear mid-sequence, some move) and ``cameras``
+    ceiling cameras looking down the aisle at ``width_px`` × ``height_px``.
+
+    Deterministic for a given ``seed``.
+    """
+    from usdscene.model import Intrinsics, LensModel, Pose
+
+    rng = np.random.default_rng(seed)
+    length = rows * 0.8 + 2.0
+    boxes = [BoxSpec("cabin", (length / 2 - 1.0, 0.0, 1.1), (length, 3.6, 2.2), (0.75, 0.74, 0.7), inward=True)]
+    for r in range(rows):
+        for side, y in (("L", -1.05), ("R", 1.05)):
+            boxes.append(BoxSpec(f"seat_{r:02d}{side}", (r * 0.8, y, 0.45), (0.5, 1.4, 0.9), (0.2, 0.25, 0.4)))
+    lights = tuple(PointLightSpec(f"lamp_{i:02d}", (i * length / 16, 0.0, 2.05), 40.0, 0.05) for i in range(16))
+    spheres = []
+    for i in range(objects):
+        r = float(rng.uniform(0.12, 0.3))
+        x = float(rng.uniform(0.0, (rows - 1) * 0.8))
+        y = float(rng.choice([-1.3, -0.8, 0.0, 0.8, 1.3]))
+        z = 0.9 + r if y != 0.0 else r
+        color = tuple(float(c) for c in rng.uniform(0.1, 0.9, 3))
+        first = int(rng.integers(0, max(1, frames // 2))) if i % 3 == 0 else 0
+        visible = tuple(range(first, frames)) if first else ()
+        centres = tuple((f, (x + 0.1 * f, y, z)) for f in range(frames)) if i % 5 == 0 else ()
+        spheres.append(SphereSpec(f"obj{i:03d}", (x, y, z), r, color, i + 1, frames=visible,
+                                  frame_centres=centres, emissive=False, class_name="bag"))
+    intr = Intrinsics(LensModel.PERSPECTIVE, width_px, height_px, width_px * 0.55, width_px * 0.55,
+                      (width_px - 1) / 2, (height_px - 1) / 2)
+    cams = []
+    for c in range(cameras):
+        x = c * (rows * 0.8) / max(1, cameras)
+        # Looking along +x and 20° down: OpenCV axes x = world -y, z = forward.
+        t = np.radians(20.0)
+        fwd = np.array([np.cos(t), 0.0, -np.sin(t)])
+        right = np.array([0.0, -1.0, 0.0])
+        down = np.cross(fwd, right)
+        cams.append(Camera(f"cam_{c:02d}", intr, Pose.from_rotation_translation(
+            np.stack([right, down, fwd], 1), [x - 0.5, 0.0, 2.0])))
+    return SyntheticScene(cameras=tuple(cams), spheres=tuple(spheres), frame_start=0, frame_end=frames - 1,
+                          boxes=tuple(boxes), lights=lights, sphere_segments=sphere_segments)
