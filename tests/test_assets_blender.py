@@ -1,0 +1,82 @@
+"""The shipped assets import into Blender (bpy) with their materials, variant colours and the
+documented colour override."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from usdscene import stage_schema
+from usdscene.catalog import load_catalog
+
+pytestmark = [pytest.mark.usd, pytest.mark.blender]
+
+OVERRIDE = (0.9, 0.7, 0.1)
+
+
+def _stage(folder: Path) -> Path:
+    from pxr import Gf, Sdf, Usd, UsdGeom
+
+    catalog = load_catalog()
+    stage = Usd.Stage.CreateNew(str(folder / "scene.usda"))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
+    env = UsdGeom.Xform.Define(stage, stage_schema.ENVIRONMENT).GetPrim()
+    env.GetReferences().AddReference(str(catalog["aircraft_cabin"].usd_path))
+
+    def add(name: str, cls: str, variants: dict[str, str]) -> Usd.Prim:
+        prim = UsdGeom.Xform.Define(stage, f"/World/Objects/{name}").GetPrim()
+        prim.GetReferences().AddReference(str(catalog[cls].usd_path))
+        for key, value in variants.items():
+            prim.GetVariantSets().GetVariantSet(key).SetVariantSelection(value)
+        return prim
+
+    add("pax", "passenger", {"pose": "reading", "appearance": "light_red_sweater"})
+    add("bag", "backpack", {"appearance": "red"})
+    recoloured = add("case", "trolley_suitcase", {"appearance": "black"})
+    shader = stage.OverridePrim(f"{recoloured.GetPath()}/{stage_schema.ASSET_COLOR_SHADER}")
+    shader.CreateAttribute(stage_schema.ATTR_ASSET_COLOR, Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*OVERRIDE))
+    stage.GetRootLayer().Save()
+    return folder / "scene.usda"
+
+
+def _base_colour(obj) -> tuple[float, float, float]:
+    material = obj.material_slots[0].material
+    bsdf = next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    return tuple(round(v, 3) for v in bsdf.inputs["Base Color"].default_value[:3])
+
+
+def _mesh_under(objects, ancestor: str, name_prefix: str):
+    for obj in objects:
+        if obj.type != "MESH" or not obj.name.startswith(name_prefix):
+            continue
+        parent = obj.parent
+        while parent is not None:
+            if parent.name == ancestor:
+                return obj
+            parent = parent.parent
+    raise AssertionError(f"no mesh {name_prefix}* under {ancestor}")
+
+
+def test_cabin_and_objects_import_with_materials(tmp_path):
+    import bpy
+
+    from usdscene.assetgen.objects import OBJECT_CLASSES
+    from usdscene.assetgen.passenger import APPEARANCES
+
+    scene = _stage(tmp_path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    result = bpy.ops.wm.usd_import(filepath=str(scene))
+    assert result == {"FINISHED"}
+    meshes = [o for o in bpy.data.objects if o.type == "MESH"]
+    # 120 seats x 5 meshes, the shell, and the three objects.
+    assert len(meshes) > 600
+    assert all(len(o.material_slots) >= 1 and o.material_slots[0].material is not None for o in meshes)
+    names = {m.name.split(".")[0] for m in bpy.data.materials}
+    assert {"SeatFabric", "Carpet", "Sidewall", "BinDoor", "Body", "Skin"} <= names
+    passenger_top = _base_colour(_mesh_under(meshes, "pax", "Body"))
+    assert passenger_top == pytest.approx(APPEARANCES["light_red_sweater"][1], abs=1e-3)
+    red = next(v for v in next(c for c in OBJECT_CLASSES if c.name == "backpack").variants if v.name == "red")
+    assert _base_colour(_mesh_under(meshes, "bag", "Body")) == pytest.approx(red.colors["Body"], abs=1e-3)
+    assert _base_colour(_mesh_under(meshes, "case", "Body")) == pytest.approx(OVERRIDE, abs=1e-3)
