@@ -1,7 +1,10 @@
 """Write mask-derived labels into an OpenLABEL document. Pure (no pxr, no bpy).
 
 :func:`add_annotations` takes the scene's OpenLABEL document (the input, or what
-``write_openlabel`` made of the SceneSpec) and returns a new document with, per frame:
+``write_openlabel`` made of the SceneSpec) and returns a new document with the cameras in their
+exact calibrated form (``streams[<camera>].stream_properties`` intrinsics and
+``coordinate_systems[<camera>].pose_wrt_parent`` as the writer writes them, per-frame transforms
+for moving cameras; a friendly-form camera block becomes calibrated intrinsics) and, per frame:
 
 * ``frames[f].frame_properties.streams[<camera>].uri``: the image, relative to the output folder
   (``images/<camera>/<frame:06d>.png``; the document lives in that folder);
@@ -153,6 +156,53 @@ def _document_key(uid: str, objects: dict, scene: SceneSpec) -> str | None:
     return matches[0] if len(matches) == 1 else None
 
 
+def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
+    """Write every camera of ``scene`` in the writer's exact form: ``streams[<camera>]`` with
+    the intrinsics the images were rendered with (a friendly-form block becomes
+    ``intrinsics_pinhole``/``intrinsics_fisheye``), ``coordinate_systems[<camera>]`` with the
+    exact camera → world pose under the document's root coordinate system, and per-frame
+    transforms for moving cameras. Stream ``uri``/``description`` of the input are kept; a camera
+    whose coordinate system hangs below another (non-root) system is left as given."""
+    from converters.openlabel_write import write_openlabel
+
+    written = write_openlabel(SceneSpec(name=scene.name, frame_start=scene.frame_start,
+                                        frame_end=scene.frame_end, cameras=scene.cameras))["openlabel"]
+    systems = root.setdefault("coordinate_systems", {})
+    root_cs = next((name for name, cs in systems.items()
+                    if isinstance(cs, dict) and not cs.get("parent") and cs.get("type") == "scene_cs"), None)
+    if root_cs is None:
+        root_cs = next(name for name, cs in written["coordinate_systems"].items() if not cs.get("parent"))
+        systems[root_cs] = {"type": "scene_cs", "parent": "", "children": []}
+    streams = root.setdefault("streams", {})
+    frames = root.setdefault("frames", {})
+    for cam in scene.cameras:
+        stream = copy.deepcopy(written["streams"][cam.name])
+        old = streams.get(cam.name) or {}
+        for key in ("uri", "description"):
+            if old.get(key):
+                stream[key] = old[key]
+        streams[cam.name] = stream
+        old_cs = systems.get(cam.name)
+        if isinstance(old_cs, dict) and old_cs.get("parent") not in (None, "", root_cs):
+            continue
+        systems[cam.name] = {
+            "type": "sensor_cs", "parent": root_cs,
+            "children": list(old_cs.get("children", [])) if isinstance(old_cs, dict) else [],
+            "pose_wrt_parent": copy.deepcopy(written["coordinate_systems"][cam.name]["pose_wrt_parent"])}
+        children = systems[root_cs].setdefault("children", [])
+        if cam.name not in children:
+            children.append(cam.name)
+        for key, frame in written.get("frames", {}).items():
+            for transform in (frame.get("frame_properties", {}).get("transforms", {}) or {}).values():
+                if transform.get("src") != cam.name:
+                    continue
+                target = frames.setdefault(str(key), {}).setdefault("frame_properties", {}).setdefault("transforms", {})
+                for name in [n for n, t in target.items()
+                             if isinstance(t, dict) and t.get("src") == cam.name and t.get("dst") == root_cs]:
+                    del target[name]  # the same pose under another key: keep one
+                target[f"{cam.name}_to_{root_cs}"] = dict(copy.deepcopy(transform), dst=root_cs)
+
+
 def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                     out_dir: str | os.PathLike) -> dict:
     """The document plus per-frame image/mask uris and per-camera labels (a new dict).
@@ -173,6 +223,7 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
     root = result.get("openlabel")
     if not isinstance(root, dict):
         raise DocumentError("expected an object with an 'openlabel' object", where="openlabel")
+    _canonical_cameras(root, scene)
     objects = root.setdefault("objects", {})
     frames = root.setdefault("frames", {})
     cameras = {c.name for c in scene.cameras}

@@ -257,3 +257,51 @@ def test_label_statistics_counts(annotated):
     assert stats["visibility"][0] >= 1  # the hidden bag
     chart = draw_chart(stats)
     assert chart.ndim == 3 and chart.shape[2] == 3 and (chart < 255).any()
+
+
+def _friendly_document() -> dict:
+    return {"openlabel": {
+        "metadata": {"schema_version": "1.0.0", "name": "friendly",
+                     "usdscene": {"frame_range": {"frame_start": 0, "frame_end": 1}}},
+        "streams": {"corridor": {"type": "camera", "uri": "rtsp://cam", "stream_properties": {"usdscene": {
+            "model": "perspective", "resolution_px": [W, H], "sensor_size_mm": [5.6, 4.2], "fov_deg": 90.0,
+            "position_m": [3.0, 0.0, 1.95], "target_m": [1.0, 0.0, 0.6]}}}},
+        "objects": {"0": {"name": "bag_0", "type": "backpack"}},
+    }}
+
+
+def test_cameras_are_written_in_exact_calibrated_form(openlabel_schema_path, tmp_path):
+    from converters.openlabel import read_openlabel, schema_problems
+
+    source = _friendly_document()
+    scene = read_openlabel(source)
+    mask = np.zeros((H, W), np.uint16)
+    mask[10:20, 10:20] = 1
+    images = [label_image(mask, {1: "0"}, camera="corridor", frame=f) for f in (0, 1)]
+    document = json.loads(json.dumps(add_annotations(source, scene, label_images(images), tmp_path)))
+    assert schema_problems(document, openlabel_schema_path) == []
+    stream = document["openlabel"]["streams"]["corridor"]
+    assert "intrinsics_pinhole" in stream["stream_properties"] and stream["uri"] == "rtsp://cam"
+    assert "position_m" not in json.dumps(stream)
+    assert "pose_wrt_parent" in document["openlabel"]["coordinate_systems"]["corridor"]
+    again = read_openlabel(document).camera("corridor")
+    original = scene.camera("corridor")
+    assert again.intrinsics == original.intrinsics
+    assert np.allclose(again.pose.as_array(), original.pose.as_array(), atol=1e-9)
+
+
+def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
+    from converters.openlabel import read_openlabel, write_openlabel
+    from usdscene.model import Pose
+
+    base = _scene()
+    moving = Camera("cam_a", base.cameras[0].intrinsics, Pose(),
+                    frame_poses=((0, Pose.from_rotation_translation(np.eye(3), (0.0, 0.0, 0.0))),
+                                 (1, Pose.from_rotation_translation(np.eye(3), (0.5, 0.0, 0.0)))))
+    scene = SceneSpec(name="moving", frame_start=0, frame_end=1, cameras=(moving,), objects=base.objects)
+    images = [label_image(np.zeros((H, W), np.uint16), IDS, camera="cam_a", frame=f) for f in (0, 1)]
+    document = add_annotations(write_openlabel(scene), scene, label_images(images), tmp_path)
+    transforms = document["openlabel"]["frames"]["1"]["frame_properties"]["transforms"]
+    assert len([t for t in transforms.values() if t["src"] == "cam_a"]) == 1
+    again = read_openlabel(document).camera("cam_a")
+    assert np.allclose(again.pose_at(1).translation_m, (0.5, 0.0, 0.0))
