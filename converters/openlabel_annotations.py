@@ -46,7 +46,7 @@ from typing import Any, Iterable
 
 from usdscene import layout
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.labels import Annotations, ImageLabels, ObjectLabel
+from usdscene.labels import Annotations, ObjectLabel
 from usdscene.model import FrameInterval, SceneSpec, union_intervals
 
 ANNOTATION_METADATA_KEY = "usdscene_annotations"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from usdscene.labels import amodal_projection, box_of, label_image
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.model import Camera, Intrinsics, LensModel
 
 W, H = 64, 48
 
