@@ -19,7 +19,8 @@ composer's ``customLayerData`` has no places and relations.
 Element discovery: cameras are every ``UsdGeom.Camera``; lights every prim with
 ``UsdLux.LightAPI``; objects the outermost prims carrying an identity (customData
 ``usdscene:uid`` or ``userProperties:usdscene_uid``) whose class is not ``camera``, ``light``
-or ``environment``. Scale in transforms is dropped (poses are rigid). Object poses: ``pose``
+or ``environment``. Scale in transforms is dropped (poses are rigid). A Y-up stage converts the
+world axes only; object frames stay asset frames (Z up), as in Blender's Y-up exports. Object poses: ``pose``
 is the authored default transform when it occurs in the frame range, else the pose of the
 first frame the object is visible; ``frame_poses`` lists the visible frames that differ.
 """
@@ -114,11 +115,12 @@ class _StageReader:
         m = self._cache(time).GetLocalToWorldTransform(prim)
         return tuple(v for row in m for v in row)
 
-    def _to_pose(self, gf16: tuple[float, ...], *, conjugate: bool) -> Pose:
+    def _to_pose(self, gf16: tuple[float, ...]) -> Pose:
         """Stage matrix (Gf row-vector layout, stage units and up axis) → metric Z-up Pose.
 
-        ``conjugate``: convert the child frame too (objects); cameras and lights keep their
-        own axis conventions whatever the stage's up axis is.
+        Only the *world* is converted: a child frame keeps its own convention (asset frames
+        are Z-up by the catalog's definition, cameras and lights look down their -Z), which is
+        what Blender's exporter writes (a Y-up export rotates the root, not the objects).
         """
         m = np.asarray(gf16, dtype=np.float64).reshape(4, 4).T
         rot, t = m[:3, :3], m[:3, 3] * self.mpu
@@ -131,7 +133,7 @@ class _StageReader:
         out = np.eye(4)
         out[:3, :3], out[:3, 3] = rot, t
         if self.y_up:
-            out = _Y_TO_Z @ out @ (_Y_TO_Z.T if conjugate else np.eye(4))
+            out = _Y_TO_Z @ out
         return Pose.from_matrix(out)
 
     def _poses(self, prim, frames: Iterable[int]) -> tuple[tuple[float, ...], dict[int, tuple[float, ...]]]:
@@ -273,8 +275,8 @@ class _StageReader:
             name = name or prim.GetName()
             intr = self._intrinsics(prim, products.get(prim.GetPath().pathString, render.resolution_px))
             base, per_frame = self._poses(prim, self.frames)
-            pose = usd_pose_to_cv_pose(self._to_pose(base, conjugate=False))
-            frame_poses = tuple((f, usd_pose_to_cv_pose(self._to_pose(per_frame[f], conjugate=False)))
+            pose = usd_pose_to_cv_pose(self._to_pose(base))
+            frame_poses = tuple((f, usd_pose_to_cv_pose(self._to_pose(per_frame[f])))
                                 for f in self.frames if per_frame[f] != base)
             near, far = self._clipping(prim)
             custom_text = _value(prim, ss.ATTR_CAMERA_CUSTOM)
@@ -388,7 +390,7 @@ class _StageReader:
             defaults = Light(uid=uid, name=name, kind=kind)
             power = _prefer(_value(prim, ss.ATTR_LIGHT_POWER_W), derived_power, rel=1e-5)
             light = Light(
-                uid=uid, name=name, kind=kind, pose=self._to_pose(base, conjugate=False),
+                uid=uid, name=name, kind=kind, pose=self._to_pose(base),
                 power_w=float(power),
                 color_rgb=tuple(_prefer_vec(_value(prim, ss.ATTR_LIGHT_COLOR), color)),  # type: ignore[arg-type]
                 radius_m=float(_prefer(_value(prim, ss.ATTR_LIGHT_RADIUS),
@@ -420,8 +422,8 @@ class _StageReader:
             visible = self._visible(prim)
             present = [f for f, here in zip(self.frames, visible) if here]
             base, per_frame = self._poses(prim, present)
-            pose = self._to_pose(base, conjugate=True)
-            frame_poses = tuple((f, self._to_pose(per_frame[f], conjugate=True))
+            pose = self._to_pose(base)
+            frame_poses = tuple((f, self._to_pose(per_frame[f]))
                                 for f in present if per_frame[f] != base)
             appearance = None
             sets = prim.GetVariantSets()
@@ -451,10 +453,15 @@ def _self_and_ancestors(prim):
 
 
 def _value(prim, name: str):
+    """Authored value of an attribute; for an attribute with time samples only (Blender's
+    exporter samples custom properties when it exports animation), its first sample."""
     attr = prim.GetAttribute(name)
-    if attr and attr.HasAuthoredValue():
-        return attr.Get()
-    return None
+    if not attr or not attr.HasAuthoredValue():
+        return None
+    value = attr.Get()
+    if value is None and attr.GetNumTimeSamples():
+        value = attr.Get(attr.GetTimeSamples()[0])
+    return value
 
 
 def _float(prim, name: str) -> float | None:

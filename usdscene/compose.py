@@ -221,8 +221,13 @@ def canonical_intervals(intervals, frame_start: int, frame_end: int) -> tuple[Fr
 
 
 def _canonical_camera(cam: Camera, frames: range) -> Camera:
-    frame_poses = tuple((f, cam.pose_at(f)) for f in frames if cam.pose_at(f).matrix != cam.pose.matrix)
-    return replace(cam, frame_poses=frame_poses, custom=dict(cam.custom))
+    """Per-frame poses only where they differ from ``pose``; ``pose`` is the document's base
+    pose when some frame uses it, else the pose of the first frame (what a reader of the
+    stage can tell)."""
+    poses = [cam.pose_at(f) for f in frames]
+    base = cam.pose if any(p.matrix == cam.pose.matrix for p in poses) else poses[0]
+    frame_poses = tuple((f, p) for f, p in zip(frames, poses) if p.matrix != base.matrix)
+    return replace(cam, pose=base, frame_poses=frame_poses, custom=dict(cam.custom))
 
 
 def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         raise DocumentError(f"unsupported file type {suffix or '(none)'!r}; expected one of "
                             f"{', '.join(USD_SUFFIXES)} or .blend", where=str(source))
     write_document(Path(args.out), write_openlabel(scene))
-    Console(highlight=False).print(
+    Console(highlight=False, soft_wrap=True).print(
         f"wrote {args.out}: {len(scene.cameras)} cameras, {len(scene.lights)} lights, "
         f"{len(scene.objects)} objects, frames {scene.frame_start}..{scene.frame_end}")
     return 0
