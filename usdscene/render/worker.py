@@ -490,6 +490,18 @@ def inspect_blend(job: dict) -> None:
     _emit({"event": "inspected"})
 
 
+def _rss_mb() -> float:
+    """Resident memory of this process in MiB (Linux; 0 elsewhere)."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return 0.0
+
+
 def _ancestors(ob) -> list:
     out = []
     while ob.parent is not None:
@@ -526,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
             _emit({"event": "error", "frame": frame, "camera": camera,
                    "message": f"{type(exc).__name__}: {exc}"})
             return 1
-        _emit({"event": "done", "frame": frame, "camera": camera, **timing})
+        _emit({"event": "done", "frame": frame, "camera": camera, "rss_mb": _rss_mb(), **timing})
     try:
         session.exr_path.unlink()
     except FileNotFoundError:

@@ -1,0 +1,152 @@
+"""Render pipeline throughput: overhead budget, naive baseline, memory over many renders.
+
+1. ``usdscene.render.driver.render`` on every camera of every frame; reports
+   wall time / Σ(Blender render calls). Everything that is not inside the render call (process
+   start, bpy import, USD import, presence and camera updates, EXR decoding, PNG encoding,
+   manifest writes) is overhead; the target is ≤ 1.10.
+2. The same images from a naive script: for every image, a factory reset and a fresh USD import
+   of the whole stage, a beauty render, then a second render for the mask (1 sample).
+3. (``--memory N``) N consecutive tiny renders in one worker: resident memory after the first
+   10 and at the end.
+
+Both 1 and 2 run at the scene's default settings and at 1-sample preview settings.
+
+Scene: the shipped aircraft cabin example when it composes, else a synthetic cabin-like scene
+(``usdscene.render.synthetic.cabin_like_scene``: 40 seat boxes, 60 diffuse spheres, 16 point
+lights, 4 cameras at 640x480, 5 frames); the script says which.
+
+Run: python benchmarks/render_throughput.py [--frames 5] [--memory 500] [--skip-naive]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+NAIVE = textwrap.dedent("""
+    import json, sys, time
+    from pathlib import Path
+    from usdscene.render import worker
+    job = json.loads(Path(sys.argv[1]).read_text())
+    for o in job["objects"]:
+        o["_visible"] = set(o["visible_frames"])
+    times = []
+    for frame, camera in job["pairs"]:
+        t0 = time.perf_counter()
+        session = worker.Session(job)          # factory reset + full USD import, every image
+        session.set_frame(frame)
+        session.set_camera(camera, frame)
+        session.bpy.ops.render.render(write_still=True)       # beauty
+        rgb, _ = worker.read_exr(session.exr_path)
+        cycles = session.scene.cycles                          # mask: a second render
+        cycles.samples, cycles.use_denoising = 1, False
+        session.bpy.ops.render.render(write_still=True)
+        _, ids = worker.read_exr(session.exr_path)
+        rgb, ids = session._finish(camera, rgb, ids)
+        worker.write_outputs(Path(job["out_dir"]), camera, frame, rgb, ids)
+        times.append(time.perf_counter() - t0)
+    print("@naive " + json.dumps(times))
+""")
+
+
+def scene_stage(root: Path, frames: int) -> tuple[Path, str]:
+    """Compose the cabin example if possible, else write the synthetic cabin-like scene."""
+    doc = REPO / "examples" / "aircraft_cabin" / "cabin.openlabel.json"
+    try:
+        from usdscene.commands.render import stage_for_input
+
+        return stage_for_input(doc, root), f"aircraft cabin example ({doc.name})"
+    except Exception as exc:  # the example is not composable in this checkout yet
+        from usdscene.render.synthetic import cabin_like_scene, write_synthetic_stage
+
+        scene = cabin_like_scene(frames=frames)
+        return (write_synthetic_stage(scene, root / "stage"),
+                f"synthetic cabin-like scene (cabin example unavailable: {type(exc).__name__})")
+
+
+def naive(stage: Path, out: Path, override: dict) -> tuple[float, list[float]]:
+    from usdscene.render.driver import camera_jobs, resolve_settings
+    from usdscene.render.stage_reader import read_stage_plan
+
+    plan = read_stage_plan(stage)
+    settings = resolve_settings(plan.settings, override)
+    frames = list(plan.frames)
+    names = [c.name for c in plan.cameras]
+    scratch = Path(tempfile.mkdtemp(prefix="naive-", dir="/dev/shm"))
+    job = {"stage": str(plan.stage_path), "out_dir": str(out), "scratch_dir": str(scratch),
+           "prim_path_mask": "", "settings": settings, "threads": None,
+           "objects": [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
+                        "visible_frames": list(o.visible_frames)} for o in plan.objects],
+           "cameras": camera_jobs(plan, names, frames), "pairs": [[f, c] for f in frames for c in names]}
+    job_path = scratch / "job.json"
+    job_path.write_text(json.dumps(job))
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", NAIVE, str(job_path)], capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    line = [l for l in proc.stdout.splitlines() if l.startswith("@naive ")]
+    if proc.returncode or not line:
+        raise SystemExit(f"naive run failed: {proc.stderr[-2000:]}")
+    return wall, json.loads(line[0][len("@naive "):])
+
+
+def pipeline(stage: Path, out: Path, override: dict):
+    from usdscene.render.driver import render
+
+    return render(stage, out, settings_override=override, progress=False)
+
+
+def memory(root: Path, renders: int) -> tuple[float, float, int]:
+    """RSS (MiB) of one worker after 10 renders and at the end of ``renders`` consecutive
+    renders (synthetic cabin-like scene with renders/4 frames, 4 cameras, 64x48, 1 sample)."""
+    from usdscene.render.driver import render
+    from usdscene.render.synthetic import cabin_like_scene, write_synthetic_stage
+
+    stage = write_synthetic_stage(cabin_like_scene(frames=max(3, renders // 4)), root / "mem-stage")
+    rss: list[float] = []
+    report = render(stage, root / "mem-out",
+                    settings_override={"samples": 1, "denoise": False, "resolution_scale": 0.1},
+                    progress=False,
+                    on_event=lambda e: rss.append(e["rss_mb"]) if e.get("event") == "done" else None)
+    return rss[9], rss[-1], report.pairs_rendered
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--frames", type=int, default=5)
+    parser.add_argument("--memory", type=int, default=0, help="consecutive renders for the memory check")
+    parser.add_argument("--memory-only", action="store_true", help="only the memory check")
+    parser.add_argument("--skip-naive", action="store_true")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        if not args.memory_only:
+            stage, what = scene_stage(root, args.frames)
+            print(f"scene: {what}")
+            for label, override in (("default settings", None),
+                                    ("1-sample preview", {"samples": 1, "denoise": False})):
+                report = pipeline(stage, root / f"pipe-{label[:3]}", override)
+                n = report.pairs_rendered
+                print(f"[{label}] pipeline: {n} images, wall {report.wall_s:.1f} s, Σ render calls "
+                      f"{report.render_s:.1f} s, ratio {report.wall_s / report.render_s:.3f}; "
+                      f"{report.wall_s / n:.2f} s/image; startup {report.startup_s:.1f} s, USD import "
+                      f"{report.import_s:.2f} s, post (EXR→PNG) {report.post_s:.2f} s")
+                if not args.skip_naive:
+                    wall, per = naive(stage, root / f"naive-{label[:3]}", override)
+                    print(f"[{label}] naive (re-import per image, mask in a 2nd render): wall {wall:.1f} s, "
+                          f"{wall / len(per):.2f} s/image; speed-up of the pipeline ×{wall / report.wall_s:.2f}")
+        if args.memory:
+            first, last, n = memory(root, args.memory)
+            print(f"memory over {n} consecutive renders in one worker: RSS {first:.0f} MiB after 10, "
+                  f"{last:.0f} MiB at the end ({100 * (last - first) / first:+.1f} %)")
+
+
+if __name__ == "__main__":
+    main()
