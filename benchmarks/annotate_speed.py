@@ -5,7 +5,11 @@ with holes, drawn far to near so that later ones occlude earlier ones) plus each
 amodal mask; then the amodal rasterisation of a 960-triangle mesh (UV sphere) per object
 through a pinhole camera.
 
-    python benchmarks/annotate_speed.py [--repeat 50] [--objects 60]
+    python benchmarks/annotate_speed.py [--repeat 50] [--objects 60] [--stage-frames 500]
+
+With ``--stage-frames N`` (needs usd-core) it also times reading world triangles from a
+synthetic composed-layout stage of N frames (half the objects static, half moving), first
+pass and cached second pass.
 """
 
 from __future__ import annotations
@@ -76,6 +80,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=50)
     parser.add_argument("--objects", type=int, default=60)
+    parser.add_argument("--stage-frames", type=int, default=0, metavar="N")
     args = parser.parse_args()
     mask, ids, amodal = synthetic_image(args.objects)
     visible = sum(1 for k in ids if (mask == k).any())
@@ -103,6 +108,36 @@ def main() -> None:
                                          (H - 1) / 2, distortion=(-0.25, 0.07, 0.0, 0.0, 0.0)))
     median, best = timed(lambda: [amodal_projection(distorted, m) for m in meshes], repeat)
     print(f"  {'  same, OpenCV pinhole with distortion (subdivision)':55s} {median:7.2f} / {best:6.2f}")
+    if args.stage_frames:
+        stage_benchmark(args.objects, args.stage_frames, camera)
+
+
+def stage_benchmark(objects: int, frames: int, camera: Camera) -> None:
+    import tempfile
+    from pathlib import Path
+
+    from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
+    from usdscene.stage_geometry import StageGeometry
+
+    rng = np.random.default_rng(2)
+    spheres = []
+    for k in range(objects):
+        centre = (float(rng.uniform(-1.5, 1.5)), float(rng.uniform(-1, 1)), float(rng.uniform(2, 6)))
+        moving = tuple((f, (centre[0] + 0.001 * f, centre[1], centre[2])) for f in range(frames)) if k % 2 else ()
+        spheres.append(SphereSpec(str(k), centre, 0.15, (0.5, 0.5, 0.5), k + 1, frame_centres=moving))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_synthetic_stage(SyntheticScene(cameras=(camera,), spheres=tuple(spheres),
+                                                    frame_end=frames - 1), Path(tmp) / "stage")
+        t0 = time.perf_counter()
+        geometry = StageGeometry(path)
+        opened = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for frame in range(frames):
+            geometry.triangles(frame)
+        per_frame = (time.perf_counter() - t0) / frames * 1e3
+        title = f"stage triangles, {objects} objects (half moving), {frames} frames"
+        print(f"  {title:55s} {per_frame:7.2f} ms/frame")
+        print(f"  {'stage open + mesh triangulation':55s} {opened * 1e3:7.2f} ms")
 
 
 if __name__ == "__main__":

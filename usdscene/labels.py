@@ -242,6 +242,18 @@ def box_of(mask: np.ndarray) -> PixelBox | None:
     return PixelBox(int(cols[0]), int(rows[0]), int(cols[-1]), int(rows[-1]))
 
 
+def _box_and_count(mask: np.ndarray) -> tuple[PixelBox | None, int]:
+    """Box and pixel count of a (H, W) bool mask in one full pass (rows) plus passes over
+    the object's own rows only."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return None, 0
+    band = mask[rows[0]:rows[-1] + 1]
+    cols = np.flatnonzero(band.any(axis=0))
+    return (PixelBox(int(cols[0]), int(rows[0]), int(cols[-1]), int(rows[-1])),
+            int(np.count_nonzero(band)))
+
+
 def contours_of(region: np.ndarray, *, epsilon_px: float = DEFAULT_EPSILON_PX,
                 offset_px: tuple[int, int] = (0, 0)) -> tuple[Contour, ...]:
     """Outer contours and holes of a binary region.
@@ -337,8 +349,7 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
                                  f"the instance mask {mask.shape}")
             if isinstance(amodal, AmodalProjection):
                 is_truncated = is_truncated or amodal.truncated
-            amodal_box = box_of(amodal_mask)
-            amodal_count = int(np.count_nonzero(amodal_mask))
+            amodal_box, amodal_count = _box_and_count(amodal_mask)
             if amodal_count:
                 fraction = min(1.0, pixel_count / amodal_count)
             else:
