@@ -154,8 +154,19 @@ def _load(source: str | os.PathLike | Mapping) -> tuple[dict, Provenance]:
         except UnicodeDecodeError as exc:
             raise DocumentError(f"the document is not UTF-8 text ({exc.reason} at byte {exc.start})",
                                 where=label) from None
+        duplicated: list[tuple[dict, list[str]]] = []
+
+        def keep_duplicates(pairs: list) -> dict:
+            # json keeps the last of repeated keys silently; a repeated uid in a hand-edited
+            # document would drop an element without a word, so remember where it happened.
+            obj = dict(pairs)
+            if len(obj) != len(pairs):
+                seen: set = set()
+                duplicated.append((obj, sorted({k for k, _ in pairs if k in seen or seen.add(k)})))
+            return obj
+
         try:
-            data = json.loads(text)
+            data = json.loads(text, object_pairs_hook=keep_duplicates)
         except json.JSONDecodeError as exc:
             raise DocumentError(f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}",
                                 where=f"{label}:{exc.lineno}:{exc.colno}") from None
@@ -164,6 +175,12 @@ def _load(source: str | os.PathLike | Mapping) -> tuple[dict, Provenance]:
         # Python's json accepts NaN/Infinity (and 1e999 → inf); look for them only when the
         # text could hold one, so that a clean large document is not walked twice.
         scan_non_finite = bool(_NON_FINITE_TEXT.search(text))
+        if duplicated:
+            targets = {id(obj): keys for obj, keys in duplicated}
+            for where, keys in _find_objects(data, "", targets):
+                for key in keys:
+                    problems.add(f"{where}.{key}" if where else key,
+                                 f"key {key!r} appears more than once in one JSON object (only the last would count)")
     if not isinstance(data, Mapping):
         raise DocumentError(f"the document root must be a JSON object, got {type(data).__name__}",
                             where=label or "document")
@@ -203,6 +220,18 @@ def _find_non_finite(value: Any, where: str, problems: ProblemCollector) -> None
     elif isinstance(value, (list, tuple)):
         for index, item in enumerate(value):
             _find_non_finite(item, f"{where}[{index}]", problems)
+
+
+def _find_objects(value: Any, where: str, targets: dict):
+    """(JSON path, keys) of the objects whose ``id`` is in ``targets``."""
+    if isinstance(value, dict):
+        if id(value) in targets:
+            yield where, targets[id(value)]
+        for key, item in value.items():
+            yield from _find_objects(item, f"{where}.{key}" if where else str(key), targets)
+    elif isinstance(value, list):
+        for index, item in enumerate(value):
+            yield from _find_objects(item, f"{where}[{index}]", targets)
 
 
 def _vcd_to_openlabel(vcd: Mapping) -> dict:
@@ -302,6 +331,7 @@ class _Reader:
         cameras = self.read_cameras(settings["render"], frames)
         lights, places, objects, uids = self.read_objects(frames)
         relations = self.read_relations(uids, lights, places, objects)
+        self.check_frame_relations(frames)
         frame_start, frame_end = self.frame_range(settings, frames, lights, objects, relations)
         scene = dict(
             name=settings["name"], frame_start=frame_start, frame_end=frame_end,
@@ -1401,6 +1431,21 @@ class _Reader:
             relations.append(Relation(uid=ruid, type=rtype, subject_uid=subject, object_uid=target,
                                       frame_intervals=intervals))
         return relations
+
+    def check_frame_relations(self, frames: dict) -> None:
+        """``frames[f].relations[uid]`` markers must name existing relations."""
+        known = self.section("relations")
+        for number in sorted(frames):
+            marks = frames[number].get("relations")
+            if marks is None:
+                continue
+            where = f"{self.root}.frames.{number}.relations"
+            if not isinstance(marks, dict):
+                self.add(where, f"expected a JSON object, got {describe(marks)}")
+                continue
+            for uid in marks:
+                if uid not in known:
+                    self.add(f"{where}.{uid}", f"relation {uid!r} does not exist in {self.root}.relations")
 
     # -- catalog -------------------------------------------------------------------------
 

@@ -215,6 +215,11 @@ CASES = [
      ["openlabel.frames.2.objects.4.object_data.vec[0].val"]),
     ("object_type_missing", _delete("objects/5/type"), ["openlabel.objects.5.type"]),
     ("objects_not_object", _set("objects", []), ["openlabel.objects", "expected a JSON object"]),
+    ("frame_relation_dangling", _set("frames/1/relations", {"7": {}}), ["openlabel.frames.1.relations.7"]),
+    ("duplicate_uid_key", _text(EXAMPLE.read_text(encoding="utf-8").replace(
+        '"2": {"name": "seat_01A", "type": "place"},',
+        '"2": {"name": "seat_01A", "type": "place"}, "2": {"name": "seat_02A", "type": "place"},', 1)),
+     ["openlabel.objects.2", "more than once"]),
 ]
 
 
