@@ -775,7 +775,7 @@ class _Reader:
                 return _BAD
             sensor_w = size[0]
         if not present:
-            if not friendly or not any(k in friendly for k in ("model", *FRIENDLY_OPTICS, "fov_deg")):
+            if not friendly:
                 return None
             return self.friendly_intrinsics(friendly, where_f, model, sensor_w, render)
         mixed = [k for k in FRIENDLY_OPTICS if k in friendly]
