@@ -47,6 +47,7 @@ from converters.openlabel_values import (
     pose_from_rotation,
     read_bool,
     read_int,
+    read_interval,
     read_intervals,
     read_matrix4x4,
     read_number,
@@ -417,12 +418,7 @@ class _Reader:
         return tuple(out)
 
     def read_frame_range(self, value: Any, where: str) -> FrameInterval | None:
-        intervals = read_intervals([value] if isinstance(value, dict) else value, where, self.problems)
-        if isinstance(value, dict):
-            return intervals[0] if intervals else None
-        if intervals is not None:
-            self.add(where, f"expected {{'frame_start': int, 'frame_end': int}}, got {describe(value)}")
-        return None
+        return read_interval(value, where, self.problems)
 
     def read_render(self, value: Any, where: str) -> RenderSettings:
         block = read_object(value, where, self.problems)
@@ -870,8 +866,10 @@ class _Reader:
             return None
         k = read_numbers(raw, here, self.problems, lengths=(12,))
         raw_d, dkey = self.dialect(block, where, ("distortion_coeffs_1xN", "distortion_coeffs"), required=False)
+        if raw_d is _BAD:
+            return None
         dist = self.opencv_distortion(raw_d, f"{where}.{dkey}") if raw_d is not None else ()
-        if k is None or size is None or raw_d is _BAD or dist is None:
+        if k is None or size is None or dist is None:
             return None
         fx, skew, cx, fy, cy = k[0], k[1], k[2], k[5], k[6]
         ok = True

@@ -120,39 +120,36 @@ def read_object(value: Any, where: str, problems: ProblemCollector) -> dict | No
     return value
 
 
+def read_interval(item: Any, where: str, problems: ProblemCollector) -> FrameInterval | None:
+    """``{"frame_start": a, "frame_end": b}`` → a closed interval (integers, a <= b)."""
+    if not isinstance(item, dict):
+        problems.add(where, f"expected {{'frame_start': int, 'frame_end': int}}, got {describe(item)}")
+        return None
+    extra = sorted(set(item) - {"frame_start", "frame_end"})
+    if extra:
+        problems.add(f"{where}.{extra[0]}", f"unknown key {extra[0]!r} in a frame interval")
+        return None
+    for key in ("frame_start", "frame_end"):
+        if key not in item:
+            problems.add(f"{where}.{key}", f"frame interval lacks {key!r}")
+            return None
+    start = read_int(item["frame_start"], f"{where}.frame_start", problems, non_negative=True)
+    end = read_int(item["frame_end"], f"{where}.frame_end", problems, non_negative=True)
+    if start is None or end is None:
+        return None
+    if start > end:
+        problems.add(where, f"frame_start {start} is after frame_end {end}")
+        return None
+    return FrameInterval(start, end)
+
+
 def read_intervals(value: Any, where: str, problems: ProblemCollector) -> tuple[FrameInterval, ...] | None:
     """``[{"frame_start": a, "frame_end": b}, ...]`` → closed intervals (order kept)."""
     if not isinstance(value, list):
         problems.add(where, f"expected a list of frame intervals, got {describe(value)}")
         return None
-    out = []
-    ok = True
-    for index, item in enumerate(value):
-        here = f"{where}[{index}]"
-        if not isinstance(item, dict):
-            problems.add(here, f"expected {{'frame_start': int, 'frame_end': int}}, got {describe(item)}")
-            ok = False
-            continue
-        extra = sorted(set(item) - {"frame_start", "frame_end"})
-        if extra:
-            problems.add(f"{here}.{extra[0]}", f"unknown key {extra[0]!r} in a frame interval")
-            ok = False
-        if "frame_start" not in item or "frame_end" not in item:
-            missing = "frame_start" if "frame_start" not in item else "frame_end"
-            problems.add(f"{here}.{missing}", f"frame interval lacks {missing!r}")
-            ok = False
-            continue
-        start = read_int(item["frame_start"], f"{here}.frame_start", problems, non_negative=True)
-        end = read_int(item["frame_end"], f"{here}.frame_end", problems, non_negative=True)
-        if start is None or end is None:
-            ok = False
-            continue
-        if start > end:
-            problems.add(here, f"frame_start {start} is after frame_end {end}")
-            ok = False
-            continue
-        out.append(FrameInterval(start, end))
-    return tuple(out) if ok else None
+    out = [read_interval(item, f"{where}[{index}]", problems) for index, item in enumerate(value)]
+    return None if None in out else tuple(out)  # type: ignore[arg-type]
 
 
 # --------------------------------------------------------------------------------------------
