@@ -31,6 +31,11 @@ for moving cameras; a friendly-form camera block becomes calibrated intrinsics) 
     indices k among the same camera's polygons (holes are children of their outer contour);
     attribute ``boolean`` ``is_hole``.
 
+Per labelled frame, objects placed through relations also get ``text`` object data
+``resolved_place`` (place name) and ``resolved_relation`` (e.g. ``is_below``): the place their
+chain of relations ends at (:func:`resolve_places`), so ``bag is_on suitcase is_below
+seat_03A`` reads as below seat_03A.
+
 Every object gets ``object_data_pointers`` for these names (type, frame intervals,
 ``attribute_pointers``), its ``frame_intervals`` are widened to the labelled frames, and the
 root ``frame_intervals`` is the union of all frames. ``metadata.usdscene_annotations`` records
@@ -47,7 +52,7 @@ from typing import Any, Iterable
 from usdscene import layout
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.labels import Annotations, ObjectLabel
-from usdscene.model import FrameInterval, SceneSpec, union_intervals
+from usdscene.model import FrameInterval, RelationType, SceneSpec, in_intervals, union_intervals
 
 ANNOTATION_METADATA_KEY = "usdscene_annotations"
 FRAME_PROPERTIES_KEY = "usdscene"
@@ -55,6 +60,8 @@ BBOX_SUFFIX = "_bbox"
 AMODAL_BBOX_SUFFIX = "_amodal_bbox"
 POLY2D_INFIX = "_poly2d_"
 POLY2D_MODE = "MODE_POLY2D_ABSOLUTE"
+RESOLVED_PLACE = "resolved_place"
+RESOLVED_RELATION = "resolved_relation"
 
 _BBOX_ATTRIBUTES = {"visible_fraction": "num", "pixel_count": "num", "truncated": "boolean",
                     "amodal_bbox": "vec", "mask_id": "num"}
@@ -124,6 +131,8 @@ def _object_data(camera: str, label: ObjectLabel) -> dict[str, list]:
 
 
 def _pointer_type_attrs(name: str, kind: str) -> dict[str, str]:
+    if kind == "text":
+        return {}
     if kind == "poly2d":
         return _POLY_ATTRIBUTES
     return _AMODAL_ATTRIBUTES if name.endswith(AMODAL_BBOX_SUFFIX) else _BBOX_ATTRIBUTES
@@ -154,6 +163,42 @@ def _document_key(uid: str, objects: dict, scene: SceneSpec) -> str | None:
     matches = [k for k, e in objects.items()
                if isinstance(e, dict) and e.get("name") == obj.name and e.get("type") == obj.class_name]
     return matches[0] if len(matches) == 1 else None
+
+
+def resolve_places(scene: SceneSpec, frame: int) -> dict[str, tuple[str, str]]:
+    """Where each present object is at ``frame``, followed through chains of relations.
+
+    ``bag is_on suitcase`` and ``suitcase is_below seat_03A`` resolve the bag to
+    ``(seat_03A's uid, "is_below")``: an object placed relative to another object inherits that
+    object's place and relation. Only placement relations (is_on, is_below, is_in,
+    is_in_front_of) active at ``frame`` count (a relation without frame intervals holds while its
+    subject is present); cycles and dangling chains resolve to nothing.
+
+    Returns:
+        uid → (place uid, relation type) for every object that resolves to a place.
+    """
+    placement = {r.value for r in RelationType}
+    present = {o.uid for o in scene.objects_present(frame)}
+    places = {p.uid for p in scene.places}
+    support: dict[str, tuple[str, str]] = {}
+    for rel in scene.relations:
+        if rel.type not in placement or rel.subject_uid not in present or rel.subject_uid in support:
+            continue
+        if rel.frame_intervals and not in_intervals(frame, rel.frame_intervals):
+            continue
+        support[rel.subject_uid] = (rel.object_uid, rel.type)
+    resolved: dict[str, tuple[str, str]] = {}
+    for uid in support:
+        seen, current = {uid}, support[uid]
+        while current[0] not in places:
+            nxt = support.get(current[0])
+            if nxt is None or current[0] in seen:
+                break
+            seen.add(current[0])
+            current = nxt
+        if current[0] in places:
+            resolved[uid] = current
+    return resolved
 
 
 def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
@@ -261,6 +306,20 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                 for item in items:
                     pointers.setdefault(item["name"], (kind, set()))[1].add(int(image.frame))
     problems.raise_if_any(DocumentError)
+
+    place_names = {p.uid: p.name for p in scene.places}
+    for frame_number in annotations.frames():
+        for uid, (place_uid, relation) in sorted(resolve_places(scene, frame_number).items()):
+            key = _document_key(uid, objects, scene)
+            if key is None:
+                continue
+            frame_objects = frames.setdefault(str(frame_number), {}).setdefault("objects", {})
+            texts = frame_objects.setdefault(key, {}).setdefault("object_data", {}).setdefault("text", [])
+            values = {RESOLVED_PLACE: place_names[place_uid], RESOLVED_RELATION: relation}
+            texts[:] = [t for t in texts if t.get("name") not in values]
+            texts.extend({"name": name, "val": value} for name, value in values.items())
+            for name in values:
+                pointer_frames.setdefault(key, {}).setdefault(name, ("text", set()))[1].add(frame_number)
 
     for uid, names in pointer_frames.items():
         element = objects[uid]

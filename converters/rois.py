@@ -11,8 +11,9 @@ and cropped from the image when the camera sees it:
 * the clipped crop is at least ``min_size_px`` wide and high.
 
 Label of a crop: the document's ``roi_rules`` (``metadata.usdscene.roi_rules``) applied to the
-relation of the region when some present object holds that relation with the place at that
-frame (rule keys ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the
+relation of the region when some present object is in it at that frame, directly or through a
+chain of relations (``bag is_on suitcase is_below seat_03A`` is in seat_03A's ``is_below``
+region, see :func:`converters.openlabel_annotations.resolve_places`) (rule keys ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the
 relation name itself), and ``empty`` when no object is there. Example rules for taxi, take-off
 and landing: ``{"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"}``.
 
@@ -36,12 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
-from converters.openlabel_annotations import image_records
+from converters.openlabel_annotations import image_records, resolve_places
 from usdscene import layout
 from usdscene.catalog import Catalog, PlaceRegion
 from usdscene.errors import AssetError, DocumentError, OutputError
 from usdscene.files import write_bytes_atomic, write_text_atomic
-from usdscene.model import Camera, SceneSpec, in_intervals
+from usdscene.model import Camera
 
 log = logging.getLogger(__name__)
 
@@ -113,16 +114,8 @@ def region_crop_box(camera: Camera, region: PlaceRegion, frame: int, *, min_size
     return (x0, y0, x1, y1)
 
 
-def _occupants(scene: SceneSpec, place_uid: str, relation: str, frame: int) -> tuple[str, ...]:
-    present = {o.uid for o in scene.objects_present(frame)}
-    uids = []
-    for rel in scene.relations:
-        if rel.object_uid != place_uid or rel.type != relation or rel.subject_uid not in present:
-            continue
-        if rel.frame_intervals and not in_intervals(frame, rel.frame_intervals):
-            continue
-        uids.append(rel.subject_uid)
-    return tuple(sorted(set(uids)))
+def _occupants(resolved: dict[str, tuple[str, str]], place_uid: str, relation: str) -> tuple[str, ...]:
+    return tuple(sorted(uid for uid, (place, rel) in resolved.items() if place == place_uid and rel == relation))
 
 
 def _label(rules, kind: str, relation: str, occupied: bool) -> str:
@@ -156,7 +149,9 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
         log.warning("the document has no roi_rules; occupied regions are labelled by relation name")
     cameras = {c.name: c for c in scene.cameras}
     crops = []
-    for record in image_records(document):
+    records = image_records(document)
+    resolved = {f: resolve_places(scene, f) for f in {r["frame"] for r in records}}
+    for record in records:
         camera = cameras.get(record["camera"])
         if camera is None:
             raise DocumentError(f"image of unknown camera {record['camera']!r}",
@@ -168,7 +163,7 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
                                       min_inside_fraction=min_inside_fraction)
                 if box is None:
                     continue
-                occupants = _occupants(scene, place_ref.uid, relation, record["frame"])
+                occupants = _occupants(resolved[record["frame"]], place_ref.uid, relation)
                 crops.append(RoiCrop(camera=camera.name, frame=record["frame"], place=place.name,
                                      place_kind=place.kind, relation=relation,
                                      label=_label(scene.roi_rules, place.kind, relation, bool(occupants)),

@@ -305,3 +305,20 @@ def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
     assert len([t for t in transforms.values() if t["src"] == "cam_a"]) == 1
     again = read_openlabel(document).camera("cam_a")
     assert np.allclose(again.pose_at(1).translation_m, (0.5, 0.0, 0.0))
+
+
+def test_resolve_places_follows_chains_and_stops_at_cycles():
+    from converters.openlabel_annotations import resolve_places
+    from usdscene.model import FrameInterval, PlaceRef, Relation
+
+    objects = tuple(SceneObject(uid, uid, "backpack", (FrameInterval(0, 5),)) for uid in "abcxy")
+    scene = SceneSpec(objects=objects, places=(PlaceRef("p", "seat_03A"),), relations=(
+        Relation("1", "is_on", "a", "b"),                        # a on b ...
+        Relation("2", "is_below", "b", "p"),                     # ... b below the seat
+        Relation("3", "is_in_front_of", "c", "a", (FrameInterval(2, 3),)),
+        Relation("4", "is_on", "x", "y"), Relation("5", "is_on", "y", "x"),  # a cycle
+        Relation("6", "looks_at", "a", "p"),                     # not a placement relation
+    ))
+    assert resolve_places(scene, 0) == {"a": ("p", "is_below"), "b": ("p", "is_below")}
+    assert resolve_places(scene, 2)["c"] == ("p", "is_below")
+    assert resolve_places(scene, 9) == {}  # nobody present

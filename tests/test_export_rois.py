@@ -51,10 +51,11 @@ def _scene() -> SceneSpec:
                     pose=Pose.from_rotation_translation(np.diag([1.0, -1.0, -1.0]), (0.3, 0.0, 3.0)))
     return SceneSpec(
         name="rois", frame_start=0, frame_end=1, cameras=(camera,), environment="cabin",
-        objects=(SceneObject("0", "bag", "backpack"),),
+        objects=(SceneObject("0", "bag", "backpack"), SceneObject("1", "small_bag", "backpack")),
         places=(PlaceRef("10", "seat_01A"), PlaceRef("11", "aisle_01"), PlaceRef("12", "bin_01")),
         relations=(Relation("20", "is_below", "0", "10", (FrameInterval(0, 0),)),
-                   Relation("21", "is_on", "0", "11", (FrameInterval(1, 1),))),
+                   Relation("21", "is_on", "0", "11", (FrameInterval(1, 1),)),
+                   Relation("22", "is_on", "1", "0")),  # rides on the bag wherever it is
         roi_rules={"is_below": "correct", "is_on": "incorrect", "seat:is_on": "incorrect_seat"})
 
 
@@ -77,7 +78,8 @@ def test_plan_labels_and_visibility(tmp_path, catalog):
     by_key = {(c.frame, c.place, c.relation): c for c in crops}
     assert not any(c.place == "bin_01" for c in crops)  # behind the camera
     assert by_key[(0, "seat_01A", "is_below")].label == "correct"
-    assert by_key[(0, "seat_01A", "is_below")].objects == ("0",)
+    assert by_key[(0, "seat_01A", "is_below")].objects == ("0", "1")
+    assert by_key[(1, "aisle_01", "is_on")].objects == ("0", "1")
     assert by_key[(0, "aisle_01", "is_on")].label == "empty"
     assert by_key[(1, "aisle_01", "is_on")].label == "incorrect"
     assert by_key[(1, "seat_01A", "is_below")].label == "empty"
@@ -89,6 +91,17 @@ def test_plan_labels_and_visibility(tmp_path, catalog):
     assert ok.all()
     assert (crop.x_min, crop.y_min) == tuple(int(v) for v in np.floor(uv.min(axis=0) + 0.5))
     assert (crop.x_max, crop.y_max) == tuple(int(v) for v in np.ceil(uv.max(axis=0) + 0.5) - 1)
+
+
+def test_document_records_resolved_places(tmp_path, openlabel_schema_path):
+    from converters.openlabel import schema_problems
+
+    _, document = _annotated(tmp_path)
+    assert schema_problems(json.loads(json.dumps(document)), openlabel_schema_path) == []
+    texts = {t["name"]: t["val"] for t in document["openlabel"]["frames"]["0"]["objects"]["1"]["object_data"]["text"]}
+    assert texts == {"resolved_place": "seat_01A", "resolved_relation": "is_below"}
+    pointers = document["openlabel"]["objects"]["1"]["object_data_pointers"]
+    assert pointers["resolved_place"]["type"] == "text"
 
 
 def test_export_writes_crops_and_index(tmp_path, catalog):
