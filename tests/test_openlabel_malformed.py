@@ -321,3 +321,16 @@ def test_convert_refuses_invalid_input(tmp_path, capsys):
     assert main(["convert", "--no-catalog", str(path), "-o", str(out)]) == 1
     assert not out.exists()
     assert "usdscene.model" in capsys.readouterr().err
+
+
+def test_example_validates_against_the_shipped_catalog(capsys):
+    assert main(["validate", str(EXAMPLE)]) == 0
+    assert "asset catalog)" in capsys.readouterr().out
+
+
+def test_unknown_class_against_the_shipped_catalog(tmp_path, capsys):
+    path = _write_case(tmp_path, _many(_set("objects/5/type", "pasenger"), _set("objects/2/name", "seat_99Z")))
+    assert main(["validate", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "openlabel.objects.5.type: unknown object class 'pasenger' (did you mean 'passenger'?)" in err
+    assert "openlabel.objects.2.name: place 'seat_99Z' is not in environment 'aircraft_cabin'" in err
