@@ -228,3 +228,14 @@ def test_contours_exact_for_arbitrary_masks_property():
             assert box is None
 
     check()
+
+
+def test_min_pixel_count_drops_slivers_but_keeps_hidden_objects():
+    mask = np.zeros((H, W), np.uint16)
+    mask[0:2, 0:2] = 1                # 4-pixel sliver
+    mask[10:20, 10:20] = 2
+    amodal = {"sliver": np.zeros((H, W), bool), "hidden": np.zeros((H, W), bool)}
+    amodal["sliver"][0:5, 0:5] = True
+    amodal["hidden"][30:35, 30:35] = True
+    labels = label_image(mask, {1: "sliver", 2: "big", 3: "hidden"}, amodal, min_pixel_count=5)
+    assert [o.uid for o in labels.objects] == ["big", "hidden"]

@@ -307,9 +307,9 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
         epsilon_px: polygon simplification tolerance, pixels (0 = exact).
         min_visible_fraction: drop objects whose visible fraction is below this (objects
             without an amodal projection are kept).
-        min_pixel_count: drop objects with fewer visible pixels (fully occluded objects are
-            kept when ``min_pixel_count`` is 0 or they have an amodal projection and
-            ``min_visible_fraction`` is 0).
+        min_pixel_count: drop visible objects with fewer visible pixels (slivers). Fully
+            occluded objects (0 visible pixels, amodal projection given) are kept unless
+            ``min_visible_fraction`` > 0 drops them.
 
     Returns:
         ImageLabels with objects sorted by mask id.
@@ -360,7 +360,7 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
             is_truncated = is_truncated or (visible_box.x_min == 0 or visible_box.y_min == 0
                                             or visible_box.x_max == width - 1
                                             or visible_box.y_max == height - 1)
-        if pixel_count < min_pixel_count and not (amodal is not None and min_visible_fraction <= 0):
+        if 0 < pixel_count < min_pixel_count:
             continue
         if fraction is not None and fraction < min_visible_fraction:
             continue
