@@ -307,6 +307,7 @@ class _Reader:
         self.body = body
         self.root = root_key
         self.problems = ProblemCollector()
+        self._sections: dict[str, Mapping] = {}
 
     # -- helpers -------------------------------------------------------------------------
 
@@ -314,11 +315,14 @@ class _Reader:
         self.problems.add(where, message)
 
     def section(self, key: str) -> Mapping:
-        value = self.body.get(key, {})
-        if not isinstance(value, dict):
-            self.add(f"{self.root}.{key}", f"expected a JSON object, got {describe(value)}")
-            return {}
-        return value
+        """A top-level section as a dict ({} and one problem if it is not an object)."""
+        if key not in self._sections:
+            value = self.body.get(key, {})
+            if not isinstance(value, dict):
+                self.add(f"{self.root}.{key}", f"expected a JSON object, got {describe(value)}")
+                value = {}
+            self._sections[key] = value
+        return self._sections[key]
 
     # -- top level -----------------------------------------------------------------------
 
@@ -644,6 +648,9 @@ class _Reader:
                 self.add(f"{where_f}.{key}", f"unknown camera key {key!r}{suggest(key, FRIENDLY_KEYS)}; "
                                              f"known: {', '.join(FRIENDLY_KEYS)}")
         intrinsics = self.read_intrinsics(name, props, friendly, where_props, render)
+        # pose: the coordinate system of the same name, else the friendly pose (read even when
+        # the intrinsics are bad, so that all problems are reported in one pass)
+        friendly_pose = self.read_friendly_pose(friendly, where_f)
         if intrinsics is _BAD:
             return None
         if intrinsics is None:
@@ -651,8 +658,6 @@ class _Reader:
                         "intrinsics_fisheye, orthographic intrinsics_custom or stream_properties.usdscene); "
                         "it is not read as a camera", where, name)
             return None
-        # pose: the coordinate system of the same name, else the friendly pose
-        friendly_pose = self.read_friendly_pose(friendly, where_f)
         frame_poses: list[tuple[int, Pose]] = []
         if name in parents and (parents[name] or friendly_pose is None):
             pose = self.world_pose(name, parents, static, {})
