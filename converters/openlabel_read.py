@@ -1289,6 +1289,8 @@ class _Reader:
             self.add(f"{where}.object_data", "a light needs a text 'kind': point, spot, sun or area")
             return None
         kind_text = read_text(items["kind"][1], items["kind"][2], P)
+        if kind_text is None:
+            return None
         try:
             kind = LightKind(kind_text)
         except ValueError:
