@@ -12,7 +12,7 @@ import pytest
 
 from usdscene import layout
 from usdscene.model import Camera, Intrinsics, LensModel, Pose
-from usdscene.projection import project_points
+from usdscene.projection import native_renderable, project_points
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 
@@ -37,6 +37,10 @@ CAMERAS = {
                         distortion=(-0.22, 0.05, 0.001, -0.0015, -0.004)),
     "kannala": Intrinsics(LensModel.OPENCV_FISHEYE, W, H, 64.0, 64.0, 118.2, 90.6,
                           distortion=(0.03, -0.01, 0.002, -0.0005)),
+    # Not natively renderable: remapped from a centred / square-pixel render.
+    "equidistant_offset": Intrinsics(LensModel.FISHEYE_EQUIDISTANT, W, H, 58.0, 58.0, 131.2, 83.7,
+                                     fov_deg=170.0),
+    "persp_nonsquare": Intrinsics(LensModel.PERSPECTIVE, W, H, 160.0, 148.0, 118.6, 91.2),
 }
 
 
@@ -128,7 +132,7 @@ def test_masks_agree_with_rgb(rendered, name):
     mask = cv2.imread(str(layout.mask_path(out, name, 0)), cv2.IMREAD_UNCHANGED)
     colours = {s.mask_id: np.round(255 * np.array(s.color_rgb) ** (1 / 2.4) * 1.055 - 0.055 * 255)
                for s in spheres}
-    remapped = CAMERAS[name].lens in (LensModel.OPENCV_PINHOLE, LensModel.OPENCV_FISHEYE)
+    remapped = not native_renderable(CAMERAS[name])
     assert set(np.unique(mask)) - {0} <= set(colours)
     if not remapped:
         # One sample per pixel: the colour and the id come from the same ray, exactly.

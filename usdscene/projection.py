@@ -39,6 +39,7 @@ __all__ = [
     "pixel_rays",
     "remap_grids",
     "undistorted_render_intrinsics",
+    "native_renderable",
     "NATIVE_LENSES",
 ]
 
@@ -227,50 +228,83 @@ def _invert_kannala_brandt(theta_d, coeffs, iterations: int):
     return theta, ok
 
 
-def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 3.0) -> Intrinsics:
-    """The native lens to render before remapping an OpenCV-model camera.
+def native_renderable(intrinsics: Intrinsics) -> bool:
+    """Whether Blender renders this camera directly: a native lens with square pixels, and for
+    fisheyes a centred principal point (Cycles' panoramic cameras ignore lens shift)."""
+    lens = LensModel(intrinsics.lens)
+    if lens not in NATIVE_LENSES or abs(intrinsics.fx_px - intrinsics.fy_px) > 1e-9 * intrinsics.fx_px:
+        return False
+    if lens in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
+        return (abs(intrinsics.cx_px - (intrinsics.width_px - 1) / 2) < 1e-6
+                and abs(intrinsics.cy_px - (intrinsics.height_px - 1) / 2) < 1e-6)
+    return True
 
-    The render keeps the output's focal length (so the centre of the image keeps its pixel
-    density) and is just large enough to contain the ray of every output pixel, plus a
-    two-pixel margin for bilinear interpolation. Perspective for ``opencv_pinhole`` and for
-    ``opencv_fisheye`` up to 60° off the axis; an equidistant fisheye beyond.
+
+def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 3.0) -> Intrinsics:
+    """The native lens to render before remapping to a camera Blender cannot render directly.
+
+    That is every ``opencv_pinhole`` / ``opencv_fisheye`` camera, and native lenses with
+    non-square pixels or (fisheyes) an off-centre principal point. The render has square
+    pixels with the larger focal length of the output (so no region loses pixel density
+    near the axis), a centred principal point, and is just large enough to contain the ray of
+    every output pixel, plus a two-pixel margin for bilinear interpolation. It is a
+    perspective view for pinhole models and for ``opencv_fisheye`` up to 60° off the axis,
+    otherwise a fisheye (equisolid for an equisolid output, equidistant for the others).
 
     Args:
-        intrinsics: an ``opencv_pinhole`` or ``opencv_fisheye`` camera.
+        intrinsics: the output camera.
         max_scale: cap on render size / output size per axis (strong distortion at the
             corners would otherwise ask for huge renders; rays beyond the cap stay black).
 
     Returns:
-        Intrinsics of a native lens (``perspective`` or ``fisheye_equidistant``).
+        Intrinsics of a natively renderable lens; ``intrinsics`` itself when it is one.
+
+    Raises:
+        ValueError: an orthographic camera with non-square pixels (not supported).
     """
     lens = LensModel(intrinsics.lens)
-    if lens in NATIVE_LENSES:
+    if native_renderable(intrinsics):
         return intrinsics
+    if lens is LensModel.ORTHOGRAPHIC:
+        raise ValueError(f"orthographic camera with non-square pixels (fx {intrinsics.fx_px} px/m, "
+                         f"fy {intrinsics.fy_px} px/m) is not supported")
     w, h = intrinsics.width_px, intrinsics.height_px
-    uv = _border_pixels(w, h)
-    rays, valid = pixel_rays(intrinsics, uv)
+    rays, valid = pixel_rays(intrinsics, _border_pixels(w, h))
     rays = rays[valid]
     if rays.size == 0:
         rays = np.array([[0.0, 0.0, 1.0]])
     theta_max = float(np.max(np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])))
-    fx, fy = intrinsics.fx_px, intrinsics.fy_px
-    if lens is LensModel.OPENCV_PINHOLE or theta_max < math.radians(60.0):
+    f = max(intrinsics.fx_px, intrinsics.fy_px)
+    pinhole_like = lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE) or (
+        lens is LensModel.OPENCV_FISHEYE and theta_max < math.radians(60.0))
+    if pinhole_like:
         tx = np.abs(rays[:, 0] / rays[:, 2])
         ty = np.abs(rays[:, 1] / rays[:, 2])
-        half_w = min(fx * float(tx.max()) + 2.0, max_scale * w / 2.0)
-        half_h = min(fy * float(ty.max()) + 2.0, max_scale * h / 2.0)
-        rw, rh = 2 * math.ceil(half_w) + 1, 2 * math.ceil(half_h) + 1
-        return replace(intrinsics, lens=LensModel.PERSPECTIVE, width_px=rw, height_px=rh,
-                       cx_px=(rw - 1) / 2.0, cy_px=(rh - 1) / 2.0, distortion=(), fov_deg=None,
+        half_w = min(f * float(tx.max()) + 2.0, max_scale * w / 2.0)
+        half_h = min(f * float(ty.max()) + 2.0, max_scale * h / 2.0)
+        # The render's principal point has the output's sub-pixel phase, so that where the
+        # map is a pure translation it is an integer one and nearest-neighbour (masks) does
+        # not shift anything.
+        rw, rh = 2 * math.ceil(half_w) + 2, 2 * math.ceil(half_h) + 2
+        cx = math.floor((rw - 1) / 2.0) + (intrinsics.cx_px - math.floor(intrinsics.cx_px))
+        cy = math.floor((rh - 1) / 2.0) + (intrinsics.cy_px - math.floor(intrinsics.cy_px))
+        return replace(intrinsics, lens=LensModel.PERSPECTIVE, width_px=rw, height_px=rh, fx_px=f, fy_px=f,
+                       cx_px=cx, cy_px=cy, distortion=(), fov_deg=None,
                        sensor_width_mm=intrinsics.sensor_width_mm * rw / w)
-    # Equidistant fisheye with the same focal length: θd ≈ θ near the axis.
-    f = min(fx, fy)
-    half = min(f * theta_max + 2.0, max_scale * max(w, h) / 2.0)
-    size = 2 * math.ceil(half) + 1
+    render_lens = LensModel.FISHEYE_EQUISOLID if lens is LensModel.FISHEYE_EQUISOLID else LensModel.FISHEYE_EQUIDISTANT
+    radius = 2 * f * math.sin(theta_max / 2) if render_lens is LensModel.FISHEYE_EQUISOLID else f * theta_max
+    half = min(radius + 2.0, max_scale * max(w, h) / 2.0)
+    # Native fisheyes are centred: pick each side's parity so the centre's sub-pixel phase
+    # (integer or half) is the closest to the output's (see the pinhole case).
+    def side(c: float) -> int:
+        n = 2 * math.ceil(half) + 1  # odd: centre on a pixel
+        phase = c - math.floor(c)
+        return n if phase < 0.25 or phase > 0.75 else n + 1
+    rw, rh = side(intrinsics.cx_px), side(intrinsics.cy_px)
     fov = min(360.0, math.degrees(2.0 * theta_max) + 2.0)
-    return replace(intrinsics, lens=LensModel.FISHEYE_EQUIDISTANT, width_px=size, height_px=size,
-                   fx_px=f, fy_px=f, cx_px=(size - 1) / 2.0, cy_px=(size - 1) / 2.0,
-                   distortion=(), fov_deg=fov, sensor_width_mm=intrinsics.sensor_width_mm * size / w)
+    return replace(intrinsics, lens=render_lens, width_px=rw, height_px=rh,
+                   fx_px=f, fy_px=f, cx_px=(rw - 1) / 2.0, cy_px=(rh - 1) / 2.0,
+                   distortion=(), fov_deg=fov, sensor_width_mm=intrinsics.sensor_width_mm * rw / w)
 
 
 def _border_pixels(width: int, height: int) -> np.ndarray:

@@ -26,8 +26,8 @@ from typing import Any, Callable, Mapping, Sequence
 from usdscene import __version__, layout
 from usdscene.errors import Problem, RenderError
 from usdscene.files import write_json_atomic
-from usdscene.model import LensModel, RenderSettings
-from usdscene.projection import NATIVE_LENSES, undistorted_render_intrinsics
+from usdscene.model import RenderSettings
+from usdscene.projection import undistorted_render_intrinsics
 from usdscene.render.job import intrinsics_to_json
 from usdscene.render.manifest import Manifest, fingerprint
 
@@ -269,7 +269,10 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
     for name in camera_names:
         cam = by_name[name]
         intr = scale_intrinsics(cam.intrinsics, scale)
-        render_intr = intr if intr.lens in NATIVE_LENSES and _centred(intr) else undistorted_render_intrinsics(intr)
+        try:
+            render_intr = undistorted_render_intrinsics(intr)
+        except ValueError as exc:
+            raise RenderError(str(exc), where=f"{plan.stage_path}:/World/Cameras/{name}") from None
         out[name] = {
             "intrinsics": intrinsics_to_json(intr),
             "render_intrinsics": intrinsics_to_json(render_intr),
@@ -299,15 +302,6 @@ def run_job(job: dict, what: str) -> list[dict]:
     if errors:
         raise RenderError([Problem(what, e) for e in errors])
     return events
-
-
-def _centred(intr) -> bool:
-    """Native fisheyes render with a centred principal point only (Cycles ignores lens shift
-    for panoramic cameras); other native lenses take any principal point."""
-    if intr.lens not in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
-        return True
-    return (abs(intr.cx_px - (intr.width_px - 1) / 2) < 1e-6 and abs(intr.cy_px - (intr.height_px - 1) / 2) < 1e-6
-            and abs(intr.fx_px - intr.fy_px) < 1e-9 * intr.fx_px)
 
 
 def _scratch_root() -> str | None:
