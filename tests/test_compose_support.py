@@ -24,6 +24,10 @@ OBJECT_CLASSES = {
     "cup": ((-0.04, -0.04, 0.0), (0.04, 0.04, 0.1), ()),
     "bag": ((-0.15, -0.1, 0.0), (0.15, 0.1, 0.35), ("navy", "red")),
     "pole": ((-0.05, -0.05, 0.0), (0.05, 0.05, 2.5), ()),
+    # too tall for under a seat upright; fits lying on its side, turned a quarter
+    "tall_bag": ((-0.15, -0.075, 0.0), (0.15, 0.075, 0.42), ()),
+    # seated like the library's passengers: origin at the hip contact, feet 0.45 m lower
+    "sitter": ((-0.28, -0.25, -0.45), (0.64, 0.25, 0.9), ()),
 }
 
 

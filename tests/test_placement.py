@@ -244,3 +244,30 @@ def test_bad_input_names_the_element(catalog, objects, relations, uid, words):
     assert uid in text
     for word in words:
         assert word in text
+
+
+def test_seated_asset_rests_on_its_origin_and_claims_its_seat(catalog):
+    objects = [m.SceneObject("s", "s", "sitter"), m.SceneObject("c", "c", "cup")]
+    relations = [m.Relation("r1", "is_on", "s", "p_seat_01A"), m.Relation("r2", "is_in_front_of", "c", "p_seat_01A")]
+    placements = place_objects(_scene(objects, relations), catalog, np.random.default_rng(0))
+    pose = placements["s"].pose_at(0).as_array()
+    assert pose[2, 3] == pytest.approx(0.45)  # hip on the cushion
+    feet = (pose @ [0.0, 0.0, -0.45, 1.0])[2]
+    assert feet == pytest.approx(0.0)  # feet on the floor
+    # The cup in the legroom is fine; a cup on the occupied seat is not.
+    relations[1] = m.Relation("r2", "is_on", "c", "p_seat_01A")
+    with pytest.raises(CompositionError, match="'c'.*seat_01A"):
+        place_objects(_scene(objects, relations), catalog, np.random.default_rng(0))
+
+
+def test_object_too_tall_for_its_place_lies_down(catalog):
+    objects = [m.SceneObject("b", "b", "tall_bag", randomization=m.Randomization(0.02, 5.0))]
+    placements = place_objects(_scene(objects, [m.Relation("r", "is_below", "b", "p_seat_01A")]), catalog,
+                               np.random.default_rng(0))
+    region = catalog.places("test_cabin")["seat_01A"].regions["is_below"]
+    pose = placements["b"].pose_at(0).as_array()
+    pts = _corners("tall_bag") @ pose[:3, :3].T + pose[:3, 3]
+    local = (pts - region.pose.translation_m) @ region.pose.rotation
+    assert local[:, 2].min() == pytest.approx(0.0, abs=1e-9)
+    assert local[:, 2].max() == pytest.approx(0.15)  # lying: its thickness is its height
+    assert np.all(np.abs(local[:, :2]) <= np.asarray(region.size_m[:2]) / 2 + 1e-9)

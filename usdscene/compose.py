@@ -76,7 +76,7 @@ from usdscene.errors import CompositionError, ProblemCollector
 from usdscene.files import write_text_atomic
 from usdscene.layout import mask_ids
 from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
-                            Randomization, SceneObject, SceneSpec, cv_pose_to_usd_pose, union_intervals)
+                            Randomization, SceneSpec, cv_pose_to_usd_pose, union_intervals)
 from usdscene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
@@ -242,6 +242,9 @@ def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
             frame_poses = tuple((f, span.pose) for span in spans if span.pose.matrix != base.matrix
                                 for f in span.frames())
         else:
+            # A reader of the stage cannot tell "never present" from "always present".
+            log.warning("object %r is present in no frame of %d..%d; it is composed invisible",
+                        obj.uid, scene.frame_start, scene.frame_end)
             base, frame_poses = obj.pose or Pose(), ()
         objects.append(replace(
             obj, frame_intervals=canonical_intervals(obj.frame_intervals, scene.frame_start, scene.frame_end),

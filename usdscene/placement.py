@@ -22,7 +22,12 @@ Rules, in order of precedence:
 3. Inside the region the object gets a yaw about the region's Z axis drawn from
    ``N(0, rotation_noise_deg)``, and a position whose footprint (asset x/y extent after the
    yaw) lies inside the region and whose lowest point (asset ``extent_min_m`` z) lies on the
-   support surface. The first try puts the footprint centre at the region centre displaced by
+   support surface, with its height within the region's clearance. *Seated* assets, whose
+   extent reaches below their origin (a passenger's origin is the hip contact on the cushion,
+   the feet 0.45 m lower), rest on their origin instead: only the origin must lie inside the
+   region, and only the part above the origin counts for clearance and collisions (the legs
+   reach into the legroom by design). When the object does not fit upright, a quarter turn
+   is tried, then lying on a side (bags under seats and in bins lie down, as people put them). The first try puts the footprint centre at the region centre displaced by
    ``N(0, position_noise_m)`` on x and y (clamped into the region), so a lone object sits
    predictably in the middle of its place; when that spot is taken, further tries draw
    uniform positions in the region. A try is rejected when the object's oriented box
@@ -140,10 +145,12 @@ def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> tuple[np.ndarray, 
         pose_matrix: (4, 4) object → world.
 
     Returns:
-        ``(centre (3,), axes (3, 3) with the box axes as columns, half_sizes (3,))`` in metres.
+        ``(centre (3,), axes (3, 3) with the box axes as columns, half_sizes (3,))`` in metres;
+        for a seated asset (extent below its origin) only the part above the origin.
     """
-    lo = np.asarray(entry.extent_min_m, dtype=np.float64)
+    lo = np.asarray(entry.extent_min_m, dtype=np.float64).copy()
     hi = np.asarray(entry.extent_max_m, dtype=np.float64)
+    lo[2] = max(lo[2], 0.0) if hi[2] > 0.0 else lo[2]  # seated assets: the part above the origin
     rot = pose_matrix[:3, :3]
     return rot @ ((lo + hi) / 2.0) + pose_matrix[:3, 3], rot.copy(), (hi - lo) / 2.0
 
@@ -461,20 +468,23 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                                                           np.asarray(target.world).reshape(4, 4))
                 label = f"object {rel.object_uid!r} ({rel.type})"
                 exclude = rel.object_uid
-            height = info.entry.extent_max_m[2] - info.entry.extent_min_m[2]
-            if height > size[2] + 1e-9:
-                problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {height:.3f} m tall) "
-                                               f"does not fit under the {size[2]:.3f} m clearance of {label}")
+            orientation = _choose_orientation(info.entry, size)
+            if orientation is None:
+                lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
+                dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
+                problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {dims} m) fits {label} "
+                                               f"({size[0]:.3f} × {size[1]:.3f} m, {size[2]:.3f} m clearance) "
+                                               "neither upright nor lying on a side")
                 continue
             prev = states.get(uid)
             local = None
             if prev is not None and prev.frame == frame - 1 and prev.key == key and prev.local is not None:
                 # Follow a moved support while that stays collision free.
                 world = region_pose @ prev.local
-                if not boxes.collides(info, world, exclude):
+                if not boxes.collides(info, world, exclude, label):
                     local = prev.local
             if local is None:
-                local = _sample(info, region_pose, size, rng, boxes, exclude)
+                local = _sample(info, orientation, region_pose, size, rng, boxes, exclude, label)
                 if local is None:
                     problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
                     problems.raise_if_any(CompositionError)
@@ -539,9 +549,11 @@ class _FrameBoxes:
         self.halves: list[np.ndarray] = []
         self.labels: list[str] = []
         self.areas: list[float] = []
+        self.seated: list[bool] = []
 
     def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
         centre, axes, half = object_box(info.entry, world)
+        self.seated.append(_seated(info.entry))
         self.uids.append(uid)
         self.centres.append(centre)
         self.axes.append(axes)
@@ -549,7 +561,12 @@ class _FrameBoxes:
         self.labels.append(label)
         self.areas.append(info.footprint_area_m2)
 
-    def collides(self, info: _Info, world: np.ndarray, exclude: str | None) -> bool:
+    def collides(self, info: _Info, world: np.ndarray, exclude: str | None, label: str) -> bool:
+        """Does the object at ``world`` interpenetrate a box of this frame?
+
+        A seated asset's box (its part above the origin, thighs included) is far coarser
+        than its body, so it only counts against objects on the same support (the seat).
+        """
         if not self.uids:
             return False
         centre, axes, half = object_box(info.entry, world)
@@ -557,14 +574,76 @@ class _FrameBoxes:
                              np.asarray(self.halves))
         if exclude is not None:
             hits &= np.asarray([u != exclude for u in self.uids])
+        if _seated(info.entry) or any(self.seated):
+            same_support = np.asarray([lab == label for lab in self.labels])
+            coarse = np.asarray(self.seated) | _seated(info.entry)
+            hits &= ~coarse | same_support
         return bool(hits.any())
 
 
-def _footprint_range(entry: AssetEntry, yaw_rad: float, size: tuple[float, float, float]):
-    """Allowed origin x/y range in the region for a yaw, or None when the footprint is wider."""
-    lo, hi = entry.extent_min_m, entry.extent_max_m
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+def _seated(entry: AssetEntry) -> bool:
+    """An asset whose extent reaches below its origin rests on its origin (see module doc)."""
+    return entry.extent_min_m[2] < 0.0
+
+
+@dataclass(frozen=True)
+class _Orientation:
+    """How an object stands in a region before the yaw noise.
+
+    Attributes:
+        rotation: (3, 3) asset frame → upright frame (identity, or lying on a side).
+        lo, hi: (3,) extent in the upright frame, metres.
+        yaw_rad: base yaw about the region's Z axis (0 or a quarter turn).
+        seated: rests on its origin (see the module docstring).
+    """
+
+    rotation: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    yaw_rad: float
+    seated: bool
+
+
+_QUARTER = math.pi / 2.0
+# Upright first; then lying on a side (about the asset's X axis, then its Y axis).
+_LAY_ROTATIONS = (np.eye(3),
+                  np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+                  np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]))
+
+
+def _choose_orientation(entry: AssetEntry, size: tuple[float, float, float]) -> _Orientation | None:
+    """The first orientation that fits the region: upright, upright turned a quarter, then
+    lying on a side (a bag too tall for the space under a seat is laid down, as people do).
+    Seated assets stay upright and only their part above the origin counts for clearance."""
+    lo0 = np.asarray(entry.extent_min_m, dtype=np.float64)
+    hi0 = np.asarray(entry.extent_max_m, dtype=np.float64)
+    if _seated(entry):
+        candidates = [(np.eye(3), lo0, hi0, yaw) for yaw in (0.0, _QUARTER)]
+    else:
+        corners = np.array([[x, y, z] for x in (lo0[0], hi0[0]) for y in (lo0[1], hi0[1]) for z in (lo0[2], hi0[2])])
+        candidates = []
+        for rot in _LAY_ROTATIONS:
+            turned = corners @ rot.T
+            candidates += [(rot, turned.min(axis=0), turned.max(axis=0), yaw) for yaw in (0.0, _QUARTER)]
+    for rot, lo, hi, yaw in candidates:
+        seated = _seated(entry)
+        height = hi[2] if seated else hi[2] - lo[2]
+        if seated or height <= size[2] + 1e-9:
+            orientation = _Orientation(rot, lo, hi, yaw, seated)
+            if _footprint_range(orientation, 0.0, size) is not None:
+                return orientation
+    return None
+
+
+def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[float, float, float]):
+    """Allowed origin x/y range in the region for an extra yaw, or None when it does not fit."""
+    lo, hi = orientation.lo, orientation.hi
+    angle = orientation.yaw_rad + yaw_rad
+    c, s = math.cos(angle), math.sin(angle)
+    if orientation.seated:  # only the contact point (the origin) must be inside
+        corners = np.zeros((1, 2))
+    else:
+        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
     rx = corners[:, 0] * c - corners[:, 1] * s
     ry = corners[:, 0] * s + corners[:, 1] * c
     x_lo, x_hi = -size[0] / 2.0 - rx.min(), size[0] / 2.0 - rx.max()
@@ -574,29 +653,33 @@ def _footprint_range(entry: AssetEntry, yaw_rad: float, size: tuple[float, float
     return (x_lo, max(x_lo, x_hi)), (y_lo, max(y_lo, y_hi))
 
 
-def _sample(info: _Info, region_pose: np.ndarray, size: tuple[float, float, float],
-            rng: np.random.Generator, boxes: _FrameBoxes, exclude: str | None) -> np.ndarray | None:
+def _sample(info: _Info, orientation: _Orientation, region_pose: np.ndarray, size: tuple[float, float, float],
+            rng: np.random.Generator, boxes: _FrameBoxes, exclude: str | None, label: str) -> np.ndarray | None:
     """Local pose (object → region) that fits and collides with nothing, or None."""
     rand = info.obj.randomization
     sigma_pos = max(float(rand.position_noise_m), 0.0)
     sigma_yaw = math.radians(max(float(rand.rotation_noise_deg), 0.0))
-    z = -info.entry.extent_min_m[2]
+    z = 0.0 if orientation.seated else -float(orientation.lo[2])
     for attempt in range(MAX_TRIES):
         yaw = float(rng.normal(0.0, sigma_yaw)) if sigma_yaw > 0 else 0.0
         dx, dy = (rng.normal(0.0, sigma_pos, 2) if sigma_pos > 0 else (0.0, 0.0))
         u, v = rng.random(2)
-        ranges = _footprint_range(info.entry, yaw, size)
-        if ranges is None:
-            continue
+        ranges = _footprint_range(orientation, yaw, size)
+        if ranges is None:  # a tight fit: no room for the yaw noise
+            yaw = 0.0
+            ranges = _footprint_range(orientation, yaw, size)
         (x_lo, x_hi), (y_lo, y_hi) = ranges
         if attempt == 0:
             x = min(max((x_lo + x_hi) / 2.0 + dx, x_lo), x_hi)
             y = min(max((y_lo + y_hi) / 2.0 + dy, y_lo), y_hi)
         else:
             x, y = x_lo + u * (x_hi - x_lo), y_lo + v * (y_hi - y_lo)
-        c, s = math.cos(yaw), math.sin(yaw)
-        local = np.array([[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]])
-        if not boxes.collides(info, region_pose @ local, exclude):
+        angle = orientation.yaw_rad + yaw
+        c, s = math.cos(angle), math.sin(angle)
+        local = np.eye(4)
+        local[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ orientation.rotation
+        local[:3, 3] = (x, y, z)
+        if not boxes.collides(info, region_pose @ local, exclude, label):
             return local
     return None
 
@@ -607,9 +690,6 @@ def _overfull_message(uid: str, info: _Info, label: str, size: tuple[float, floa
     own = f"{hi[0] - lo[0]:.2f} × {hi[1] - lo[1]:.2f} m"
     region_area = size[0] * size[1]
     sharing = [a for lab, a in zip(boxes.labels, boxes.areas) if lab == label]
-    if _footprint_range(info.entry, 0.0, size) is None and not sharing:
-        return (f"object {uid!r} ({info.obj.class_name}, footprint {own}) does not fit {label}, "
-                f"whose region is {size[0]:.2f} × {size[1]:.2f} m")
     full = 100.0 * sum(sharing) / region_area if region_area > 0 else 100.0
     return (f"object {uid!r} ({info.obj.class_name}, footprint {own}) finds no free spot on {label} at "
             f"frame {frame} after {MAX_TRIES} tries: the {size[0]:.2f} × {size[1]:.2f} m region already "
