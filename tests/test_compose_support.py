@@ -57,8 +57,8 @@ def make_places() -> dict:
 
 
 def _asset_usda(name: str, lo, hi, variants) -> str:
-    size = [h - l for l, h in zip(lo, hi)]
-    centre = [(h + l) / 2 for l, h in zip(lo, hi)]
+    # Box corners, index = 4·x + 2·y + z with 0 = low and 1 = high.
+    points = ", ".join(str((x, y, z)) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2]))
     variant_block = ""
     meta = ""
     if variants:
@@ -82,15 +82,16 @@ def _asset_usda(name: str, lo, hi, variants) -> str:
 
 def Xform "{name}"{meta}
 {{
-    def Cube "Geom" (
+    def Mesh "Geom" (
         prepend apiSchemas = ["MaterialBindingAPI"]
     )
     {{
-        double size = 1
+        float3[] extent = [{tuple(lo)}, {tuple(hi)}]
+        int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]
+        int[] faceVertexIndices = [0, 1, 3, 2, 4, 6, 7, 5, 0, 4, 5, 1, 2, 3, 7, 6, 0, 2, 6, 4, 1, 5, 7, 3]
         rel material:binding = </{name}/Looks/Body>
-        double3 xformOp:translate = ({centre[0]}, {centre[1]}, {centre[2]})
-        float3 xformOp:scale = ({size[0]}, {size[1]}, {size[2]})
-        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+        point3f[] points = [{points}]
+        uniform token subdivisionScheme = "none"
     }}
 
     def Scope "Looks"

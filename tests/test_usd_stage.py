@@ -306,6 +306,14 @@ _BLENDER_SCRIPT = textwrap.dedent("""
                                           "shift_y": c.shift_y}
         if ob.type == "LIGHT":
             report["lights"][ob.name] = {"type": ob.data.type, "energy_w": ob.data.energy}
+        if "usdscene_uid" in ob.keys() and ob.get("usdscene_class") not in ("camera", "light", "environment"):
+            colours = []
+            for child in ob.children_recursive:
+                for slot in getattr(child, "material_slots", []):
+                    for node in (slot.material.node_tree.nodes if slot.material and slot.material.node_tree else []):
+                        if node.type == "BSDF_PRINCIPLED":
+                            colours.append(list(node.inputs["Base Color"].default_value[:3]))
+            report.setdefault("colours", {})[ob["usdscene_uid"]] = colours
     with open(out_dir + "/report.json", "w") as handle:
         json.dump(report, handle)
     bpy.ops.wm.usd_export(filepath=out_dir + "/z_up_m.usda", export_animation=True)
@@ -317,9 +325,10 @@ _BLENDER_SCRIPT = textwrap.dedent("""
 
 @pytest.mark.blender
 def test_blender_import_and_export(tmp_path, catalog):
-    """A real Blender 5.0 round: Blender's importer reads the focal length in tenths of a metre
-    and the light intensities as the document's watts; the stages Blender exports (Z-up metres
-    and Y-up centimetres) read back to the same cameras, lights and objects."""
+    """A real Blender 5.0 round: Blender's importer reads the focal length in tenths of a metre,
+    the light intensities as the document's watts and the colour opinions and appearance
+    variants into the materials; the stages Blender exports (Z-up metres and Y-up centimetres)
+    read back to the same cameras, lights and objects."""
     from converters.usd_stage import scene_from_stage
 
     scene = small_scene()
@@ -338,6 +347,11 @@ def test_blender_import_and_export(tmp_path, catalog):
     assert report["cameras"]["cam_aisle"]["shift_x"] == pytest.approx((31.5 - 30.0) / 64, rel=1e-4)
     for light in scene.lights:
         assert report["lights"][light.name]["energy_w"] == pytest.approx(light.power_w, rel=1e-5)
+    # Colour opinions and appearance variants reach Blender's materials.
+    colours = report["colours"]
+    assert colours["o3"] == [pytest.approx([0.9, 0.1, 0.1], abs=1e-6)]
+    assert colours["o1"] == [pytest.approx(list(result.resolved.objects[0].color_rgb), abs=1e-6)]
+    assert colours["o2"] == [pytest.approx([0.8, 0.2, 0.2], abs=1e-6)]  # variant "striped"
 
     expected = result.resolved
     for name in ("z_up_m.usda", "y_up_cm.usda"):
