@@ -19,6 +19,8 @@ from converters.openlabel_read import (
     SCHEMA_VERSION,
     friendly_camera_rotation,
     load_document,
+    load_with_provenance,
+    read_loaded,
     read_openlabel,
 )
 from converters.openlabel_write import write_document, write_openlabel
@@ -29,6 +31,8 @@ __all__ = [
     "SCHEMA_VERSION",
     "friendly_camera_rotation",
     "load_document",
+    "load_with_provenance",
+    "read_loaded",
     "read_openlabel",
     "schema_path_from_env",
     "schema_problems",

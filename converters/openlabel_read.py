@@ -295,6 +295,17 @@ def read_openlabel(source: str | os.PathLike | Mapping, *, catalog=None) -> Scen
         DocumentError: every problem of the document at once, each with its JSON path.
     """
     document, provenance = _load(source)
+    return read_loaded(document, provenance, catalog=catalog)
+
+
+def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Provenance]:
+    """:func:`load_document` plus the provenance :func:`read_openlabel` would record, so that
+    a caller that also needs the raw document (schema validation) parses the file once."""
+    return _load(source)
+
+
+def read_loaded(document: dict, provenance: Provenance, *, catalog=None) -> SceneSpec:
+    """:func:`read_openlabel` of a document returned by :func:`load_with_provenance`."""
     reader = _Reader(document["openlabel"], provenance.source_format)
     scene = reader.read(catalog)
     return SceneSpec(**{**scene, "provenance": provenance})

@@ -55,17 +55,18 @@ def check_document(args: argparse.Namespace):
     """
     from pathlib import Path
 
-    from converters.openlabel import load_document, read_openlabel, schema_problems
-    from usdscene.errors import DocumentError, UsdSceneError
+    from converters.openlabel import load_with_provenance, read_loaded, schema_problems
+    from usdscene.errors import DocumentError
 
-    document = load_document(args.document)  # bad JSON stops here with line and column
+    # bad JSON stops here with line and column; the file is parsed once
+    document, provenance = load_with_provenance(args.document)
     problems = []
     schema = schema_path(args)
     if schema is not None:
         problems.extend(schema_problems(document, schema))
     catalog = None if args.no_catalog else _catalog_for(document, Path(args.document).parent)
     try:
-        scene = read_openlabel(args.document, catalog=catalog)
+        scene = read_loaded(document, provenance, catalog=catalog)
     except DocumentError as exc:
         problems.extend(exc.problems)
         scene = None
