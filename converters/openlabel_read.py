@@ -22,7 +22,7 @@ import re
 from pathlib import Path
 from typing import Any, Mapping
 
-from usdscene.errors import DocumentError, Problem, ProblemCollector
+from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import (
     Camera,
     FrameInterval,

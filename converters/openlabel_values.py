@@ -273,7 +273,3 @@ def read_transform(value: Any, where: str, problems: ProblemCollector) -> Pose |
         return None
     return pose_from_rotation(euler_to_rotation(sequence, angles), translation)
 
-
-def compose(parent: Pose, child: Pose) -> Pose:
-    """``parent ∘ child`` (apply ``child`` first)."""
-    return parent.compose(child)
