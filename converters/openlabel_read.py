@@ -20,7 +20,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import (
@@ -57,6 +57,9 @@ from converters.openlabel_values import (
     read_transform,
     suggest,
 )
+
+if TYPE_CHECKING:
+    from usdscene.catalog import Catalog
 
 log = logging.getLogger(__name__)
 
@@ -277,7 +280,7 @@ def _vcd_to_openlabel(vcd: Mapping) -> dict:
 # The reader
 
 
-def read_openlabel(source: str | os.PathLike | Mapping, *, catalog=None) -> SceneSpec:
+def read_openlabel(source: str | os.PathLike | Mapping, *, catalog: Catalog | None = None) -> SceneSpec:
     """Read a scene document into a :class:`SceneSpec`.
 
     Args:
@@ -304,7 +307,7 @@ def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Pro
     return _load(source)
 
 
-def read_loaded(document: dict, provenance: Provenance, *, catalog=None) -> SceneSpec:
+def read_loaded(document: dict, provenance: Provenance, *, catalog: Catalog | None = None) -> SceneSpec:
     """:func:`read_openlabel` of a document returned by :func:`load_with_provenance`."""
     reader = _Reader(document["openlabel"], provenance.source_format)
     scene = reader.read(catalog)
