@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_compose_support import build_test_catalog, load_test_catalog, look_at_cv, pinhole, small_scene
+from test_compose_support import build_test_catalog, load_test_catalog, look_at_cv, small_scene
 from usdscene import model as m
 from usdscene import stage_schema as ss
 from usdscene.compose import compose_stage, light_intensity
@@ -235,6 +235,21 @@ def test_lights_units_and_shapes(composed):
     assert sun.IsA(UsdLux.DistantLight)
     assert sun.GetAttribute("inputs:intensity").Get() == pytest.approx(0.75)
     assert light_intensity(m.Light("x", "x", m.LightKind.POINT, power_w=math.pi)) == pytest.approx(1.0)
+
+
+def test_lighting_rigs_are_a_variant_set(composed, tmp_path):
+    from pxr import Usd, UsdLux
+
+    from converters.usd_stage import scene_from_stage
+
+    stage = Usd.Stage.Open(str(composed.root_layer))
+    rigs = stage.GetPrimAtPath(ss.LIGHTS).GetVariantSets().GetVariantSet(ss.VARIANT_SET_LIGHTING)
+    assert rigs.GetVariantNames() == ["document", "off"] and rigs.GetVariantSelection() == "document"
+    assert len([p for p in stage.Traverse() if p.HasAPI(UsdLux.LightAPI)]) == 3
+    stage.SetEditTarget(stage.GetSessionLayer())  # leave the files (and their loaded layers) alone
+    rigs.SetVariantSelection("off")
+    assert [p for p in stage.Traverse() if p.HasAPI(UsdLux.LightAPI)] == []
+    assert scene_from_stage(stage).lights == ()
 
 
 def test_render_layer(composed):

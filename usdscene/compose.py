@@ -45,6 +45,9 @@ Conventions of the authored stage:
   = half the full spot angle, ``shaping:cone:softness`` = blend. ``DistantLight.angle`` is the
   angular diameter (USD spec); Blender's importer doubles it, so the worker sets
   ``sun_angle`` from ``usdscene:light:sunAngleDeg``.
+* Lights sit in the variant ``document`` of the variant set ``lighting`` on
+  ``/World/Lights``; the variant ``off`` has no lights, and further lighting rigs are further
+  variants.
 * Objects: references are not instanceable (Blender realises instances badly). The colour
   opinion goes to the asset's colour shader (``Looks/Body/Surface.inputs:diffuseColor``, see
   :mod:`usdscene.stage_schema`), to ``primvars:displayColor`` for viewers and, exact, to
@@ -487,6 +490,11 @@ def _cameras_layer(scene: SceneSpec) -> str:
     return layer.ExportToString()
 
 
+LIGHTING_DOCUMENT = "document"
+"""Variant of the ``lighting`` set that holds the document's lights (selected)."""
+LIGHTING_OFF = "off"
+"""Variant of the ``lighting`` set without lights."""
+
 _LIGHT_TYPES = {LightKind.POINT: "SphereLight", LightKind.SPOT: "SphereLight",
                 LightKind.SUN: "DistantLight", LightKind.AREA: "RectLight"}
 
@@ -503,7 +511,14 @@ def _lights_layer(scene: SceneSpec) -> str:
 
     T = Sdf.ValueTypeNames
     layer = _new_layer()
-    parent = _world(layer, ss.LIGHTS)
+    lights = _world(layer, ss.LIGHTS)
+    # Lighting rigs: the document's lights live in the variant "document" (selected); "off"
+    # has none. Further rigs are further variants (a DCC tool or a layer of layers/ adds them).
+    rigs = Sdf.VariantSetSpec(lights, ss.VARIANT_SET_LIGHTING)
+    parent = Sdf.VariantSpec(rigs, LIGHTING_DOCUMENT).primSpec
+    Sdf.VariantSpec(rigs, LIGHTING_OFF)
+    lights.variantSetNameList.prependedItems.append(ss.VARIANT_SET_LIGHTING)
+    lights.variantSelections[ss.VARIANT_SET_LIGHTING] = LIGHTING_DOCUMENT
     for light in scene.lights:
         prim = _prim(parent, ss.prim_name(light.name), _LIGHT_TYPES[light.kind])
         _identity(prim, light.uid, "light", light.name)
