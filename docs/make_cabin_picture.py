@@ -1,7 +1,7 @@
 """Render ``docs/img/cabin.png``: the shipped cabin with luggage and passengers, seen by a
 corridor camera at the rear of the cabin.
 
-    python docs/make_cabin_picture.py [--out docs/img/cabin.png] [--samples 32] [--width 960]
+    python docs/make_cabin_picture.py [--out docs/img/cabin.png] [--samples 16] [--width 960]
 
 It builds a small USD stage with pxr (the cabin referenced at /World/Environment, objects and
 passengers referenced at catalog places with variant selections and one colour override),
@@ -60,14 +60,13 @@ OBJECTS = [
 
 
 def _matrix(rotation_deg_z: float, lie: bool, size_m: tuple[float, float, float]) -> np.ndarray:
-    """Local transform of an object on its region origin: yaw, or laid on its back (for
-    bins: the tall axis along -X, resting on its depth)."""
+    """Local transform of an object on its region origin: a yaw, or laid on its back (for
+    bins: the tall axis along the region's Y = along the cabin, resting on its depth)."""
     m = np.eye(4)
     if lie:
-        # Rotate -90° about Y: height → -X, depth → +Z; lift by half the depth, centre on X.
-        r = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
-        m[:3, :3] = r
-        m[:3, 3] = [size_m[2] / 2, 0.0, size_m[0] / 2]
+        # -90° about X: height → +Y, depth → -Z; centre along Y and lift by half the depth.
+        m[:3, :3] = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
+        m[:3, 3] = [0.0, -size_m[2] / 2, size_m[1] / 2]
         return m
     a = math.radians(rotation_deg_z)
     m[:2, :2] = [[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]
@@ -130,8 +129,8 @@ def render(scene: Path, out: Path, samples: int, width: int) -> float:
     cam = bpy.data.objects.new("corridor", cam_data)
     sc.collection.objects.link(cam)
     # Ceiling-mounted corridor camera at the rear of the cabin looking forward and down.
-    cam.location = (-16.25, -0.25, 2.05)
-    cam.rotation_euler = (math.radians(72.0), 0.0, math.radians(-90.0))
+    cam.location = (-16.25, -0.25, 2.15)
+    cam.rotation_euler = (math.radians(68.0), 0.0, math.radians(-90.0))
     sc.camera = cam
     sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
     sun.data.energy = 5.0
@@ -155,7 +154,7 @@ def render(scene: Path, out: Path, samples: int, width: int) -> float:
     sc.cycles.device = "CPU"
     sc.cycles.samples = samples
     sc.cycles.use_denoising = True
-    sc.cycles.max_bounces = 4
+    sc.cycles.max_bounces = 3
     sc.render.resolution_x = width
     sc.render.resolution_y = width * 9 // 16
     sc.render.filepath = str(out)
@@ -167,7 +166,7 @@ def render(scene: Path, out: Path, samples: int, width: int) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "img" / "cabin.png")
-    parser.add_argument("--samples", type=int, default=32)
+    parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--width", type=int, default=960)
     args = parser.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -77,9 +77,12 @@ def test_cabin_geometry_conventions(catalog):
 
     assert not fits("trolley_suitcase"), "a trolley case cannot fit under a seat"
     assert fits("small_suitcase") and fits("backpack") and fits("laptop_bag")
+    # Region frames: -Y points to the front of the cabin (+X), +X to the left (+Y).
     for name, place in places.items():
         for region in place.regions.values():
-            np.testing.assert_allclose(region.pose.rotation, np.eye(3), err_msg=name)
+            rotation = region.pose.rotation
+            np.testing.assert_allclose(rotation @ [0.0, -1.0, 0.0], [1.0, 0.0, 0.0], atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(rotation @ [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], atol=1e-12, err_msg=name)
 
 
 # --- USD --------------------------------------------------------------------------------------
@@ -239,3 +242,18 @@ def test_assets_list_prints_every_class(capsys):
     out = capsys.readouterr().out
     for name in ("aircraft_cabin", "trolley_suitcase", "passenger", "headphones"):
         assert name in out
+
+
+@pytest.mark.usd
+def test_assets_build_command_takes_the_row_count(tmp_path, capsys):
+    from usdscene.cli import main
+
+    assert main(["assets", "build", "--out", str(tmp_path), "--rows", "3"]) == 0
+    small = load_catalog([tmp_path], include_default=False)
+    places = small["aircraft_cabin"].places
+    assert sorted(n for n in places if n.startswith("seat_")) == [f"seat_{r:02d}{c}" for r in (1, 2, 3) for c in "ABCDEF"]
+    assert "bin_03R" in places and "aisle_04" not in places
+    assert len(small.classes("object")) >= 22
+    assert main(["assets", "build", "--out", str(tmp_path / "x"), "--rows", "0"]) == 1
+    assert "rows 0" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()

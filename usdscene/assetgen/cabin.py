@@ -21,7 +21,10 @@ the region frame to the cabin frame, plus ``usdscene:place:size`` and
 - ``aisle_<row:02d>``: ``on`` (the aisle floor beside that row).
 
 Region frames: Z up, the support surface at z = 0, usable box x ∈ ±size_x/2, y ∈ ±size_y/2,
-z ∈ [0, size_z]; size_z is the real clearance (under a seat ≈ 0.28 m).
+z ∈ [0, size_z]; size_z is the real clearance (under a seat ≈ 0.28 m). Every region frame is
+the cabin frame turned +90° about Z: its -Y axis points to the front of the cabin (+X) and its
++X axis to the left (+Y). Assets face -Y, so an object or passenger placed without yaw faces
+forward like the seats.
 """
 
 from __future__ import annotations
@@ -304,8 +307,17 @@ def _bins(config: CabinConfig) -> tuple[dict[str, list[m.MeshData]], dict[str, d
 
 # --- places ----------------------------------------------------------------------------------
 
-def _region(relation_region: str, centre: np.ndarray, size: tuple[float, float, float]) -> tuple[str, PlaceRegion]:
-    pose = Pose.from_rotation_translation(np.eye(3), np.round(np.asarray(centre, dtype=np.float64), 4) + 0.0)
+# Region frames are the cabin frame turned +90° about Z, so that a region's -Y axis points to
+# the front of the cabin (+X), the way the seats face: assets face -Y (Blender's front view),
+# so an asset placed with no yaw faces forward like the passengers.
+REGION_ROTATION = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _region(relation_region: str, centre: np.ndarray, size_cabin: tuple[float, float, float]) -> tuple[str, PlaceRegion]:
+    """A region centred at ``centre`` (cabin frame) whose box spans ``size_cabin`` along the
+    cabin's (x, y, z) axes; stored in the rotated region frame (x and y sizes swapped)."""
+    pose = Pose.from_rotation_translation(REGION_ROTATION, np.round(np.asarray(centre, dtype=np.float64), 4) + 0.0)
+    size = (size_cabin[1], size_cabin[0], size_cabin[2])
     size_r = tuple(round(float(v), 4) for v in size)
     return relation_region, PlaceRegion(relation=REGION_RELATIONS[relation_region], pose=pose, size_m=size_r)  # type: ignore[arg-type]
 
@@ -438,5 +450,6 @@ def describe(config: CabinConfig) -> str:
         "towards -X; +Y to the left facing forward, aisle centred on y=0, seats A-C on +Y (A at "
         "the window), D-F on -Y. Places: seat_<row><letter> (on, below = under the seat in front "
         "[row 01: under its own seat], in_front = legroom floor, back_pocket = pocket on the seat "
-        "in front [row 01: on the partition]), bin_<row><L|R> (in; L = +Y), aisle_<row> (on). "
+        "in front [row 01: on the partition]), bin_<row><L|R> (in; L = +Y), aisle_<row> (on). Region frames are the cabin frame "
+        "turned +90 deg about Z (region -Y = cabin +X, the way seats face; assets face -Y). "
         "Variant set 'configuration': bins_open | bins_closed.")

@@ -36,8 +36,12 @@ def _rounded_extent(lo: np.ndarray, hi: np.ndarray) -> tuple[tuple[float, ...], 
 
 
 def _centre_on_bottom(parts: Mapping[str, list[m.MeshData]]) -> dict[str, m.MeshData]:
-    """Merge each material's meshes and move all so the origin is the bottom-face centre."""
-    merged = {name: m.merge(meshes) for name, meshes in parts.items()}
+    """Merge each material's meshes, turn the front to -Y and move all so the origin is the
+    bottom-face centre."""
+    # Builders model the front towards +X; assets face -Y (Blender's front view, the
+    # placement convention), so turn everything -90° about Z first.
+    turn = m.rotation_z(-90.0)
+    merged = {name: m.merge(meshes).transformed(turn) for name, meshes in parts.items()}
     lo = np.min([mesh.points.min(axis=0) for mesh in merged.values()], axis=0)
     hi = np.max([mesh.points.max(axis=0) for mesh in merged.values()], axis=0)
     offset = [-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]]
@@ -86,7 +90,7 @@ def write_object_asset(cls: ObjectClass, folder: Path) -> AssetEntry:
     save_stage(stage, path)
     return AssetEntry(
         class_name=cls.name, kind="object", usd_path=path,
-        description=(f"{cls.description} Origin at the bottom-face centre, +X front. Recolour: "
+        description=(f"{cls.description} Origin at the bottom-face centre, front towards -Y. Recolour: "
                      f"{stage_schema.ASSET_COLOR_SHADER}.{stage_schema.ATTR_ASSET_COLOR}."),
         variants={stage_schema.VARIANT_SET_APPEARANCE: tuple(v.name for v in cls.variants)},
         default_variants={stage_schema.VARIANT_SET_APPEARANCE: default.name},

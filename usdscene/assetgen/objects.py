@@ -2,8 +2,9 @@
 
 Every class is a :class:`ObjectClass`: a builder turning shape parameters into meshes per
 material, and a list of :class:`ObjectVariant` (colour and shape). Asset frame: Z up, metres,
-origin at the centre of the bottom face (the writer re-centres every variant), +X is the
-object's "front" (the side facing the passenger when placed as authored).
+origin at the centre of the bottom face (the writer re-centres every variant). Builders model
+the object's front (pocket, screen, latches) towards +X; the writer turns every object -90°
+about Z so that the shipped assets face -Y (Blender's front view, the placement convention).
 
 The recolourable material of every class is ``Body`` (see ``stage_schema.ASSET_COLOR_SHADER``).
 """

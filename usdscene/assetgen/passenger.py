@@ -1,9 +1,10 @@
 """The ``passenger`` class: a seated, articulated adult figure with pose and appearance variants.
 
 Asset frame: Z up, metres, origin at the seated hip contact point (the middle of the cushion
-area the passenger sits on), facing +X. Placing the passenger ``is_on`` a seat (origin on the
-cushion region's origin) seats it with its back against the backrest and its feet on the floor
-0.45 m below. The figure is built from capsules and ellipsoids per body segment (pelvis,
+area the passenger sits on), facing -Y like every library asset (the joint tables below are
+written facing +X and turned -90° about Z when written). Placing the passenger ``is_on`` a
+seat (origin on the cushion region's origin, no yaw) seats it facing forward with its back
+against the backrest and its feet on the floor 0.45 m below. The figure is built from capsules and ellipsoids per body segment (pelvis,
 abdomen, chest, neck, head, upper arms, forearms, hands, thighs, shins, feet).
 
 Variant sets on the default prim: ``pose`` (geometry) and ``appearance`` (colours: skin,
@@ -159,7 +160,9 @@ def write_passenger_asset(folder: Path) -> AssetEntry:
     for pose_name, pose in POSES.items():
         with in_variant(root, stage_schema.VARIANT_SET_POSE, pose_name):
             for name, meshes in sorted(figure_parts(pose).items()):
-                define_mesh(stage, f"{root_path}/Geom/{name}", m.merge(meshes), materials[name])
+                # Modelled facing +X; the asset faces -Y like every library asset.
+                mesh = m.merge(meshes).transformed(m.rotation_z(-90.0))
+                define_mesh(stage, f"{root_path}/Geom/{name}", mesh, materials[name])
     for name, (skin, top, trousers, hair) in APPEARANCES.items():
         with in_variant(root, stage_schema.VARIANT_SET_APPEARANCE, name):
             set_material_color(stage, f"{looks}/Body", top)
@@ -177,7 +180,7 @@ def write_passenger_asset(folder: Path) -> AssetEntry:
     return AssetEntry(
         class_name="passenger", kind="passenger", usd_path=path,
         description=("Seated adult passenger. Origin at the seated hip contact point on the cushion, "
-                     f"facing +X, feet on the floor {FLOOR_BELOW_HIP_M} m below. Recolour the top: "
+                     f"facing -Y, feet on the floor {FLOOR_BELOW_HIP_M} m below. Recolour the top: "
                      f"{stage_schema.ASSET_COLOR_SHADER}.{stage_schema.ATTR_ASSET_COLOR}."),
         variants={stage_schema.VARIANT_SET_POSE: tuple(POSES),
                   stage_schema.VARIANT_SET_APPEARANCE: tuple(APPEARANCES)},

@@ -101,6 +101,10 @@ def _build(args: argparse.Namespace) -> int:
     from usdscene.assetgen.library import build_library
     from usdscene.catalog import default_asset_folder
 
+    from usdscene.errors import AssetError
+
+    if not 1 <= args.rows <= 60:
+        raise AssetError(f"rows {args.rows} must be between 1 and 60", where="--rows")
     out = args.out if args.out is not None else default_asset_folder()
     paths = build_library(out, CabinConfig(rows=args.rows))
     print(f"wrote {len(paths)} files to {out}", file=sys.stderr)
