@@ -334,3 +334,27 @@ def test_unknown_class_against_the_shipped_catalog(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "openlabel.objects.5.type: unknown object class 'pasenger' (did you mean 'passenger'?)" in err
     assert "openlabel.objects.2.name: place 'seat_99Z' is not in environment 'aircraft_cabin'" in err
+
+
+def _vcd(pose):
+    return {"vcd": {"metadata": {"schema_version": "4.3.0"},
+                    "coordinate_systems": {"odom": {"type": "scene_cs", "parent": "", "children": ["cam"]},
+                                           "cam": {"type": "sensor_cs", "parent": "odom", "children": [],
+                                                   "pose_wrt_parent": pose}},
+                    "streams": {"cam": {"type": "camera", "uri": "", "stream_properties": {"intrinsics_pinhole": {
+                        "width_px": 64, "height_px": 48,
+                        "camera_matrix_3x4": [50, 0, 32, 0, 0, 50, 24, 0, 0, 0, 1, 0],
+                        "distortion_coeffs_1xN": []}}}}}}
+
+
+def test_vcd_convert_and_vcd_problem_paths(tmp_path, capsys, openlabel_schema_path):
+    good = tmp_path / "good.vcd.json"
+    good.write_text(json.dumps(_vcd([1, 0, 0, 1, 0, 1, 0, 2, 0, 0, 1, 3, 0, 0, 0, 1])))
+    out = tmp_path / "good.openlabel.json"
+    assert main(["convert", "--no-catalog", "--schema", str(openlabel_schema_path), str(good), "-o", str(out)]) == 0
+    body = json.loads(out.read_text())["openlabel"]
+    assert body["coordinate_systems"]["cam"]["pose_wrt_parent"]["matrix4x4"][3:12:4] == [1.0, 2.0, 3.0]
+    bad = tmp_path / "bad.vcd.json"
+    bad.write_text(json.dumps(_vcd([1, 0, 0, 0, 1, 0, 0, 0, 1])))
+    assert main(["validate", "--no-catalog", str(bad)]) == 1
+    assert "vcd.coordinate_systems.cam.pose_wrt_parent.matrix4x4: a 3x3 matrix" in capsys.readouterr().err
