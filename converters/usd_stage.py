@@ -12,17 +12,21 @@
   (Blender keeps custom properties there and drops customData), cameras are perspective, the
   stage may be Y-up or in centimetres: ``upAxis`` and ``metersPerUnit`` are honoured.
 
-What a stage cannot say comes back as defaults: the resolution of a camera without lens
-attributes or render product is the render settings' resolution; a stage without the
-composer's ``customLayerData`` has no places and relations.
+What a stage cannot say comes back as defaults: a stage without the composer's
+``customLayerData`` has no places and relations; a flattened stage has no variant selections
+left, so appearances come back empty.
 
-Element discovery: cameras are every ``UsdGeom.Camera``; lights every prim with
-``UsdLux.LightAPI``; objects the outermost prims carrying an identity (customData
-``usdscene:uid`` or ``userProperties:usdscene_uid``) whose class is not ``camera``, ``light``
-or ``environment``. Scale in transforms is dropped (poses are rigid). A Y-up stage converts the
-world axes only; object frames stay asset frames (Z up), as in Blender's Y-up exports. Object poses: ``pose``
-is the authored default transform when it occurs in the frame range, else the pose of the
-first frame the object is visible; ``frame_poses`` lists the visible frames that differ.
+Element discovery: cameras are every ``UsdGeom.Camera``; lights every sphere, distant, rect
+or disk light (dome lights such as Blender's exported world are skipped); objects the
+outermost prims carrying an identity (customData ``usdscene:uid`` or
+``userProperties:usdscene_uid``) whose class is not ``camera``, ``light`` or ``environment``.
+
+Conventions: scale in transforms is dropped (poses are rigid). A Y-up stage converts the world
+axes only; object frames stay asset frames (Z up), as in Blender's Y-up exports. Object poses:
+``pose`` is the authored default transform when it occurs in the frame range, else the pose of
+the first frame the object is visible; ``frame_poses`` lists the visible frames that differ.
+A camera without lens attributes and render product gets the render settings' image width and
+the height of its aperture aspect (square pixels).
 """
 
 from __future__ import annotations
@@ -51,7 +55,8 @@ _NOT_OBJECTS = ("camera", "light", "environment")
 
 
 def scene_from_stage(stage_or_path: Any) -> SceneSpec:
-    """Read a USD stage (a ``pxr.Usd.Stage`` or a path to a .usd/.usda/.usdc file).
+    """Read a USD stage (a ``pxr.Usd.Stage``, a .usd/.usda/.usdc file, or a composed stage
+    folder holding ``scene.usda``).
 
     Returns:
         The scene; provenance names the stage (``source_format = "usd"``, sha256 of the root
@@ -66,6 +71,8 @@ def scene_from_stage(stage_or_path: Any) -> SceneSpec:
         stage = stage_or_path
     else:
         path = Path(stage_or_path)
+        if path.is_dir() and (path / ss.ROOT_LAYER).is_file():
+            path = path / ss.ROOT_LAYER
         if not path.is_file():
             raise DocumentError(f"USD stage {str(path)!r} not found", where=str(path))
         try:
@@ -147,9 +154,13 @@ class _StageReader:
         if not moving:
             return default, {f: default for f in frames}
         per_frame = {f: self._world(prim, f) for f in frames}
-        if default in per_frame.values() or not frames:
-            return default, per_frame
-        return per_frame[frames[0]], per_frame
+        if not frames or any(_same_matrix(default, v) for v in per_frame.values()):
+            base = default
+        else:
+            base = per_frame[frames[0]]
+        # USD interpolates between the two samples that bound a run of equal values, which
+        # can move the last bits: values within rounding of the base are the base.
+        return base, {f: base if _same_matrix(v, base) else v for f, v in per_frame.items()}
 
     def _visible(self, prim) -> list[bool]:
         from pxr import UsdGeom
@@ -273,7 +284,7 @@ class _StageReader:
                 continue
             _, _, name = self._identity(prim)
             name = name or prim.GetName()
-            intr = self._intrinsics(prim, products.get(prim.GetPath().pathString, render.resolution_px))
+            intr = self._intrinsics(prim, products.get(prim.GetPath().pathString), render.resolution_px[0])
             base, per_frame = self._poses(prim, self.frames)
             pose = usd_pose_to_cv_pose(self._to_pose(base))
             frame_poses = tuple((f, usd_pose_to_cv_pose(self._to_pose(per_frame[f])))
@@ -302,7 +313,7 @@ class _StageReader:
             return 0.01, 1000.0
         return float(usd[0]) * self.mpu, float(usd[1]) * self.mpu
 
-    def _intrinsics(self, prim, resolution: tuple[int, int]) -> Intrinsics:
+    def _intrinsics(self, prim, resolution: tuple[int, int] | None, default_width: int) -> Intrinsics:
         from pxr import UsdGeom
 
         from usdscene.compose import camera_apertures
@@ -326,7 +337,13 @@ class _StageReader:
                     for k, v in expected.items()):
                 return exact
             log.info("%s: USD camera attributes were edited; deriving intrinsics from them", prim.GetPath())
-        width, height = (exact.width_px, exact.height_px) if exact is not None else resolution
+        if exact is not None:
+            width, height = exact.width_px, exact.height_px
+        elif resolution is not None:
+            width, height = resolution
+        else:  # nothing says: square pixels over the aperture's aspect
+            h_ap, v_ap = usd["horizontalAperture"] or 20.955, usd["verticalAperture"] or 15.2908
+            width, height = default_width, max(1, int(round(default_width * float(v_ap) / float(h_ap))))
         derived = _derive_intrinsics(usd, ortho, width, height, self.mpu)
         if exact is not None and (exact.lens == LensModel.ORTHOGRAPHIC) == ortho:
             # Keep the lens model the attributes name; the plain USD values win for the rest.
@@ -367,6 +384,12 @@ class _StageReader:
         lights = []
         for prim in Usd.PrimRange(self.stage.GetPseudoRoot()):
             if not prim.HasAPI(UsdLux.LightAPI):
+                continue
+            if not any(prim.IsA(t) for t in (UsdLux.SphereLight, UsdLux.DistantLight, UsdLux.RectLight,
+                                              UsdLux.DiskLight)):
+                # Dome (Blender exports its world as one), cylinder, portal and geometry lights
+                # have no counterpart in the scene model.
+                log.info("%s: %s is not a point/spot/sun/area light; skipped", prim.GetPath(), prim.GetTypeName())
                 continue
             uid, _, name = self._identity(prim)
             name = name or prim.GetName()
@@ -444,6 +467,11 @@ class _StageReader:
 
 
 # --------------------------------------------------------------------------------------------
+
+
+def _same_matrix(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
+    """Equal up to floating-point rounding (interpolating two equal samples)."""
+    return a == b or all(abs(x - y) <= 1e-12 * max(1.0, abs(x)) for x, y in zip(a, b))
 
 
 def _self_and_ancestors(prim):

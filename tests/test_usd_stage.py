@@ -176,6 +176,8 @@ def test_export_openlabel_command(tmp_path, catalog, capsys):
     assert "2 cameras" in capsys.readouterr().out
     doc = read_openlabel(tmp_path / "doc.json")
     assert [o.class_name for o in doc.objects] == ["bag", "box", "cup", "cup"]
+    assert main(["export-openlabel", str(result.stage_dir), "-o", str(tmp_path / "folder.json")]) == 0
+    assert read_openlabel(tmp_path / "folder.json").objects == doc.objects
     assert main(["export-openlabel", str(tmp_path / "nothing.usda"), "-o", str(tmp_path / "x.json")]) == 1
     assert main(["export-openlabel", str(tmp_path / "doc.json"), "-o", str(tmp_path / "x.json")]) == 1
     assert "unsupported file type" in capsys.readouterr().err
@@ -256,6 +258,7 @@ def test_y_up_centimetre_stage(tmp_path):
     cam.CreateFocalLengthAttr(5.0)          # tenths of a cm = mm: a 5 mm lens
     cam.CreateHorizontalApertureAttr(6.4)
     cam.CreateVerticalApertureAttr(4.8)
+    UsdLux.DomeLight.Define(stage, "/root/env_light")  # like Blender's exported world: not a scene light
     light = UsdLux.SphereLight.Define(stage, "/root/lamp")
     light.CreateIntensityAttr(10.0)
     light.CreateRadiusAttr(5.0)

@@ -12,7 +12,8 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("stage", metavar="STAGE", help="composed or DCC-edited stage, or a .blend file")
+    parser.add_argument("stage", metavar="STAGE",
+                        help="composed or DCC-edited stage (file, or a stage folder with scene.usda), or a .blend file")
     parser.add_argument("-o", "--out", metavar="DOC", required=True, help="OpenLABEL document to write (.json)")
 
 
@@ -27,6 +28,8 @@ def run(args: argparse.Namespace) -> int:
 
     source = Path(args.stage)
     suffix = source.suffix.lower()
+    if source.is_dir():  # a composed stage folder
+        suffix = ".usda"
     if suffix in USD_SUFFIXES:
         from converters.usd_stage import scene_from_stage
 
