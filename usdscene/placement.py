@@ -472,9 +472,9 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
             if orientation is None:
                 lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
                 dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
-                problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {dims} m) fits {label} "
-                                               f"({size[0]:.3f} × {size[1]:.3f} m, {size[2]:.3f} m clearance) "
-                                               "neither upright nor lying on a side")
+                problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {dims} m) does not fit "
+                                               f"{label} ({size[0]:.3f} × {size[1]:.3f} m, {size[2]:.3f} m "
+                                               "clearance) upright, turned or lying on a side")
                 continue
             prev = states.get(uid)
             local = None
