@@ -150,6 +150,10 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     choices = _draw_looks(scene, catalog, rng)
     placements = place_objects(scene, catalog, rng)
     resolved = resolved_scene(scene, placements, choices)
+    try:
+        ids = mask_ids(scene)
+    except ValueError as exc:
+        raise CompositionError(str(exc), where="objects") from None
 
     stage_dir = Path(out_dir).resolve()
     stage_dir.mkdir(parents=True, exist_ok=True)
@@ -157,7 +161,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
         "render.usda": _render_layer(resolved),
         "cameras.usda": _cameras_layer(resolved),
         "lights.usda": _lights_layer(resolved),
-        "objects.usda": _objects_layer(resolved, catalog, stage_dir, mask_ids(scene)),
+        "objects.usda": _objects_layer(resolved, catalog, stage_dir, ids),
         "environment.usda": _environment_layer(resolved, catalog, stage_dir),
     }
     assert tuple(texts) == ss.SUBLAYERS  # the schema's order is the strength order
