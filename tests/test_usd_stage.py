@@ -385,6 +385,22 @@ def test_blender_import_and_export(tmp_path, catalog):
             assert dt < 1e-5 and da < 1e-3
 
 
+@pytest.mark.blender
+def test_export_openlabel_reads_a_blend_project(tmp_path, catalog):
+    """``usdscene export-openlabel scene.blend`` goes through the Blender project reader."""
+    from converters.openlabel import read_openlabel
+    from usdscene.cli import main
+    from usdscene.render.blend_io import write_blend
+
+    result = compose_stage(small_scene(), catalog, tmp_path / "stage")
+    blend = write_blend(result.root_layer, tmp_path / "scene.blend")
+    assert main(["export-openlabel", str(blend), "-o", str(tmp_path / "doc.json")]) == 0
+    doc = read_openlabel(tmp_path / "doc.json")
+    assert sorted(o.name for o in doc.objects) == sorted(o.name for o in result.resolved.objects)
+    assert sorted(c.name for c in doc.cameras) == ["cam_aisle", "cam_fish"]
+    assert sorted(lt.name for lt in doc.lights) == ["cabin_light", "reading_spot", "sun"]
+
+
 def _pose_at(obj: m.SceneObject, frame: int) -> m.Pose:
     for f, pose in obj.frame_poses:
         if f == frame:
