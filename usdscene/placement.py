@@ -44,6 +44,7 @@ moving support would make it interpenetrate something.
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 from dataclasses import dataclass
@@ -484,6 +485,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                 if not boxes.collides(info, world, exclude, label):
                     local = prev.local
             if local is None:
+                boxes.blockers.clear()
                 local = _sample(info, orientation, region_pose, size, rng, boxes, exclude, label)
                 if local is None:
                     problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
@@ -550,6 +552,7 @@ class _FrameBoxes:
         self.labels: list[str] = []
         self.areas: list[float] = []
         self.seated: list[bool] = []
+        self.blockers: collections.Counter[str] = collections.Counter()  # who was in the way
 
     def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
         centre, axes, half = object_box(info.entry, world)
@@ -578,7 +581,10 @@ class _FrameBoxes:
             same_support = np.asarray([lab == label for lab in self.labels])
             coarse = np.asarray(self.seated) | _seated(info.entry)
             hits &= ~coarse | same_support
-        return bool(hits.any())
+        if hits.any():
+            self.blockers.update(u for u, hit in zip(self.uids, hits) if hit)
+            return True
+        return False
 
 
 def _seated(entry: AssetEntry) -> bool:
@@ -691,6 +697,8 @@ def _overfull_message(uid: str, info: _Info, label: str, size: tuple[float, floa
     region_area = size[0] * size[1]
     sharing = [a for lab, a in zip(boxes.labels, boxes.areas) if lab == label]
     full = 100.0 * sum(sharing) / region_area if region_area > 0 else 100.0
+    blockers = ", ".join(repr(u) for u, _ in boxes.blockers.most_common(3))
     return (f"object {uid!r} ({info.obj.class_name}, footprint {own}) finds no free spot on {label} at "
             f"frame {frame} after {MAX_TRIES} tries: the {size[0]:.2f} × {size[1]:.2f} m region already "
-            f"holds {len(sharing)} object(s) covering {full:.0f}% of its area")
+            f"holds {len(sharing)} object(s) covering {full:.0f}% of its area"
+            + (f"; in the way: {blockers}" if blockers else ""))
