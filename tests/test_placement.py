@@ -231,7 +231,8 @@ def test_lone_object_without_noise_sits_in_the_middle_of_its_place(catalog):
      [m.Relation("r1", "is_on", "a", "b"), m.Relation("r2", "is_on", "b", "c"), m.Relation("r3", "is_on", "c", "a")],
      "'a'", ("cyclic",)),
     ([m.SceneObject(f"bag{i}", "b", "bag") for i in range(5)],
-     [m.Relation(f"r{i}", "is_below", f"bag{i}", "p_seat_01A") for i in range(5)], "bag1", ("seat_01A", "holds 1 object")),
+     [m.Relation(f"r{i}", "is_below", f"bag{i}", "p_seat_01A") for i in range(5)], "bag2",
+     ("seat_01A", "holds 2 object", "in the way: 'bag")),
     ([m.SceneObject("pole1", "pole", "pole")], [m.Relation("r", "is_below", "pole1", "p_seat_01A")], "pole1",
      ("clearance",)),
     ([m.SceneObject("o1", "o1", "cup")], [m.Relation("r9", "is_on", "o1", "ghost")], "r9", ("neither a place",)),
@@ -271,3 +272,14 @@ def test_object_too_tall_for_its_place_lies_down(catalog):
     assert local[:, 2].min() == pytest.approx(0.0, abs=1e-9)
     assert local[:, 2].max() == pytest.approx(0.15)  # lying: its thickness is its height
     assert np.all(np.abs(local[:, :2]) <= np.asarray(region.size_m[:2]) / 2 + 1e-9)
+
+
+def test_objects_sharing_a_region_are_packed(catalog):
+    """Two 0.30 × 0.20 m bags fit side by side under a 0.44 × 0.40 m seat only when packed
+    (turned a quarter, from the corners): a centred first bag would leave no room."""
+    objects = [m.SceneObject(f"bag{i}", "b", "bag") for i in range(2)]
+    relations = [m.Relation(f"r{i}", "is_below", f"bag{i}", "p_seat_01A") for i in range(2)]
+    placements = place_objects(_scene(objects, relations), catalog, np.random.default_rng(0))
+    poses = [placements[f"bag{i}"].pose_at(0).as_array() for i in range(2)]
+    rects, zs = _yaw_rectangles(poses, ["bag", "bag"])
+    assert _intersecting_pairs(rects, zs) == []

@@ -22,18 +22,23 @@ Rules, in order of precedence:
 3. Inside the region the object gets a yaw about the region's Z axis drawn from
    ``N(0, rotation_noise_deg)``, and a position whose footprint (asset x/y extent after the
    yaw) lies inside the region and whose lowest point (asset ``extent_min_m`` z) lies on the
-   support surface, with its height within the region's clearance. *Seated* assets, whose
-   extent reaches below their origin (a passenger's origin is the hip contact on the cushion,
-   the feet 0.45 m lower), rest on their origin instead: only the origin must lie inside the
-   region, and only the part above the origin counts for clearance and collisions (the legs
-   reach into the legroom by design). When the object does not fit upright, a quarter turn
-   is tried, then lying on a side (bags under seats and in bins lie down, as people put them). The first try puts the footprint centre at the region centre displaced by
-   ``N(0, position_noise_m)`` on x and y (clamped into the region), so a lone object sits
-   predictably in the middle of its place; when that spot is taken, further tries draw
-   uniform positions in the region. A try is rejected when the object's oriented box
-   interpenetrates (by more than :data:`CONTACT_TOLERANCE_M`) any other object already placed
-   in that frame; after :data:`MAX_TRIES` rejections a :class:`CompositionError` names the
-   object, the place and how full it is.
+   support surface, with its height within the region's clearance.
+
+   * Orientation: upright if it fits (also turned a quarter, which is tried too when packing),
+     else lying on a side (bags under seats and in bins lie down, as people put them).
+   * *Seated* assets, whose extent reaches below their origin (a passenger's origin is the hip
+     contact on the cushion, the feet 0.45 m lower), rest on their origin instead: only the
+     origin must lie inside the region, and only the part above the origin counts for
+     clearance and collisions (the legs reach into the legroom by design), and that coarse box
+     only against objects on the same support.
+   * Position: an object alone in its region first tries the region centre displaced by
+     ``N(0, position_noise_m)`` on x and y (clamped into the region), so it sits predictably in
+     the middle of its place. Objects sharing a region are packed from the corners of the free
+     range first, then tried at uniform random positions.
+   * A try is rejected when the object's oriented box interpenetrates (by more than
+     :data:`CONTACT_TOLERANCE_M`) any object already placed in that frame; after
+     :data:`MAX_TRIES` rejections a :class:`CompositionError` names the object, the place,
+     how full it is and what is in the way.
 4. Without explicit pose or relation the object stays at the world origin (logged).
 
 Over time an object keeps its sampled pose *relative to its support region* for as long as it
@@ -435,6 +440,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                     continue
             pending.append(info)
         # Phase B: everything else, supports first.
+        shared = None  # (target, relation) → objects using that region in this frame, on demand
         for info in pending:
             uid = info.obj.uid
             key = _key(info, fi, frame, scene, explicit)
@@ -469,8 +475,8 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                                                           np.asarray(target.world).reshape(4, 4))
                 label = f"object {rel.object_uid!r} ({rel.type})"
                 exclude = rel.object_uid
-            orientation = _choose_orientation(info.entry, size)
-            if orientation is None:
+            orientations = _orientations(info.entry, size)
+            if not orientations:
                 lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
                 dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
                 problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {dims} m) does not fit "
@@ -486,7 +492,10 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                     local = prev.local
             if local is None:
                 boxes.blockers.clear()
-                local = _sample(info, orientation, region_pose, size, rng, boxes, exclude, label)
+                if shared is None:
+                    shared = _region_users(order, fi, frame, scene, explicit)
+                alone = shared[(rel.object_uid, rel.type)] <= 1
+                local = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
                 if local is None:
                     problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
                     problems.raise_if_any(CompositionError)
@@ -539,6 +548,19 @@ def _key(info: _Info, fi: int, frame: int, scene: SceneSpec,
     if ri < 0:
         return ("none",)
     return ("rel", ri)
+
+
+def _region_users(order: list[_Info], fi: int, frame: int, scene: SceneSpec,
+                  explicit: Mapping[str, Mapping[int, tuple[float, ...]]]) -> collections.Counter:
+    """(target uid, relation) → number of objects placed there in this frame."""
+    users: collections.Counter = collections.Counter()
+    for info in order:
+        if info.present[fi]:
+            key = _key(info, fi, frame, scene, explicit)
+            if key[0] == "rel":
+                rel = scene.relations[key[1]]
+                users[(rel.object_uid, rel.type)] += 1
+    return users
 
 
 class _FrameBoxes:
@@ -617,10 +639,11 @@ _LAY_ROTATIONS = (np.eye(3),
                   np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]))
 
 
-def _choose_orientation(entry: AssetEntry, size: tuple[float, float, float]) -> _Orientation | None:
-    """The first orientation that fits the region: upright, upright turned a quarter, then
-    lying on a side (a bag too tall for the space under a seat is laid down, as people do).
-    Seated assets stay upright and only their part above the origin counts for clearance."""
+def _orientations(entry: AssetEntry, size: tuple[float, float, float]) -> list[_Orientation]:
+    """Every orientation that fits the region, preferred first: upright, upright turned a
+    quarter, then lying on a side (a bag too tall for the space under a seat is laid down, as
+    people do). Seated assets stay upright and only their part above the origin counts for
+    clearance."""
     lo0 = np.asarray(entry.extent_min_m, dtype=np.float64)
     hi0 = np.asarray(entry.extent_max_m, dtype=np.float64)
     if _seated(entry):
@@ -631,14 +654,17 @@ def _choose_orientation(entry: AssetEntry, size: tuple[float, float, float]) -> 
         for rot in _LAY_ROTATIONS:
             turned = corners @ rot.T
             candidates += [(rot, turned.min(axis=0), turned.max(axis=0), yaw) for yaw in (0.0, _QUARTER)]
+    fitting = []
     for rot, lo, hi, yaw in candidates:
         seated = _seated(entry)
         height = hi[2] if seated else hi[2] - lo[2]
         if seated or height <= size[2] + 1e-9:
             orientation = _Orientation(rot, lo, hi, yaw, seated)
             if _footprint_range(orientation, 0.0, size) is not None:
-                return orientation
-    return None
+                fitting.append(orientation)
+    # Lying down is only for objects that do not fit upright.
+    upright = [o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated]
+    return upright or fitting
 
 
 def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[float, float, float]):
@@ -659,23 +685,43 @@ def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[floa
     return (x_lo, max(x_lo, x_hi)), (y_lo, max(y_lo, y_hi))
 
 
-def _sample(info: _Info, orientation: _Orientation, region_pose: np.ndarray, size: tuple[float, float, float],
-            rng: np.random.Generator, boxes: _FrameBoxes, exclude: str | None, label: str) -> np.ndarray | None:
-    """Local pose (object → region) that fits and collides with nothing, or None."""
+# Corners of the free range, as (u, v) fractions: packing from the corners leaves room.
+_CORNERS = ((0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0))
+
+
+def _sample(info: _Info, orientations: list[_Orientation], region_pose: np.ndarray,
+            size: tuple[float, float, float], rng: np.random.Generator, boxes: _FrameBoxes,
+            exclude: str | None, label: str, alone: bool) -> np.ndarray | None:
+    """Local pose (object → region) that fits and collides with nothing, or None.
+
+    Tries, in order: the region centre displaced by the position noise (only for an object
+    alone in its region, or seated), the four corners of the free range in each orientation, then
+    uniform positions cycling through the orientations. Every try draws the same numbers
+    from ``rng`` (yaw, two position noises, two uniforms), so the sequence is reproducible.
+    """
     rand = info.obj.randomization
     sigma_pos = max(float(rand.position_noise_m), 0.0)
     sigma_yaw = math.radians(max(float(rand.rotation_noise_deg), 0.0))
-    z = 0.0 if orientation.seated else -float(orientation.lo[2])
+    n_corner_tries = len(_CORNERS) * len(orientations)
     for attempt in range(MAX_TRIES):
         yaw = float(rng.normal(0.0, sigma_yaw)) if sigma_yaw > 0 else 0.0
         dx, dy = (rng.normal(0.0, sigma_pos, 2) if sigma_pos > 0 else (0.0, 0.0))
-        u, v = rng.random(2)
+        u, v = (float(w) for w in rng.random(2))
+        # Seated assets sit in the middle of their seat whoever else is there.
+        k = attempt - 1 if alone or orientations[0].seated else attempt
+        if k < 0:
+            orientation = orientations[0]
+        elif k < n_corner_tries:
+            orientation = orientations[k // len(_CORNERS)]
+            u, v = _CORNERS[k % len(_CORNERS)]
+        else:
+            orientation = orientations[k % len(orientations)]
         ranges = _footprint_range(orientation, yaw, size)
         if ranges is None:  # a tight fit: no room for the yaw noise
             yaw = 0.0
             ranges = _footprint_range(orientation, yaw, size)
         (x_lo, x_hi), (y_lo, y_hi) = ranges
-        if attempt == 0:
+        if k < 0:
             x = min(max((x_lo + x_hi) / 2.0 + dx, x_lo), x_hi)
             y = min(max((y_lo + y_hi) / 2.0 + dy, y_lo), y_hi)
         else:
@@ -684,7 +730,7 @@ def _sample(info: _Info, orientation: _Orientation, region_pose: np.ndarray, siz
         c, s = math.cos(angle), math.sin(angle)
         local = np.eye(4)
         local[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ orientation.rotation
-        local[:3, 3] = (x, y, z)
+        local[:3, 3] = (x, y, 0.0 if orientation.seated else -float(orientation.lo[2]))
         if not boxes.collides(info, region_pose @ local, exclude, label):
             return local
     return None
