@@ -333,8 +333,10 @@ def cabin_places(config: CabinConfig) -> dict[str, tuple[str, dict[str, PlaceReg
         for letter in SEAT_LETTERS:
             y = seat_y(config, letter)
             regions = dict([
-                _region("on", np.array([xf - 0.235, y, top]), (0.42, 0.40, 0.80)),
-                _region("in_front", np.array([xf + 0.155, y, 0.0]), (0.27, 0.40, 0.40)),
+                # Headroom above the cushion up to the bins (1.58 m), 1.10 m.
+                _region("on", np.array([xf - 0.235, y, top]), (0.42, 0.40, 1.10)),
+                # Legroom: from the cushion edge to the front seat's pan, under its backrest.
+                _region("in_front", np.array([xf + 0.16, y, 0.0]), (0.28, 0.40, 0.42)),
             ])
             if r == 1:
                 below_x = xf - 0.28

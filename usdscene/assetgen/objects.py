@@ -247,7 +247,7 @@ def _shopping_bag(p: Mapping[str, float]) -> Parts:
     walls = [m.box((0.002, w, h)).translated((x, 0, h / 2)) for x in (-d / 2, d / 2)]
     walls += [m.box((d, 0.002, h)).translated((0, y, h / 2)) for y in (-w / 2, w / 2)]
     walls.append(m.box((d, w, 0.002)).translated((0, 0, 0.001)))
-    handles = [_arc_handle(w * 0.4, 0.1, h - 0.03, 0.004, offset=x) for x in (-d / 2 + 0.003, d / 2 - 0.003)]
+    handles = [_arc_handle(w * 0.4, 0.08, h - 0.03, 0.004, offset=x) for x in (-d / 2 + 0.003, d / 2 - 0.003)]
     contents = m.rounded_box((d * 0.8, w * 0.85, h * 0.2), 0.02).translated((0, 0, h * 0.85))
     return {"Body": walls, "Trim": handles, "Paper": [contents]}
 
@@ -357,8 +357,8 @@ OBJECT_CLASSES: tuple[ObjectClass, ...] = (
                 {"width": 0.55, "depth": 0.28, "height": 0.28},
                 (_v("olive", (0.15, 0.17, 0.06)), _v("black", BLACK),
                  _v("red_small", RED, {"width": 0.45, "depth": 0.24, "height": 0.24}))),
-    ObjectClass("shopping_bag", "Paper shopping bag with purchases, 0.32 x 0.12 x 0.38 m.", _shopping_bag,
-                {"width": 0.32, "depth": 0.12, "height": 0.38},
+    ObjectClass("shopping_bag", "Paper shopping bag with purchases, 0.32 x 0.12 x 0.32 m.", _shopping_bag,
+                {"width": 0.32, "depth": 0.12, "height": 0.32},
                 (_v("kraft", (0.45, 0.3, 0.17)), _v("white", (0.85, 0.85, 0.85)), _v("black_duty_free", BLACK))),
     ObjectClass("camera_bag", "Camera bag with shoulder strap, 0.25 x 0.15 x 0.18 m.", _camera_bag,
                 {"width": 0.25, "depth": 0.15, "height": 0.18},
