@@ -73,6 +73,8 @@ def test_cabin_and_objects_import_with_materials(tmp_path):
     # 120 seats x 5 meshes, the shell, and the three objects.
     assert len(meshes) > 600
     assert all(len(o.material_slots) >= 1 and o.material_slots[0].material is not None for o in meshes)
+    # Places are guides: pxr reads them, Blender's importer leaves them out.
+    assert not any(o.name.startswith(("seat_", "bin_", "aisle_")) for o in bpy.data.objects)
     names = {m.name.split(".")[0] for m in bpy.data.materials}
     assert {"SeatFabric", "Carpet", "Sidewall", "BinDoor", "Body", "Skin"} <= names
     passenger_top = _base_colour(_mesh_under(meshes, "pax", "Body"))

@@ -364,7 +364,10 @@ def cabin_places(config: CabinConfig) -> dict[str, tuple[str, dict[str, PlaceReg
 
 
 def _author_places(stage: Usd.Stage, root: str, places: dict[str, tuple[str, dict[str, PlaceRegion]]]) -> None:
-    UsdGeom.Scope.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}")
+    scope = UsdGeom.Scope.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}")
+    # Places are annotations, not scenery: purpose "guide" keeps them out of renders and out
+    # of Blender's import (its importer skips guides by default), while pxr still reads them.
+    scope.CreatePurposeAttr(UsdGeom.Tokens.guide)
     for name, (kind, regions) in places.items():
         place = UsdGeom.Xform.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}/{name}").GetPrim()
         place.CreateAttribute(stage_schema.ATTR_PLACE_KIND, Sdf.ValueTypeNames.Token).Set(kind)
