@@ -234,7 +234,28 @@ def _wall_surfaces(config: CabinConfig, side: float) -> dict[str, list[m.MeshDat
         loop_out = np.concatenate([outer, outer[:1]])
         tube = m.quad_strip(np.stack([loop, loop_out], axis=0))
         reveals.append(tube)
+        reveals.append(_window_bezel((xa + xb) / 2, side * (y0 - 0.004), (z0 + z1) / 2, side,
+                                     (xb - xa) / 2, (z1 - z0) / 2))
     return {"Sidewall": [sidewall], "Ceiling": [ceiling], "WindowReveal": reveals}
+
+
+def _window_bezel(x: float, y: float, z: float, side: float, half_w: float, half_h: float,
+                  points: int = 32) -> m.MeshData:
+    """A flat frame just inside the wall around a window hole: rectangular outside, rounded
+    inside (a squircle inscribed in the rectangular hole), facing the aisle."""
+    t = np.linspace(0.0, 2 * np.pi, points, endpoint=False)
+    c, s = np.cos(t), np.sin(t)
+    # Squircle |u/a|^4 + |v/b|^4 = 1: rounded corners like a real cabin window.
+    u = half_w * np.sign(c) * np.abs(c) ** 0.5
+    v = half_h * np.sign(s) * np.abs(s) ** 0.5
+    outer_w, outer_h = half_w + 0.06, half_h + 0.07
+    scale = np.minimum(outer_w / np.maximum(np.abs(u), 1e-9), outer_h / np.maximum(np.abs(v), 1e-9))
+    rings = [np.stack([x + u * k, np.full(points, y), z + v * k], axis=1) for k in (np.ones(points), scale)]
+    bezel = m.quad_strip(np.stack(rings, axis=0), closed=True)
+    if np.dot(bezel.normals[0], [0.0, -side, 0.0]) < 0:
+        quads = bezel.face_indices.reshape(-1, 4)[:, ::-1]
+        bezel = m.MeshData(bezel.points, -bezel.normals, bezel.face_counts, quads.reshape(-1).astype(np.int32))
+    return bezel
 
 
 def _end_wall(config: CabinConfig, x: float, facing: float, thickness: float) -> m.MeshData:
