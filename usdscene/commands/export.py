@@ -73,7 +73,24 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
     return load_catalog(folders)
 
 
-def run(args: argparse.Namespace) -> int:
+def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,
+                   copy_images: bool = False, min_roi_px: int = 8) -> dict:
+    """Export ``OUT/annotations.openlabel.json`` to each of ``formats``.
+
+    Args:
+        out_dir: annotated output folder.
+        formats: names from :data:`FORMATS`, in order (duplicates ignored).
+        extra_assets: extra asset catalog folders (classes, place regions).
+        document_classes: COCO/YOLO classes from the document's labelled types, not the catalog.
+        copy_images: YOLO copies images instead of linking them.
+        min_roi_px: ROIs: smallest crop side in pixels.
+
+    Returns:
+        format → folder written.
+
+    Raises:
+        OutputError: no annotations yet. AssetError: the catalog cannot be read.
+    """
     import logging
     from pathlib import Path
 
@@ -81,37 +98,49 @@ def run(args: argparse.Namespace) -> int:
     from usdscene import layout
     from usdscene.errors import AssetError, OutputError
 
-    out = Path(args.output)
+    out = Path(out_dir)
     path = out / layout.ANNOTATIONS_FILE
     if not path.is_file():
         raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
     document = load_document(path)
     catalog = None
     try:
-        catalog = load_export_catalog(document, out, args.assets)
+        catalog = load_export_catalog(document, out, extra_assets)
     except AssetError:
-        if "rois" in args.format or not args.document_classes:
+        if "rois" in formats or not document_classes:
             raise
     classes = None
-    if catalog is not None and not args.document_classes:
+    if catalog is not None and not document_classes:
         classes = [*catalog.classes("object"), *catalog.classes("passenger")]
-        unknown = sorted({e.get("type", "") for e in document["openlabel"].get("objects", {}).values()
-                          if e.get("object_data_pointers")} - set(classes))
+        labelled = {e.get("type", "") for e in document["openlabel"].get("objects", {}).values()
+                    if any(p.get("type") == "bbox" for p in e.get("object_data_pointers", {}).values())}
+        unknown = sorted(labelled - set(classes))
         if unknown:
             logging.getLogger(__name__).warning("labelled types %s are not object classes of the catalog; "
                                                 "they are left out (use --document-classes)", unknown)
-    for fmt in dict.fromkeys(args.format):
+    written = {}
+    for fmt in dict.fromkeys(formats):
         if fmt == "coco":
             from converters.coco import export_coco
 
-            target = export_coco(document, out, classes)
+            written[fmt] = export_coco(document, out, classes)
         elif fmt == "yolo":
             from converters.yolo import export_yolo
 
-            target = export_yolo(document, out, classes, link_images=True, copy_images=args.copy_images)
-        else:
+            written[fmt] = export_yolo(document, out, classes, link_images=True, copy_images=copy_images)
+        elif fmt == "rois":
             from converters.rois import export_rois
 
-            target = export_rois(document, out, catalog, min_size_px=args.min_roi_px)
+            written[fmt] = export_rois(document, out, catalog, min_size_px=min_roi_px)
+        else:
+            raise OutputError(f"unknown export format {fmt!r}; expected one of {FORMATS}", where="exports")
+    return written
+
+
+def run(args: argparse.Namespace) -> int:
+    written = export_formats(args.output, args.format, extra_assets=args.assets,
+                             document_classes=args.document_classes, copy_images=args.copy_images,
+                             min_roi_px=args.min_roi_px)
+    for fmt, target in written.items():
         print(f"{fmt}: {target}")
     return 0

@@ -1,0 +1,54 @@
+"""``usdscene run DOC -o OUT``: validate → compose → render → annotate → export."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+NAME = "run"
+HELP = ("the whole job: validate the scene document, compose the USD stage, render every camera "
+        "of every frame, write labels into OUT/annotations.openlabel.json and export datasets; "
+        "re-running resumes")
+ORDER = 5
+FORMATS = ("coco", "yolo", "rois")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("document", metavar="DOC", help="OpenLABEL (or VCD 4.3) scene document")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    parser.add_argument("--frames", metavar="A:B", help="closed frame range A:B, a frame N or a list N,M (default: all)")
+    parser.add_argument("--cameras", nargs="+", metavar="NAME", help="cameras to render (default: all)")
+    parser.add_argument("--export", nargs="*", choices=FORMATS, metavar="FORMAT",
+                        help="dataset formats to export: coco, yolo, rois (default: the document's "
+                             "metadata.usdscene.exports; give the flag alone for none)")
+    parser.add_argument("--samples", type=int, metavar="N", help="override the samples per pixel")
+    parser.add_argument("--workers", type=int, default=1, metavar="N",
+                        help="render worker processes side by side (default 1)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from usdscene.commands.render import parse_frames
+    from usdscene.errors import DocumentError, Problem
+    from usdscene.pipeline import run_pipeline, summary_text
+
+    if not Path(args.document).is_file():
+        raise DocumentError(f"scene document {args.document!r} does not exist", where=args.document)
+    try:
+        frames = parse_frames(args.frames)
+    except ValueError as exc:
+        raise DocumentError([Problem("--frames", str(exc))]) from None
+    if args.samples is not None and args.samples < 1:
+        raise DocumentError([Problem("--samples", f"{args.samples} is not a positive number of samples")])
+    progress = not args.no_progress and sys.stderr.isatty()
+
+    def show_step(name: str) -> None:
+        print(f"usdscene: {name} ...", file=sys.stderr, flush=True)
+
+    summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras,
+                           exports=args.export, samples=args.samples, workers=args.workers,
+                           progress=progress, on_step=show_step)
+    print(summary_text(summary))
+    return 0
