@@ -157,3 +157,16 @@ def test_imported_catalog_combines_with_the_shipped_library(workdir):
     assert main(["assets", "add", "ok.obj", "--class", "ok_box", "--catalog", "my_assets"]) == 0
     catalog = load_catalog(["my_assets"], base_dir=workdir)
     assert "ok_box" in catalog and "aircraft_cabin" in catalog and "backpack" in catalog
+
+
+def test_rebuilding_a_library_keeps_imported_classes(workdir):
+    from usdscene.assetgen.cabin import CabinConfig
+    from usdscene.assetgen.library import build_library
+
+    library = workdir / "library"
+    build_library(library, CabinConfig(rows=2))
+    _box_file(workdir / "ok.obj", (0.2, 0.2, 0.2))
+    assert main(["assets", "add", "ok.obj", "--class", "ok_box", "--catalog", "library"]) == 0
+    build_library(library, CabinConfig(rows=2))
+    catalog = load_catalog([library], include_default=False)
+    assert "ok_box" in catalog and "backpack" in catalog

@@ -7,6 +7,7 @@ authored in a fixed order from sorted inputs and written as ``.usda`` text.
 
 from __future__ import annotations
 
+import json
 import logging
 from pathlib import Path
 from typing import Mapping
@@ -112,9 +113,23 @@ def write_cabin_asset(folder: Path, config: CabinConfig = CabinConfig()) -> Asse
 
 
 def write_catalog(folder: Path, entries: list[AssetEntry]) -> Path:
-    """Write ``folder/catalog.json`` (classes sorted by name) atomically."""
-    data = {"format": CATALOG_FORMAT, "version": CATALOG_VERSION,
-            "classes": {e.class_name: entry_to_json(e, folder) for e in sorted(entries, key=lambda e: e.class_name)}}
+    """Write ``folder/catalog.json`` (classes sorted by name) atomically.
+
+    Classes a user registered in this folder with ``usdscene assets add`` (files under
+    ``imported/``) are kept, so rebuilding the library does not drop them.
+    """
+    classes = {e.class_name: entry_to_json(e, folder) for e in entries}
+    existing = folder / CATALOG_FILE
+    if existing.exists():
+        try:
+            old = json.loads(existing.read_text(encoding="utf-8")).get("classes", {})
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
+            old = {}
+        for name, raw in old.items():
+            if name not in classes and isinstance(raw, dict) and str(raw.get("usd", "")).startswith("imported/"):
+                classes[name] = raw
+                log.info("kept imported class %s", name)
+    data = {"format": CATALOG_FORMAT, "version": CATALOG_VERSION, "classes": dict(sorted(classes.items()))}
     return write_json_atomic(folder / CATALOG_FILE, data)
 
 
