@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import subprocess
 import sys
 import tempfile
@@ -72,7 +73,8 @@ def scene_stage(root: Path, frames: int) -> tuple[Path, str]:
                 f"synthetic cabin-like scene (cabin example unavailable: {type(exc).__name__})")
 
 
-def naive(stage: Path, out: Path, override: dict) -> tuple[float, list[float]]:
+def naive(stage: Path, out: Path, override: dict) -> tuple[float, float, list[float]]:
+    """Wall seconds, CPU seconds (all threads) and per-image wall seconds of the naive script."""
     from usdscene.render.driver import camera_jobs, resolve_settings
     from usdscene.render.stage_reader import read_stage_plan
 
@@ -89,18 +91,24 @@ def naive(stage: Path, out: Path, override: dict) -> tuple[float, list[float]]:
     job_path = scratch / "job.json"
     job_path.write_text(json.dumps(job))
     t0 = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run([sys.executable, "-c", NAIVE, str(job_path)], capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     line = [l for l in proc.stdout.splitlines() if l.startswith("@naive ")]
     if proc.returncode or not line:
         raise SystemExit(f"naive run failed: {proc.stderr[-2000:]}")
-    return wall, json.loads(line[0][len("@naive "):])
+    return wall, cpu, json.loads(line[0][len("@naive "):])
 
 
 def pipeline(stage: Path, out: Path, override: dict):
+    """The report of ``render`` and the CPU seconds of the whole run (driver + worker)."""
     from usdscene.render.driver import render
 
-    return render(stage, out, settings_override=override, progress=False)
+    cpu0 = time.process_time()
+    report = render(stage, out, settings_override=override, progress=False)
+    return report, time.process_time() - cpu0 + report.worker_cpu_s
 
 
 def memory(root: Path, renders: int) -> tuple[float, float, int]:
@@ -132,16 +140,20 @@ def main() -> None:
             print(f"scene: {what}")
             for label, override in (("default settings", None),
                                     ("1-sample preview", {"samples": 1, "denoise": False})):
-                report = pipeline(stage, root / f"pipe-{label[:3]}", override)
+                report, cpu = pipeline(stage, root / f"pipe-{label[:3]}", override)
                 n = report.pairs_rendered
-                print(f"[{label}] pipeline: {n} images, wall {report.wall_s:.1f} s, Σ render calls "
-                      f"{report.render_s:.1f} s, ratio {report.wall_s / report.render_s:.3f}; "
-                      f"{report.wall_s / n:.2f} s/image; startup {report.startup_s:.1f} s, USD import "
-                      f"{report.import_s:.2f} s, post (EXR→PNG) {report.post_s:.2f} s")
+                print(f"[{label}] pipeline: {n} images; wall {report.wall_s:.1f} s / Σ render calls "
+                      f"{report.render_s:.1f} s = {report.wall_s / report.render_s:.3f}; CPU {cpu:.1f} s / "
+                      f"Σ render-call CPU {report.render_cpu_s:.1f} s = {cpu / report.render_cpu_s:.3f}; "
+                      f"{report.wall_s / n:.2f} s/image, {cpu / n:.2f} CPU s/image; startup "
+                      f"{report.startup_s:.1f} s, USD import {report.import_s:.2f} s, post (EXR→PNG) "
+                      f"{report.post_s:.2f} s", flush=True)
                 if not args.skip_naive:
-                    wall, per = naive(stage, root / f"naive-{label[:3]}", override)
+                    wall, naive_cpu, per = naive(stage, root / f"naive-{label[:3]}", override)
                     print(f"[{label}] naive (re-import per image, mask in a 2nd render): wall {wall:.1f} s, "
-                          f"{wall / len(per):.2f} s/image; speed-up of the pipeline ×{wall / report.wall_s:.2f}")
+                          f"CPU {naive_cpu:.1f} s, {wall / len(per):.2f} s/image, {naive_cpu / len(per):.2f} CPU "
+                          f"s/image; pipeline speed-up ×{wall / report.wall_s:.2f} (wall), "
+                          f"×{naive_cpu / cpu:.2f} (CPU)", flush=True)
         if args.memory:
             first, last, n = memory(root, args.memory)
             print(f"memory over {n} consecutive renders in one worker: RSS {first:.0f} MiB after 10, "

@@ -55,6 +55,8 @@ class RenderReport:
         import_s: sum of USD import time over workers, seconds.
         startup_s: sum of worker start-up time before the first image (process start, bpy
             import, USD import, scene setup), seconds.
+        render_cpu_s: CPU seconds (all threads) spent inside the render calls.
+        worker_cpu_s: CPU seconds (all threads) of the worker processes, start to end.
     """
 
     out_dir: Path
@@ -66,6 +68,8 @@ class RenderReport:
     post_s: float
     import_s: float
     startup_s: float
+    render_cpu_s: float = 0.0
+    worker_cpu_s: float = 0.0
 
 
 def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[str, Any] | None) -> dict:
@@ -193,7 +197,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     write_json_atomic(out_dir / layout.ID_MAP_FILE, {
         str(o.mask_id): {"uid": o.uid, "class": o.class_name, "prim": o.prim_path} for o in plan.objects})
 
-    totals = {"render_s": 0.0, "post_s": 0.0, "import_s": 0.0, "startup_s": 0.0, "rendered": 0}
+    totals = {"render_s": 0.0, "post_s": 0.0, "import_s": 0.0, "startup_s": 0.0, "rendered": 0,
+              "render_cpu_s": 0.0, "worker_cpu_s": 0.0}
     if todo:
         shards = _shards(todo, max(1, int(workers)))
         threads = max(1, (os.cpu_count() or 1) // len(shards)) if len(shards) > 1 else None
@@ -229,10 +234,11 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                 with lock:
                     if event.get("event") == "done":
                         manifest.mark_done(int(event["frame"]), event["camera"],
-                                           {k: event[k] for k in ("render_s", "post_s")})
+                                           {k: event[k] for k in ("render_s", "post_s") if k in event})
                         manifest.save()
                         totals["render_s"] += event["render_s"]
                         totals["post_s"] += event["post_s"]
+                        totals["render_cpu_s"] += event.get("render_cpu_s", 0.0)
                         totals["rendered"] += 1
                         bar.advance()
                     elif event.get("event") == "imported":
@@ -240,6 +246,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                         if event.get("missing_count"):
                             log.warning("%d objects of the stage were not found after the USD import, "
                                         "e.g. %s", event["missing_count"], event["missing_uids"])
+                    elif event.get("event") == "finished":
+                        totals["worker_cpu_s"] += event.get("process_cpu_s", 0.0)
                     elif event.get("event") == "warning":
                         log.warning("%s", event.get("message"))
                     if on_event is not None:
@@ -257,7 +265,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     else:
         manifest.save()
     return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
-                        totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"])
+                        totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"],
+                        totals["render_cpu_s"], totals["worker_cpu_s"])
 
 
 def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict:

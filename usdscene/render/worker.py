@@ -224,22 +224,34 @@ class Session:
         ob, data = self.camera, self.camera.data
         import mathutils
 
-        # mathutils.Matrix takes rows; a bare nested list would be read column by column.
-        ob.matrix_world = mathutils.Matrix(usd_camera_matrix(pose))
-        data.clip_start, data.clip_end = cam_job["clip_m"]
-        apply_intrinsics(self.scene, data, render)
+        # Touch only what changes: every assignment tags Blender data for a Cycles update.
+        key = (tuple(pose), tuple(cam_job["clip_m"]))
+        if key != getattr(self, "_pose_key", None):
+            # mathutils.Matrix takes rows; a bare nested list would be read column by column.
+            ob.matrix_world = mathutils.Matrix(usd_camera_matrix(pose))
+            data.clip_start, data.clip_end = cam_job["clip_m"]
+            self._pose_key = key
+        if render != getattr(self, "_lens", None):
+            apply_intrinsics(self.scene, data, render)
+            self._lens = render
 
     def render_pair(self, frame: int, camera: str) -> dict:
+        """Render one (frame, camera) and write its image and mask.
+
+        Returns timings in seconds: wall (``render_s``, ``post_s``) and CPU time of the whole
+        process, all threads (``render_cpu_s``, ``post_cpu_s``; robust on a shared machine).
+        """
         self.set_frame(frame)
         self.set_camera(camera, frame)
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         self.bpy.ops.render.render(write_still=True)
-        rendered = time.perf_counter()
+        rendered, cpu_rendered = time.perf_counter(), time.process_time()
         rgb, ids = read_exr(self.exr_path)
         rgb, ids = self._finish(camera, rgb, ids)
         write_outputs(Path(self.job["out_dir"]), camera, frame, rgb, ids)
-        done = time.perf_counter()
-        return {"render_s": rendered - started, "post_s": done - rendered}
+        done, cpu_done = time.perf_counter(), time.process_time()
+        return {"render_s": rendered - started, "post_s": done - rendered,
+                "render_cpu_s": cpu_rendered - cpu_started, "post_cpu_s": cpu_done - cpu_rendered}
 
     def _finish(self, camera: str, rgb, ids):
         """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
@@ -543,7 +555,7 @@ def main(argv: list[str] | None = None) -> int:
         session.exr_path.unlink()
     except FileNotFoundError:
         pass
-    _emit({"event": "finished"})
+    _emit({"event": "finished", "process_cpu_s": time.process_time()})
     return 0
 
 
