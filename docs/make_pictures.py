@@ -1,0 +1,94 @@
+"""Make the quickstart's pictures from a real ``usdscene run`` output folder.
+
+Writes into ``docs/img/``:
+
+* ``contact_sheet.png`` — every camera's image of one frame, camera names on the tiles;
+* ``labels.png`` — one image with its boxes (green: visible, grey dashed: amodal) and polygons
+  drawn from ``annotations.openlabel.json``, i.e. from the written labels, not from internal state;
+* ``stats.png`` — the chart of ``usdscene stats``.
+
+Usage::
+
+    usdscene run examples/aircraft_cabin/cabin.openlabel.json -o out/
+    python docs/make_pictures.py out/ [--camera seats_L03] [--frame 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from converters.openlabel import load_document
+from converters.openlabel_annotations import image_records, labels_in
+from usdscene import layout
+from usdscene.commands.preview import contact_sheet
+from usdscene.commands.stats import draw_chart, label_statistics
+from usdscene.files import write_bytes_atomic
+
+IMG = Path(__file__).resolve().parent / "img"
+
+
+def write_png(path: Path, image: np.ndarray) -> None:
+    ok, encoded = cv2.imencode(".png", image)
+    if not ok:
+        raise RuntimeError(f"cannot encode {path}")
+    write_bytes_atomic(path, encoded.tobytes())
+
+
+def draw_labels(image: np.ndarray, labels: list[dict], scale: int = 2) -> np.ndarray:
+    """Boxes and polygons of one image drawn on a copy enlarged ``scale`` times.
+
+    Args:
+        image: (H, W, 3) uint8 BGR.
+        labels: :func:`converters.openlabel_annotations.labels_in` records.
+    """
+    big = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+
+    def corners(box):  # OpenLABEL [cx, cy, w, h], pixel centres at integer coordinates
+        cx, cy, w, h = box
+        return ((cx - w / 2 + 0.5) * scale, (cy - h / 2 + 0.5) * scale), ((cx + w / 2 + 0.5) * scale,
+                                                                          (cy + h / 2 + 0.5) * scale)
+
+    for label in labels:
+        if label["amodal_bbox"]:
+            (x0, y0), (x1, y1) = corners(label["amodal_bbox"])
+            cv2.rectangle(big, (round(x0), round(y0)), (round(x1), round(y1)), (160, 160, 160), 1)
+        for poly in label["polygons"]:
+            pts = (np.asarray(poly["points"], float).reshape(-1, 2) + 0.5) * scale
+            colour = (0, 0, 255) if poly["is_hole"] else (255, 200, 0)
+            cv2.polylines(big, [np.round(pts).astype(np.int32)], True, colour, 1, cv2.LINE_AA)
+        if label["bbox"]:
+            (x0, y0), (x1, y1) = corners(label["bbox"])
+            cv2.rectangle(big, (round(x0), round(y0)), (round(x1), round(y1)), (0, 220, 0), 1)
+            fraction = label["attributes"].get("visible_fraction")
+            text = label["type"] + (f" {fraction:.2f}" if isinstance(fraction, (int, float)) else "")
+            cv2.putText(big, text, (round(x0) + 2, max(10, round(y0) - 3)), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                        (0, 255, 0), 1, cv2.LINE_AA)
+    return big
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description="quickstart pictures from a run's output folder")
+    parser.add_argument("output", type=Path, help="output folder of `usdscene run`")
+    parser.add_argument("--camera", default="seats_L03", help="camera of the labelled picture")
+    parser.add_argument("--frame", type=int, default=0)
+    args = parser.parse_args(argv)
+
+    document = load_document(args.output / layout.ANNOTATIONS_FILE)
+    records = [r for r in image_records(document) if r["frame"] == args.frame]
+    tiles = [(r["camera"], cv2.imread(str(layout.image_path(args.output, r["camera"], args.frame))))
+             for r in records]
+    write_png(IMG / "contact_sheet.png", contact_sheet(tiles, tile_width=180, columns=8))
+
+    image = cv2.imread(str(layout.image_path(args.output, args.camera, args.frame)))
+    write_png(IMG / "labels.png", draw_labels(image, labels_in(document, args.frame, args.camera)))
+    write_png(IMG / "stats.png", draw_chart(label_statistics(document)))
+    print(f"wrote {IMG / 'contact_sheet.png'}, {IMG / 'labels.png'}, {IMG / 'stats.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
