@@ -235,11 +235,13 @@ class Session:
             apply_intrinsics(self.scene, data, render)
             self._lens = render
 
-    def render_pair(self, frame: int, camera: str) -> dict:
-        """Render one (frame, camera) and write its image and mask.
+    def render_image(self, frame: int, camera: str):
+        """Render one (frame, camera) and decode it.
 
-        Returns timings in seconds: wall (``render_s``, ``post_s``) and CPU time of the whole
-        process, all threads (``render_cpu_s``, ``post_cpu_s``; robust on a shared machine).
+        Returns:
+            ``(rgb, ids, timing)``: (H, W, 3) float32 linear beauty and (H, W) uint16 ids of the
+            native render, and seconds: wall (``render_s``) and CPU time of the whole process,
+            all threads (``render_cpu_s``; robust on a shared machine).
         """
         self.set_frame(frame)
         self.set_camera(camera, frame)
@@ -247,11 +249,20 @@ class Session:
         self.bpy.ops.render.render(write_still=True)
         rendered, cpu_rendered = time.perf_counter(), time.process_time()
         rgb, ids = read_exr(self.exr_path)
+        return rgb, ids, {"render_s": rendered - started, "render_cpu_s": cpu_rendered - cpu_started,
+                          "decode_s": time.perf_counter() - rendered}
+
+    def write_image(self, frame: int, camera: str, rgb, ids) -> dict:
+        """Remap / mask out, encode and write atomically (runs beside the next render)."""
+        started, cpu_started = time.perf_counter(), time.thread_time()
         rgb, ids = self._finish(camera, rgb, ids)
         write_outputs(Path(self.job["out_dir"]), camera, frame, rgb, ids)
-        done, cpu_done = time.perf_counter(), time.process_time()
-        return {"render_s": rendered - started, "post_s": done - rendered,
-                "render_cpu_s": cpu_rendered - cpu_started, "post_cpu_s": cpu_done - cpu_rendered}
+        return {"post_s": time.perf_counter() - started, "post_cpu_s": time.thread_time() - cpu_started}
+
+    def render_pair(self, frame: int, camera: str) -> dict:
+        """Render, decode and write one pair in sequence; returns its timings."""
+        rgb, ids, timing = self.render_image(frame, camera)
+        return {**timing, **self.write_image(frame, camera, rgb, ids)}
 
     def _finish(self, camera: str, rgb, ids):
         """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
@@ -522,6 +533,43 @@ def _ancestors(ob) -> list:
     return out
 
 
+def render_pairs(session: Session, pairs) -> bool:
+    """Render pairs in order; each image is written by a helper thread while Cycles renders
+    the next one, and reported ``done`` only once both of its files exist. False on error."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pending = None  # (frame, camera, timing, future) of the image being written
+
+    def settle(item) -> float:
+        frame, camera, timing, future = item
+        post = future.result()
+        _emit({"event": "done", "frame": frame, "camera": camera, "rss_mb": _rss_mb(), **timing, **post})
+        return post["post_cpu_s"]
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        for frame, camera in pairs:
+            try:
+                rgb, ids, timing = session.render_image(int(frame), camera)
+                if pending is not None:
+                    # The previous image was written during this render: its CPU time is not
+                    # path tracing.
+                    timing["render_cpu_s"] = max(0.0, timing["render_cpu_s"] - settle(pending))
+                    pending = None
+                pending = (frame, camera, timing, pool.submit(session.write_image, int(frame), camera, rgb, ids))
+            except Exception as exc:
+                _emit({"event": "error", "frame": frame, "camera": camera,
+                       "message": f"{type(exc).__name__}: {exc}"})
+                return False
+        try:
+            if pending is not None:
+                settle(pending)
+        except Exception as exc:
+            _emit({"event": "error", "frame": pending[0], "camera": pending[1],
+                   "message": f"{type(exc).__name__}: {exc}"})
+            return False
+    return True
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
@@ -543,14 +591,8 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # reported to the driver as one line, then exit non-zero
         _emit({"event": "error", "message": f"{type(exc).__name__}: {exc}"})
         return 1
-    for frame, camera in job["pairs"]:
-        try:
-            timing = session.render_pair(int(frame), camera)
-        except Exception as exc:
-            _emit({"event": "error", "frame": frame, "camera": camera,
-                   "message": f"{type(exc).__name__}: {exc}"})
-            return 1
-        _emit({"event": "done", "frame": frame, "camera": camera, "rss_mb": _rss_mb(), **timing})
+    if not render_pairs(session, job["pairs"]):
+        return 1
     try:
         session.exr_path.unlink()
     except FileNotFoundError:
