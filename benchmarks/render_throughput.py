@@ -132,6 +132,7 @@ def main() -> None:
     parser.add_argument("--memory", type=int, default=0, help="consecutive renders for the memory check")
     parser.add_argument("--memory-only", action="store_true", help="only the memory check")
     parser.add_argument("--skip-naive", action="store_true")
+    parser.add_argument("--only", choices=("default", "preview"), help="one of the two settings")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
@@ -140,6 +141,9 @@ def main() -> None:
             print(f"scene: {what}")
             for label, override in (("default settings", None),
                                     ("1-sample preview", {"samples": 1, "denoise": False})):
+                if args.only and not label.startswith(args.only[:3]) and not (
+                        args.only == "preview" and label.startswith("1-s")):
+                    continue
                 report, cpu = pipeline(stage, root / f"pipe-{label[:3]}", override)
                 n = report.pairs_rendered
                 print(f"[{label}] pipeline: {n} images; wall {report.wall_s:.1f} s / Σ render calls "
