@@ -13,7 +13,13 @@ The document vocabulary is described in ``docs/scene-format.md``. Implementation
 ``openlabel_values`` (value readers and pose encodings).
 """
 
-from converters.openlabel_checks import SCHEMA_ENV, schema_path_from_env, schema_problems
+from converters.openlabel_checks import (
+    SCHEMA_ENV,
+    default_schema_path,
+    packaged_schema_path,
+    schema_path_from_env,
+    schema_problems,
+)
 from converters.openlabel_read import (
     EQUISOLID_KB_COEFFS,
     SCHEMA_VERSION,
@@ -35,6 +41,8 @@ __all__ = [
     "read_loaded",
     "read_openlabel",
     "schema_path_from_env",
+    "default_schema_path",
+    "packaged_schema_path",
     "schema_problems",
     "write_document",
     "write_openlabel",

@@ -1,8 +1,9 @@
 """Validation against the official OpenLABEL 1.0.0 JSON schema (jsonschema, Draft 7).
 
-The schema is not shipped with usdscene: pass its path, or set ``$USDSCENE_OPENLABEL_SCHEMA``.
-The published ASAM file is ``openlabel_json_schema-v1.0.0.json``
-(``$id https://openlabel.asam.net/V1-0-0/schema#``).
+The schema file is the published ASAM ``openlabel_json_schema-v1.0.0.json``
+(``$id https://openlabel.asam.net/V1-0-0/schema#``). It is taken, in this order, from an explicit
+path, ``$USDSCENE_OPENLABEL_SCHEMA``, or the copy that the ``uai-openlabel`` package (a runtime
+dependency) ships unchanged (same sha256 as the ASAM file).
 
 The schema has holes that :func:`converters.openlabel.read_openlabel` covers: it never checks
 ``stream_properties`` (intrinsics), root ``frame_intervals`` items, ``matrix4x4`` length, or
@@ -28,6 +29,29 @@ def schema_path_from_env() -> Path | None:
     """``$USDSCENE_OPENLABEL_SCHEMA`` as a path, or None when unset/empty."""
     value = os.environ.get(SCHEMA_ENV, "").strip()
     return Path(value) if value else None
+
+
+def packaged_schema_path() -> Path | None:
+    """The official schema shipped inside the ``uai-openlabel`` distribution, or None.
+
+    Found with ``importlib.util.find_spec`` so the package itself is never imported (only its
+    data file is used)."""
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("uai_openlabel")
+    except (ImportError, ValueError):
+        return None
+    for folder in (spec.submodule_search_locations or []) if spec else []:
+        candidate = Path(folder) / "official_schema" / "openlabel_json_schema.json"
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def default_schema_path() -> Path | None:
+    """``$USDSCENE_OPENLABEL_SCHEMA`` if set, else the packaged official schema, else None."""
+    return schema_path_from_env() or packaged_schema_path()
 
 
 @functools.lru_cache(maxsize=4)
@@ -60,18 +84,19 @@ def schema_problems(document: Mapping, schema_path: str | os.PathLike | None = N
     Args:
         document: the whole document (``{"openlabel": {...}}``); it is validated as
             serialised JSON (tuples become lists), which is what a consumer reads.
-        schema_path: the schema file; default ``$USDSCENE_OPENLABEL_SCHEMA``.
+        schema_path: the schema file; default :func:`default_schema_path`.
 
     Returns:
         Problems sorted by path (empty when the document is valid).
 
     Raises:
-        DocumentError: no schema path given and none in the environment, the schema file is
+        DocumentError: no schema path given and none found (environment, package), the schema file is
             unreadable, or the document is not JSON data (NaN, Infinity, non-JSON types).
     """
-    path = Path(schema_path) if schema_path is not None else schema_path_from_env()
+    path = Path(schema_path) if schema_path is not None else default_schema_path()
     if path is None:
-        raise DocumentError(f"no OpenLABEL schema given (pass a path or set ${SCHEMA_ENV})", where="schema")
+        raise DocumentError(f"no OpenLABEL schema given (pass a path, set ${SCHEMA_ENV} or install "
+                            "uai-openlabel)", where="schema")
     validator = _validator(str(path.resolve()))
     try:
         data = json.loads(json.dumps(document, allow_nan=False))

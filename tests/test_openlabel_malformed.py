@@ -261,10 +261,25 @@ def test_valid_example_with_official_schema(capsys, openlabel_schema_path):
 def test_schema_problems_are_reported_with_paths(tmp_path, capsys, openlabel_schema_path):
     # The schema forbids unknown keys in an object; usdscene's own reader ignores them.
     path = _write_case(tmp_path, _set("objects/3/colour", "red"))
-    assert main(["validate", "--no-catalog", str(path)]) == 0
-    capsys.readouterr()
     assert main(["validate", "--no-catalog", "--schema", str(openlabel_schema_path), str(path)]) == 1
     assert "openlabel.objects.3: schema:" in capsys.readouterr().err
+
+
+def test_official_schema_is_used_by_default(tmp_path, capsys):
+    # The packaged copy of the official schema applies without --schema or the environment.
+    path = _write_case(tmp_path, _set("objects/3/colour", "red"))
+    assert main(["validate", "--no-catalog", str(path)]) == 1
+    assert "openlabel.objects.3: schema:" in capsys.readouterr().err
+
+
+def test_packaged_schema_is_the_official_file(openlabel_schema_path):
+    import hashlib
+
+    from converters.openlabel import packaged_schema_path
+
+    packaged = packaged_schema_path()
+    assert packaged is not None, "uai-openlabel is a runtime dependency and ships the schema"
+    assert hashlib.sha256(packaged.read_bytes()).digest() == hashlib.sha256(openlabel_schema_path.read_bytes()).digest()
 
 
 def test_schema_from_environment(tmp_path, capsys, monkeypatch, openlabel_schema_path):

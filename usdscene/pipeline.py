@@ -67,13 +67,15 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         on_step: called with each step's name as it starts (for a status line).
 
     Raises:
-        UsdSceneError: bad document, assets, composition or render (nothing half-written).
+        UsdSceneError: bad document (official schema or usdscene's checks), assets,
+            composition or render (nothing half-written).
     """
-    from converters.openlabel import read_openlabel
+    from converters.openlabel import default_schema_path, load_document, read_openlabel, schema_problems
     from usdscene.catalog import load_catalog
     from usdscene.commands.annotate import annotate_output
     from usdscene.commands.export import export_formats
     from usdscene.compose import compose_stage
+    from usdscene.errors import DocumentError, OutputError
     from usdscene.files import write_json_atomic
     from usdscene.render.driver import render
 
@@ -87,6 +89,12 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         return time.perf_counter()
 
     t = step("validate")
+    # The official schema (packaged copy) and usdscene's own checks, like `usdscene validate`.
+    schema = default_schema_path()
+    if schema is not None:
+        problems = schema_problems(load_document(doc_path), schema)
+        if problems:
+            raise DocumentError(problems)
     scene = read_openlabel(doc_path)
     catalog = load_catalog(scene.asset_paths, base_dir=doc_path.parent)
     scene = read_openlabel(doc_path, catalog=catalog)  # classes and places against the catalog
@@ -104,6 +112,10 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
 
     t = step("annotate")
     annotated, annotations = annotate_output(out, document_path=doc_path, progress=progress)
+    if schema is not None:  # never write an output document that the official schema rejects
+        problems = schema_problems(annotated, schema)
+        if problems:
+            raise OutputError(problems)
     write_json_atomic(out / layout.ANNOTATIONS_FILE, annotated)
     seconds["annotate"] = time.perf_counter() - t
 

@@ -26,9 +26,9 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--schema", metavar="PATH",
         help="official OpenLABEL 1.0.0 JSON schema file to validate against as well; default: "
-             "$USDSCENE_OPENLABEL_SCHEMA. Without either, only usdscene's own checks run "
-             "(they cover intrinsics, poses, intervals, uids and the usdscene vocabulary, but "
-             "not every schema rule)")
+             "$USDSCENE_OPENLABEL_SCHEMA, else the copy shipped by the uai-openlabel package. "
+             "Without any, only usdscene's own checks run (they cover intrinsics, poses, "
+             "intervals, uids and the usdscene vocabulary, but not every schema rule)")
     parser.add_argument(
         "--no-catalog", action="store_true",
         help="do not check object classes, place names and relations against the asset catalog "
@@ -36,12 +36,12 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def schema_path(args: argparse.Namespace):
-    """The schema chosen by ``--schema`` or the environment, or None."""
+    """The schema chosen by ``--schema``, the environment or the installed package, or None."""
     from pathlib import Path
 
-    from converters.openlabel import schema_path_from_env
+    from converters.openlabel import default_schema_path
 
-    return Path(args.schema) if args.schema else schema_path_from_env()
+    return Path(args.schema) if args.schema else default_schema_path()
 
 
 def check_document(args: argparse.Namespace):
