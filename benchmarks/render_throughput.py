@@ -123,6 +123,8 @@ def memory(root: Path, renders: int) -> tuple[float, float, int]:
                     settings_override={"samples": 1, "denoise": False, "resolution_scale": 0.1},
                     progress=False,
                     on_event=lambda e: rss.append(e["rss_mb"]) if e.get("event") == "done" else None)
+    marks = [10, 50, 100, 200, 300, 400, len(rss)]
+    print("RSS (MiB) after n renders: " + ", ".join(f"{n}: {rss[n - 1]:.0f}" for n in marks if n <= len(rss)))
     return rss[9], rss[-1], report.pairs_rendered
 
 
