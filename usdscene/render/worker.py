@@ -307,12 +307,9 @@ def apply_intrinsics(scene, data, intr) -> None:
     w, h = intr.width_px, intr.height_px
     scene.render.resolution_x = w
     scene.render.resolution_y = h
-    # Non-square pixels: Blender's pixel aspect is pixel width / pixel height = fy / fx.
-    if abs(intr.fx_px - intr.fy_px) > 1e-9 * intr.fx_px:
-        scene.render.pixel_aspect_x = intr.fy_px / intr.fx_px if intr.fy_px < intr.fx_px else 1.0
-        scene.render.pixel_aspect_y = intr.fx_px / intr.fy_px if intr.fy_px > intr.fx_px else 1.0
-    else:
-        scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
+    # Square pixels only: the driver renders other cameras through a square-pixel native lens
+    # and remaps (usdscene.projection.native_renderable).
+    scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
     sensor_w = intr.sensor_width_mm
     data.sensor_fit = "HORIZONTAL"
     data.sensor_width = sensor_w
