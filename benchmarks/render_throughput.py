@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -96,6 +97,7 @@ def naive(stage: Path, out: Path, override: dict) -> tuple[float, float, list[fl
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    shutil.rmtree(scratch, ignore_errors=True)
     line = [l for l in proc.stdout.splitlines() if l.startswith("@naive ")]
     if proc.returncode or not line:
         raise SystemExit(f"naive run failed: {proc.stderr[-2000:]}")
