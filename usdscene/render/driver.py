@@ -191,6 +191,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         "objects": [dataclasses.asdict(o) for o in plan.objects],
     }))
     manifest.versions = {"usdscene": __version__}
+    _remove_stale_temporaries(out_dir, camera_list)
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
     total = len(frame_list) * len(camera_list)
     skipped = total - len(todo)
@@ -311,6 +312,16 @@ def run_job(job: dict, what: str) -> list[dict]:
     if errors:
         raise RenderError([Problem(what, e) for e in errors])
     return events
+
+
+def _remove_stale_temporaries(out_dir: Path, cameras: Sequence[str]) -> None:
+    """Delete the temporary files of atomic writes that a killed run left behind (a SIGKILL
+    cannot be cleaned up after; the real files were never replaced by partial ones)."""
+    for camera in cameras:
+        for folder in (layout.image_path(out_dir, camera, 0).parent, layout.mask_path(out_dir, camera, 0).parent):
+            if folder.is_dir():
+                for tmp in folder.glob(".*.tmp"):
+                    tmp.unlink(missing_ok=True)
 
 
 def _scratch_root() -> str | None:
