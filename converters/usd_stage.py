@@ -151,9 +151,13 @@ class _StageReader:
         frames = list(frames)
         moving = any(UsdGeom.Xformable(p).TransformMightBeTimeVarying()
                      for p in _self_and_ancestors(prim) if p.IsA(UsdGeom.Xformable))
-        default = self._world(prim, None)
         if not moving:
-            return default, {f: default for f in frames}
+            # Query at a frame, not at the default time: a transform authored only as a single
+            # time sample (Blender's USD export writes that) has no default value, and reading
+            # it at the default time would give the identity.
+            still = self._world(prim, self.frame_start)
+            return still, {f: still for f in frames}
+        default = self._world(prim, None)
         per_frame = {f: self._world(prim, f) for f in frames}
         if not frames or any(_same_matrix(default, v) for v in per_frame.values()):
             base = default

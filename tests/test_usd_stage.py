@@ -289,6 +289,29 @@ def test_y_up_centimetre_stage(tmp_path):
     assert lamp.power_w == pytest.approx(10.0 * math.pi)
 
 
+def test_transform_authored_only_as_one_time_sample(tmp_path):
+    """Blender's exporter writes a still object's transform as a single time sample and no
+    default value: it must read back as that transform, not as the identity."""
+    from pxr import Gf, Sdf, Usd, UsdGeom
+
+    from converters.usd_stage import scene_from_stage
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "sampled.usda"))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(4)
+    thing = UsdGeom.Xform.Define(stage, "/root/thing")
+    thing.AddTranslateOp().Set(Gf.Vec3d(1.5, -2.0, 0.25), 1.0)  # time sample only
+    for name, value in (("usdscene_uid", "t1"), ("usdscene_class", "bag")):
+        thing.GetPrim().CreateAttribute(f"userProperties:{name}", Sdf.ValueTypeNames.String).Set(value)
+    stage.Save()
+
+    (obj,) = scene_from_stage(tmp_path / "sampled.usda").objects
+    assert obj.pose.translation_m == pytest.approx((1.5, -2.0, 0.25))
+    assert obj.frame_poses == ()
+
+
 # --------------------------------------------------------------------------------------------
 # Blender
 
