@@ -87,11 +87,14 @@ DEFAULT_SENSOR_WIDTH_MM = 36.0  # Blender's default sensor width
 FOV_TOLERANCE_DEG = 0.5
 
 METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range")
-RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "denoise", "denoiser", "max_bounces",
-               "caustics", "tile_size_px", "resolution_px", "seed")
+RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "denoise", "denoiser",
+               "denoising_quality", "denoising_prefilter", "max_bounces", "caustics", "tile_size_px",
+               "resolution_px", "seed")
 ENGINES = ("cycles", "eevee", "workbench")
 DEVICES = ("cpu", "gpu")
 DENOISERS = ("openimagedenoise", "optix")
+DENOISING_QUALITIES = ("high", "balanced", "fast")
+DENOISING_PREFILTERS = ("accurate", "fast", "none")
 EXPORT_FORMATS = ("coco", "yolo", "rois")
 
 # Object data names (``object_data.<kind>[i].name``).
@@ -451,8 +454,10 @@ class _Reader:
                                f"known: {', '.join(RENDER_KEYS)}")
                 continue
             parsed: Any
-            if key in ("engine", "device", "denoiser"):
-                choices = {"engine": ENGINES, "device": DEVICES, "denoiser": DENOISERS}[key]
+            if key in ("engine", "device", "denoiser", "denoising_quality", "denoising_prefilter"):
+                choices = {"engine": ENGINES, "device": DEVICES, "denoiser": DENOISERS,
+                           "denoising_quality": DENOISING_QUALITIES,
+                           "denoising_prefilter": DENOISING_PREFILTERS}[key]
                 parsed = read_text(item, here, P)
                 if parsed is not None and parsed not in choices:
                     self.add(here, f"unknown {key} {parsed!r}; expected one of {', '.join(choices)}")

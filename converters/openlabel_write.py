@@ -249,7 +249,9 @@ def _metadata(scene: SceneSpec) -> dict:
     block["render"] = {
         "engine": render.engine, "device": render.device, "samples": int(render.samples),
         "adaptive_threshold": float(render.adaptive_threshold), "denoise": bool(render.denoise),
-        "denoiser": render.denoiser, "max_bounces": int(render.max_bounces), "caustics": bool(render.caustics),
+        "denoiser": render.denoiser, "denoising_quality": render.denoising_quality,
+        "denoising_prefilter": render.denoising_prefilter,
+        "max_bounces": int(render.max_bounces), "caustics": bool(render.caustics),
         "tile_size_px": int(render.tile_size_px), "resolution_px": [int(v) for v in render.resolution_px],
         "seed": int(render.seed)}
     block["exports"] = list(scene.exports)

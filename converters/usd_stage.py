@@ -252,6 +252,8 @@ class _StageReader:
                   ("samples", ss.ATTR_RENDER_SAMPLES, int),
                   ("adaptive_threshold", ss.ATTR_RENDER_ADAPTIVE_THRESHOLD, float),
                   ("denoise", ss.ATTR_RENDER_DENOISE, bool), ("denoiser", ss.ATTR_RENDER_DENOISER, str),
+                  ("denoising_quality", ss.ATTR_RENDER_DENOISING_QUALITY, str),
+                  ("denoising_prefilter", ss.ATTR_RENDER_DENOISING_PREFILTER, str),
                   ("max_bounces", ss.ATTR_RENDER_MAX_BOUNCES, int), ("caustics", ss.ATTR_RENDER_CAUSTICS, bool),
                   ("tile_size_px", ss.ATTR_RENDER_TILE_SIZE, int), ("seed", ss.ATTR_RENDER_SEED, int))
         for field_name, attr, kind in fields:

@@ -17,7 +17,7 @@ from usdscene.render.manifest import Manifest, fingerprint
 
 def test_settings_override_and_every_problem_reported():
     s = resolve_settings(RenderSettings(samples=8), {"samples": 2, "denoising_quality": "HIGH"})
-    assert s["samples"] == 2 and s["denoising_quality"] == "HIGH" and s["engine"] == "cycles"
+    assert s["samples"] == 2 and s["denoising_quality"] == "high" and s["engine"] == "cycles"
     with pytest.raises(RenderError) as err:
         resolve_settings(RenderSettings(), {"engine": "eevee", "samples": 0, "bogus": 1, "device": "tpu"})
     text = str(err.value)

@@ -414,6 +414,8 @@ def _render_layer(scene: SceneSpec) -> str:
             (ss.ATTR_RENDER_SAMPLES, T.Int, int(rs.samples)),
             (ss.ATTR_RENDER_ADAPTIVE_THRESHOLD, T.Double, float(rs.adaptive_threshold)),
             (ss.ATTR_RENDER_DENOISE, T.Bool, bool(rs.denoise)), (ss.ATTR_RENDER_DENOISER, T.Token, rs.denoiser),
+            (ss.ATTR_RENDER_DENOISING_QUALITY, T.Token, rs.denoising_quality),
+            (ss.ATTR_RENDER_DENOISING_PREFILTER, T.Token, rs.denoising_prefilter),
             (ss.ATTR_RENDER_MAX_BOUNCES, T.Int, int(rs.max_bounces)),
             (ss.ATTR_RENDER_CAUSTICS, T.Bool, bool(rs.caustics)),
             (ss.ATTR_RENDER_TILE_SIZE, T.Int, int(rs.tile_size_px)),

@@ -67,6 +67,8 @@ ATTR_RENDER_SAMPLES = "usdscene:render:samples"              # int
 ATTR_RENDER_ADAPTIVE_THRESHOLD = "usdscene:render:adaptiveThreshold"  # float, 0 = off
 ATTR_RENDER_DENOISE = "usdscene:render:denoise"              # bool
 ATTR_RENDER_DENOISER = "usdscene:render:denoiser"            # token
+ATTR_RENDER_DENOISING_QUALITY = "usdscene:render:denoisingQuality"      # token
+ATTR_RENDER_DENOISING_PREFILTER = "usdscene:render:denoisingPrefilter"  # token
 ATTR_RENDER_MAX_BOUNCES = "usdscene:render:maxBounces"       # int
 ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
 ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int

@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 ENGINES = ("cycles", "eevee", "workbench")
 # Settings the worker knows beyond RenderSettings (benchmarked in benchmarks/render_settings.py).
 # resolution_scale scales every camera's image (previews); 1 = the calibrated resolution.
-EXTRA_SETTINGS = {"denoising_quality": "FAST", "denoising_prefilter": "FAST", "resolution_scale": 1.0}
+EXTRA_SETTINGS = {"resolution_scale": 1.0}
 
 
 @dataclass(frozen=True)
@@ -74,8 +74,8 @@ class RenderReport:
 
 def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[str, Any] | None) -> dict:
     """Render settings as the worker's JSON dict: ``base`` updated by ``override`` (a whole
-    RenderSettings, or a mapping of RenderSettings fields and the extra knobs
-    ``denoising_quality`` / ``denoising_prefilter``).
+    RenderSettings, or a mapping of RenderSettings fields and the extra knob
+    ``resolution_scale``). Denoising quality and prefilter names are case-insensitive.
 
     Raises:
         RenderError: an unknown key or an impossible value, every problem listed.
@@ -107,8 +107,9 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
         problems.append(Problem("render.tile_size_px", f"tile_size_px {settings['tile_size_px']!r} must be >= 8"))
     if settings["denoiser"] not in ("openimagedenoise", "optix"):
         problems.append(Problem("render.denoiser", f"denoiser {settings['denoiser']!r} is not 'openimagedenoise' or 'optix'"))
-    for key, allowed in (("denoising_quality", ("HIGH", "BALANCED", "FAST")),
-                         ("denoising_prefilter", ("NONE", "FAST", "ACCURATE"))):
+    for key, allowed in (("denoising_quality", ("high", "balanced", "fast")),
+                         ("denoising_prefilter", ("none", "fast", "accurate"))):
+        settings[key] = str(settings[key]).lower()
         if settings[key] not in allowed:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
     if not 0 < float(settings["resolution_scale"]) <= 4:

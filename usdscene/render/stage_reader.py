@@ -108,6 +108,8 @@ def _read_settings(stage, problems: list[Problem]) -> RenderSettings:
         "engine": names.ATTR_RENDER_ENGINE, "device": names.ATTR_RENDER_DEVICE,
         "samples": names.ATTR_RENDER_SAMPLES, "adaptive_threshold": names.ATTR_RENDER_ADAPTIVE_THRESHOLD,
         "denoise": names.ATTR_RENDER_DENOISE, "denoiser": names.ATTR_RENDER_DENOISER,
+        "denoising_quality": names.ATTR_RENDER_DENOISING_QUALITY,
+        "denoising_prefilter": names.ATTR_RENDER_DENOISING_PREFILTER,
         "max_bounces": names.ATTR_RENDER_MAX_BOUNCES, "caustics": names.ATTR_RENDER_CAUSTICS,
         "tile_size_px": names.ATTR_RENDER_TILE_SIZE, "resolution_px": names.ATTR_RENDER_RESOLUTION,
         "seed": names.ATTR_RENDER_SEED,

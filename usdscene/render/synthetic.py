@@ -188,6 +188,8 @@ def write_render_settings(stage, settings: RenderSettings) -> None:
     prim.CreateAttribute(names.ATTR_RENDER_ADAPTIVE_THRESHOLD, t.Float).Set(settings.adaptive_threshold)
     prim.CreateAttribute(names.ATTR_RENDER_DENOISE, t.Bool).Set(settings.denoise)
     prim.CreateAttribute(names.ATTR_RENDER_DENOISER, t.Token).Set(settings.denoiser)
+    prim.CreateAttribute(names.ATTR_RENDER_DENOISING_QUALITY, t.Token).Set(settings.denoising_quality)
+    prim.CreateAttribute(names.ATTR_RENDER_DENOISING_PREFILTER, t.Token).Set(settings.denoising_prefilter)
     prim.CreateAttribute(names.ATTR_RENDER_MAX_BOUNCES, t.Int).Set(settings.max_bounces)
     prim.CreateAttribute(names.ATTR_RENDER_CAUSTICS, t.Bool).Set(settings.caustics)
     prim.CreateAttribute(names.ATTR_RENDER_TILE_SIZE, t.Int).Set(settings.tile_size_px)

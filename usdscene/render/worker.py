@@ -141,8 +141,8 @@ class Session:
         cycles.use_denoising = bool(s["denoise"])
         if cycles.use_denoising:
             cycles.denoiser = "OPTIX" if s["denoiser"] == "optix" else "OPENIMAGEDENOISE"
-            cycles.denoising_quality = s.get("denoising_quality", "FAST")
-            cycles.denoising_prefilter = s.get("denoising_prefilter", "FAST")
+            cycles.denoising_quality = str(s["denoising_quality"]).upper()
+            cycles.denoising_prefilter = str(s["denoising_prefilter"]).upper()
             cycles.denoising_input_passes = "RGB_ALBEDO_NORMAL"
         bounces = int(s["max_bounces"])
         cycles.max_bounces = bounces
