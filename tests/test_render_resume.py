@@ -119,3 +119,33 @@ def test_kill_mid_way_then_resume(stage, reference, tmp_path):
 
     again = render(stage, out, settings_override=SETTINGS, progress=False)
     assert again.pairs_rendered == 0 and again.pairs_skipped == total
+
+
+def test_worker_recycling_gives_identical_masks(stage, reference, tmp_path, monkeypatch):
+    """With a small per-process budget the run is split over several worker processes (each
+    importing only its frames); the masks do not change."""
+    from usdscene.render import driver
+
+    monkeypatch.setattr(driver, "MAX_RENDERS_PER_WORKER", 7)
+    starts = []
+    report = driver.render(stage, tmp_path, settings_override=SETTINGS, progress=False,
+                           on_event=lambda e: starts.append(e) if e.get("event") == "imported" else None)
+    assert report.pairs_rendered == 2 * len(FRAMES)
+    assert len(starts) == 6  # 16 frames x 2 cameras, at most 7 renders per process: 3 frames each
+    for camera in ("front", "moving"):
+        for frame in FRAMES:
+            got = layout.mask_path(tmp_path, camera, frame).read_bytes()
+            assert got == layout.mask_path(reference, camera, frame).read_bytes(), (camera, frame)
+
+
+def test_chunks_cut_at_frame_boundaries_and_respect_the_limit():
+    from usdscene.render.driver import _chunks
+
+    pairs = [(f, c) for f in range(5) for c in ("a", "b", "c")]
+    chunks = _chunks(pairs, 7)
+    assert [p for chunk in chunks for p in chunk] == pairs
+    assert all(len(chunk) <= 7 for chunk in chunks)
+    assert [sorted({f for f, _ in chunk}) for chunk in chunks] == [[0, 1], [2, 3], [4]]
+    # A frame with more cameras than the limit is split inside the frame.
+    wide = [(0, str(c)) for c in range(5)]
+    assert _chunks(wide, 2) == [wide[0:2], wide[2:4], wide[4:5]]

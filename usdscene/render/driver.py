@@ -37,6 +37,11 @@ ENGINES = ("cycles", "eevee", "workbench")
 # Settings the worker knows beyond RenderSettings (benchmarked in benchmarks/render_settings.py).
 # resolution_scale scales every camera's image (previews); 1 = the calibrated resolution.
 EXTRA_SETTINGS = {"resolution_scale": 1.0}
+# A worker process renders at most this many images, then a fresh one continues with the next
+# frames. Blender's memory grows slowly with frame changes (≈ 0.08 MiB per render, see
+# benchmarks/README.md); recycling bounds it for runs of any length, at the cost of one more
+# start-up and import (1-2 s) per this many renders.
+MAX_RENDERS_PER_WORKER = 250
 
 
 @dataclass(frozen=True)
@@ -204,12 +209,15 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     if todo:
         shards = _shards(todo, max(1, int(workers)))
         threads = max(1, (os.cpu_count() or 1) // len(shards)) if len(shards) > 1 else None
+        # Each shard runs as a sequence of worker processes of bounded length (one per chunk).
+        chunked = [_chunks(pairs, MAX_RENDERS_PER_WORKER) for pairs in shards]
         scratch = Path(tempfile.mkdtemp(prefix="usdscene-render-", dir=_scratch_root()))
         lock = threading.Lock()
         bar = _Progress(total, skipped, enabled=progress)
         try:
-            jobs = []
-            for index, pairs in enumerate(shards):
+            jobs: list[list[Path]] = [[] for _ in chunked]
+            for index, (lane, pairs) in enumerate((lane, pairs) for lane, chunks in enumerate(chunked)
+                                                  for pairs in chunks):
                 shard_frames = sorted({f for f, _ in pairs})
                 frame_set = set(shard_frames)
                 objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
@@ -230,7 +238,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                 }
                 job_path = scratch / f"job-{index}.json"
                 job_path.write_text(json.dumps(job))
-                jobs.append(job_path)
+                jobs[lane].append(job_path)
 
             def handle(event: dict) -> None:
                 with lock:
@@ -349,12 +357,40 @@ def _shards(pairs: list[tuple[int, str]], count: int) -> list[list[tuple[int, st
     return [[p for p in pairs if p[0] in set(block)] for block in blocks if block]
 
 
-def _run_workers(jobs: list[Path], scratch: Path, handle, totals) -> list[str]:
-    """Run one worker process per job side by side; return error messages."""
+def _chunks(pairs: list[tuple[int, str]], limit: int) -> list[list[tuple[int, str]]]:
+    """Cut pairs (in frame order) into runs of at most ``limit`` pairs, at frame boundaries
+    where a frame has fewer than ``limit`` cameras (so a chunk imports only its frames)."""
+    chunks: list[list[tuple[int, str]]] = []
+    current: list[tuple[int, str]] = []
+    by_frame: dict[int, list[tuple[int, str]]] = {}
+    for pair in pairs:
+        by_frame.setdefault(pair[0], []).append(pair)
+    for frame_pairs in by_frame.values():
+        if current and len(current) + len(frame_pairs) > limit:
+            chunks.append(current)
+            current = []
+        for pair in frame_pairs:
+            if len(current) == limit:
+                chunks.append(current)
+                current = []
+            current.append(pair)
+    if current:
+        chunks.append(current)
+    return chunks
+
+
+def _run_workers(lanes: list[list[Path]], scratch: Path, handle, totals) -> list[str]:
+    """Run the lanes side by side, the jobs of a lane one after the other (one worker process
+    per job); return error messages. A lane stops at its first failed job."""
     errors: list[str] = []
     threads = []
 
-    def run(job_path: Path) -> None:
+    def run_lane(lane: list[Path]) -> None:
+        for job_path in lane:
+            if not run(job_path):
+                return
+
+    def run(job_path: Path) -> bool:
         log_path = scratch / (job_path.stem + ".log")
         t0 = time.perf_counter()
         first = True
@@ -382,9 +418,11 @@ def _run_workers(jobs: list[Path], scratch: Path, handle, totals) -> list[str]:
             log_file_tail = log_path.read_text(errors="replace").splitlines()[-10:]
             detail = failed or "; ".join(log_file_tail[-5:]) or f"exit code {code}"
             errors.append(f"render worker ({job_path.name}) failed: {detail}")
+            return False
+        return True
 
-    for job in jobs:
-        thread = threading.Thread(target=run, args=(job,), daemon=True)
+    for lane in lanes:
+        thread = threading.Thread(target=run_lane, args=(lane,), daemon=True)
         thread.start()
         threads.append(thread)
     for thread in threads:
