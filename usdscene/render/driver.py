@@ -314,7 +314,7 @@ def run_job(job: dict, what: str) -> list[dict]:
         job = dict(job, scratch_dir=str(scratch))
         job_path = scratch / "job-0.json"
         job_path.write_text(json.dumps(job))
-        errors = _run_workers([job_path], scratch, events.append,
+        errors = _run_workers([[job_path]], scratch, events.append,
                               {"startup_s": 0.0})
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
