@@ -79,7 +79,8 @@ from usdscene.errors import CompositionError, ProblemCollector
 from usdscene.files import write_text_atomic
 from usdscene.layout import mask_ids
 from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
-                            Randomization, SceneSpec, cv_pose_to_usd_pose, union_intervals)
+                            Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
+                            union_intervals)
 from usdscene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
@@ -435,6 +436,12 @@ def _render_layer(scene: SceneSpec) -> str:
         cam_rel = Sdf.RelationshipSpec(settings, "camera", custom=False)
         cam_rel.targetPathList.explicitItems.append(Sdf.Path(ss.camera_prim_path(scene.cameras[0].name)))
     return layer.ExportToString()
+
+
+def render_settings_layer(render: RenderSettings) -> str:
+    """``.usda`` text of a render layer holding only ``render`` (no products): the form in
+    which ``layers/render_defaults.usda`` ships the defaults for stages authored by hand."""
+    return _render_layer(SceneSpec(render=render))
 
 
 def camera_apertures(intr: Intrinsics) -> dict[str, float]:
