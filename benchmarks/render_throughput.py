@@ -114,8 +114,10 @@ def pipeline(stage: Path, out: Path, override: dict):
 
 
 def memory(root: Path, renders: int) -> tuple[float, float, int]:
-    """RSS (MiB) of one worker after 10 renders and at the end of ``renders`` consecutive
-    renders (synthetic cabin-like scene with renders/4 frames, 4 cameras, 64x48, 1 sample)."""
+    """RSS (MiB) of the rendering worker after 10 renders, at its peak and at the end of
+    ``renders`` consecutive renders of one ``render`` call (synthetic cabin-like scene with
+    renders/4 frames, 4 cameras, 64x48, 1 sample; the driver recycles the worker process every
+    ``MAX_RENDERS_PER_WORKER`` renders, as in any run)."""
     from usdscene.render.driver import render
     from usdscene.render.synthetic import cabin_like_scene, write_synthetic_stage
 
@@ -127,6 +129,7 @@ def memory(root: Path, renders: int) -> tuple[float, float, int]:
                     on_event=lambda e: rss.append(e["rss_mb"]) if e.get("event") == "done" else None)
     marks = [10, 50, 100, 200, 300, 400, len(rss)]
     print("RSS (MiB) after n renders: " + ", ".join(f"{n}: {rss[n - 1]:.0f}" for n in marks if n <= len(rss)))
+    print(f"peak RSS {max(rss):.0f} MiB ({100 * (max(rss) - rss[9]) / rss[9]:+.1f} % over the 10th render)")
     return rss[9], rss[-1], report.pairs_rendered
 
 
@@ -164,7 +167,7 @@ def main() -> None:
                           f"×{naive_cpu / cpu:.2f} (CPU)", flush=True)
         if args.memory:
             first, last, n = memory(root, args.memory)
-            print(f"memory over {n} consecutive renders in one worker: RSS {first:.0f} MiB after 10, "
+            print(f"memory over {n} consecutive renders: RSS {first:.0f} MiB after 10, "
                   f"{last:.0f} MiB at the end ({100 * (last - first) / first:+.1f} %)")
 
 
