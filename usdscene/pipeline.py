@@ -70,12 +70,13 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
             composition or render (nothing half-written).
     """
-    from converters.openlabel import default_schema_path, load_document, read_openlabel, schema_problems
+    from converters.openlabel import default_schema_path, schema_problems
     from usdscene.catalog import load_catalog
     from usdscene.commands.annotate import annotate_output
     from usdscene.commands.export import export_formats
+    from usdscene.commands.validate import check_document_file
     from usdscene.compose import compose_stage
-    from usdscene.errors import DocumentError, OutputError
+    from usdscene.errors import OutputError
     from usdscene.files import write_json_atomic
     from usdscene.render.driver import render
 
@@ -89,15 +90,11 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         return time.perf_counter()
 
     t = step("validate")
-    # The official schema (packaged copy) and usdscene's own checks, like `usdscene validate`.
+    # Exactly the checks of `usdscene validate`: official schema, usdscene's own, the catalog.
     schema = default_schema_path()
-    if schema is not None:
-        problems = schema_problems(load_document(doc_path), schema)
-        if problems:
-            raise DocumentError(problems)
-    scene = read_openlabel(doc_path)
-    catalog = load_catalog(scene.asset_paths, base_dir=doc_path.parent)
-    scene = read_openlabel(doc_path, catalog=catalog)  # classes and places against the catalog
+    scene, _, catalog = check_document_file(doc_path, schema)
+    if catalog is None:  # no catalog was found to check against: composing needs one, say why
+        catalog = load_catalog(scene.asset_paths, base_dir=doc_path.parent)
     seconds["validate"] = time.perf_counter() - t
 
     t = step("compose")

@@ -45,10 +45,18 @@ def schema_path(args: argparse.Namespace):
 
 
 def check_document(args: argparse.Namespace):
-    """Read ``args.document`` with every check that applies.
+    """:func:`check_document_file` with the command line's choices."""
+    return check_document_file(args.document, schema_path(args), use_catalog=not args.no_catalog)
+
+
+def check_document_file(path, schema, *, use_catalog: bool = True):
+    """Read a scene document with every check that applies: the official schema (when
+    ``schema`` is a path), usdscene's own checks, and the asset catalog (classes, places).
+
+    The file is parsed once. ``usdscene validate`` and ``usdscene run`` both check with this.
 
     Returns:
-        (scene, schema_used, catalog_used).
+        (scene, schema_used, catalog_used); catalog_used is None when no catalog was found.
 
     Raises:
         DocumentError: all problems (schema + usdscene checks) at once.
@@ -59,12 +67,11 @@ def check_document(args: argparse.Namespace):
     from usdscene.errors import DocumentError
 
     # bad JSON stops here with line and column; the file is parsed once
-    document, provenance = load_with_provenance(args.document)
+    document, provenance = load_with_provenance(path)
     problems = []
-    schema = schema_path(args)
     if schema is not None:
         problems.extend(schema_problems(document, schema))
-    catalog = None if args.no_catalog else _catalog_for(document, Path(args.document).parent)
+    catalog = _catalog_for(document, Path(path).parent) if use_catalog else None
     try:
         scene = read_loaded(document, provenance, catalog=catalog)
     except DocumentError as exc:
