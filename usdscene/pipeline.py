@@ -49,6 +49,35 @@ class RunSummary:
     exports: Mapping[str, Path] = field(default_factory=dict)
 
 
+def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int | None = None):
+    """Read a scene document, load its asset catalog (shipped library + the document's
+    ``asset_paths``, relative to the document's folder) and compose its stage into ``stage_dir``.
+
+    Args:
+        document: OpenLABEL/VCD scene document.
+        stage_dir: folder of the layered stage (``scene.usda`` + layers).
+        seed: replace the document's seed.
+
+    Returns:
+        ``(scene, usdscene.compose.ComposeResult)``.
+
+    Raises:
+        UsdSceneError: bad document, catalog or composition.
+    """
+    import dataclasses
+
+    from converters.openlabel import read_openlabel
+    from usdscene.catalog import load_catalog
+    from usdscene.compose import compose_stage
+
+    path = Path(document)
+    scene = read_openlabel(path)
+    if seed is not None:
+        scene = dataclasses.replace(scene, seed=seed)
+    catalog = load_catalog(scene.asset_paths, base_dir=path.resolve().parent)
+    return scene, compose_stage(scene, catalog, stage_dir)
+
+
 def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[int] | None = None,
                  cameras: Sequence[str] | None = None, exports: Sequence[str] | None = None,
                  samples: int | None = None, workers: int = 1, progress: bool = True,

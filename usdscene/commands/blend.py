@@ -21,7 +21,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene import layout
     from usdscene.errors import RenderError
     from usdscene.render.blend_io import write_blend
 
@@ -32,14 +31,10 @@ def run(args: argparse.Namespace) -> int:
     if blend.suffix.lower() != ".blend":
         raise RenderError(f"output {args.output!r} must end in .blend", where="--output")
     if source.suffix.lower() == ".json":
-        from converters.openlabel import read_openlabel
-        from usdscene.catalog import load_catalog
-        from usdscene.compose import compose_stage
+        from usdscene.pipeline import compose_document
 
         stage_dir = Path(args.stage_dir) if args.stage_dir else blend.with_name(blend.stem + "_stage")
-        scene = read_openlabel(source)
-        catalog = load_catalog(scene.asset_paths, base_dir=source.parent)
-        stage = Path(compose_stage(scene, catalog, stage_dir).root_layer)
+        stage = Path(compose_document(source, stage_dir)[1].root_layer)
     else:
         stage = source
     write_blend(stage, blend)

@@ -18,22 +18,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
     from pathlib import Path
 
     from rich.console import Console
 
-    from converters.openlabel import read_openlabel
-    from usdscene.catalog import load_catalog
-    from usdscene.compose import compose_stage
     from usdscene.layout import STAGE_DIR
+    from usdscene.pipeline import compose_document
 
-    document = Path(args.document)
-    scene = read_openlabel(document)
-    if args.seed is not None:
-        scene = dataclasses.replace(scene, seed=args.seed)
-    catalog = load_catalog(scene.asset_paths, base_dir=document.resolve().parent)
-    result = compose_stage(scene, catalog, Path(args.out) / STAGE_DIR)
+    scene, result = compose_document(args.document, Path(args.out) / STAGE_DIR, seed=args.seed)
     console = Console(highlight=False, soft_wrap=True)
     console.print(f"composed {result.root_layer}")
     console.print("  layers:  " + ", ".join(p.name for p in result.layers))

@@ -51,14 +51,9 @@ def stage_for_input(path, out_dir):
     path = Path(path)
     if path.suffix.lower() != ".json":
         return path
-    from converters.openlabel import read_openlabel
-    from usdscene.catalog import load_catalog
-    from usdscene.compose import compose_stage
+    from usdscene.pipeline import compose_document
 
-    scene = read_openlabel(path)
-    catalog = load_catalog(scene.asset_paths, base_dir=path.parent)
-    result = compose_stage(scene, catalog, Path(out_dir) / layout.STAGE_DIR)
-    return Path(getattr(result, "root_layer", layout.stage_root(out_dir)))
+    return Path(compose_document(path, Path(out_dir) / layout.STAGE_DIR)[1].root_layer)
 
 
 def run(args: argparse.Namespace) -> int:
