@@ -650,7 +650,6 @@ class _Reader:
         return cameras
 
     def read_camera(self, name, stream, where, render, parents, static, per_frame) -> Camera | None:
-        R = self.root
         props = stream.get("stream_properties", {})
         if not isinstance(props, dict):
             self.add(f"{where}.stream_properties", f"expected a JSON object, got {describe(props)}")
@@ -1270,14 +1269,7 @@ class _Reader:
         known = self.body.get("objects", {})
         known = known if isinstance(known, dict) else {}
         dangling: set = set()
-        for number in sorted(frames):
-            objs = frames[number].get("objects")
-            if objs is None:
-                continue
-            where = f"{R}.frames.{number}.objects"
-            if not isinstance(objs, dict):
-                self.add(where, f"expected a JSON object, got {describe(objs)}")
-                continue
+        for number, where, objs in self.frame_sections(frames, "objects"):
             for uid, entry in objs.items():
                 if uid not in known:
                     if uid not in dangling:
@@ -1456,17 +1448,23 @@ class _Reader:
                                       frame_intervals=intervals))
         return relations
 
+    def frame_sections(self, frames: Mapping[int, Mapping], key: str):
+        """``(frame, JSON path, frames[f][key])`` for every frame, in frame order, that has a
+        ``key`` object; a ``key`` that is not a JSON object is reported and skipped."""
+        for number in sorted(frames):
+            section = frames[number].get(key)
+            if section is None:
+                continue
+            where = f"{self.root}.frames.{number}.{key}"
+            if not isinstance(section, dict):
+                self.add(where, f"expected a JSON object, got {describe(section)}")
+                continue
+            yield number, where, section
+
     def check_frame_relations(self, frames: dict) -> None:
         """``frames[f].relations[uid]`` markers must name existing relations."""
         known = self.section("relations")
-        for number in sorted(frames):
-            marks = frames[number].get("relations")
-            if marks is None:
-                continue
-            where = f"{self.root}.frames.{number}.relations"
-            if not isinstance(marks, dict):
-                self.add(where, f"expected a JSON object, got {describe(marks)}")
-                continue
+        for _, where, marks in self.frame_sections(frames, "relations"):
             for uid in marks:
                 if uid not in known:
                     self.add(f"{where}.{uid}", f"relation {uid!r} does not exist in {self.root}.relations")

@@ -66,7 +66,7 @@ def scene_from_stage(stage_or_path: Any) -> SceneSpec:
     Raises:
         DocumentError: the stage cannot be opened or its usdscene data is malformed.
     """
-    from pxr import Usd, UsdGeom
+    from pxr import Usd
 
     if isinstance(stage_or_path, Usd.Stage):
         stage = stage_or_path

@@ -73,7 +73,7 @@ def read_stage_plan(stage_path: str | Path) -> StagePlan:
         RenderError: the stage cannot be opened, or cameras/objects are malformed (every
             problem listed, with its prim path).
     """
-    from pxr import Usd, UsdGeom
+    from pxr import Usd
 
     path = Path(stage_path).resolve()
     stage = Usd.Stage.Open(str(path)) if path.is_file() else None
@@ -227,7 +227,7 @@ def _intrinsics(prim, geom, settings: RenderSettings) -> Intrinsics:
 
 
 def _read_objects(stage, frames, problems) -> list[ObjectEntry]:
-    from pxr import Usd, UsdGeom
+    from pxr import UsdGeom
 
     root = stage.GetPrimAtPath(names.OBJECTS)
     if not root:
