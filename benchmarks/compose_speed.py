@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from converters.usd_stage import scene_from_stage
+from usdscene.converters.usd_stage import scene_from_stage
 from usdscene import model as m
 from usdscene.catalog import load_catalog
 from usdscene.compose import compose_stage

@@ -126,7 +126,7 @@ def main() -> int:
             print(f"usdscene validate --schema: best {min(r[0] for r in runs_s):.3f} s wall, "
                   f"{min(r[0] for r in runs_s) - base:.3f} s wall / {min(r[2] for r in runs_s) - base_cpu:.3f} s CPU "
                   f"beyond interpreter start")
-        from converters.openlabel import read_openlabel
+        from usdscene.converters.openlabel import read_openlabel
 
         start = time.perf_counter()
         scene = read_openlabel(path)

@@ -1,6 +1,6 @@
 """COCO export of an annotated OpenLABEL document. Pure (json + numpy).
 
-Reads only the document written by :func:`converters.openlabel_annotations.add_annotations`
+Reads only the document written by :func:`usdscene.converters.openlabel_annotations.add_annotations`
 (never internal state), so any annotated document can be exported.
 
 * One image record per (frame, camera), with the extra fields ``camera`` and ``frame``;
@@ -25,7 +25,7 @@ from typing import Iterable
 
 import numpy as np
 
-from converters.openlabel_annotations import image_records, label_classes, labels_in
+from usdscene.converters.openlabel_annotations import image_records, label_classes, labels_in
 from usdscene import layout
 from usdscene.files import write_json_atomic
 from usdscene.labels import bridge_rings

@@ -2,7 +2,7 @@
 
 ::
 
-    from converters.openlabel import read_openlabel, write_openlabel, write_document
+    from usdscene.converters.openlabel import read_openlabel, write_openlabel, write_document
 
     scene = read_openlabel("scene.openlabel.json")           # DocumentError lists every problem
     write_document("out.openlabel.json", write_openlabel(scene))
@@ -13,14 +13,14 @@ The document vocabulary is described in ``docs/scene-format.md``. Implementation
 ``openlabel_values`` (value readers and pose encodings).
 """
 
-from converters.openlabel_checks import (
+from usdscene.converters.openlabel_checks import (
     SCHEMA_ENV,
     default_schema_path,
     packaged_schema_path,
     schema_path_from_env,
     schema_problems,
 )
-from converters.openlabel_read import (
+from usdscene.converters.openlabel_read import (
     EQUISOLID_KB_COEFFS,
     SCHEMA_VERSION,
     friendly_camera_rotation,
@@ -29,7 +29,7 @@ from converters.openlabel_read import (
     read_loaded,
     read_openlabel,
 )
-from converters.openlabel_write import write_document, write_openlabel
+from usdscene.converters.openlabel_write import write_document, write_openlabel
 
 __all__ = [
     "EQUISOLID_KB_COEFFS",

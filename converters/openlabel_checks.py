@@ -5,7 +5,7 @@ The schema file is the published ASAM ``openlabel_json_schema-v1.0.0.json``
 path, ``$USDSCENE_OPENLABEL_SCHEMA``, or the copy that the ``uai-openlabel`` package (a runtime
 dependency) ships unchanged (same sha256 as the ASAM file).
 
-The schema has holes that :func:`converters.openlabel.read_openlabel` covers: it never checks
+The schema has holes that :func:`usdscene.converters.openlabel.read_openlabel` covers: it never checks
 ``stream_properties`` (intrinsics), root ``frame_intervals`` items, ``matrix4x4`` length, or
 numbers that JSON cannot hold (NaN, Infinity).
 """

@@ -42,7 +42,7 @@ from usdscene.model import (
     union_intervals,
 )
 
-from converters.openlabel_values import (
+from usdscene.converters.openlabel_values import (
     describe,
     pose_from_rotation,
     read_bool,
@@ -1526,7 +1526,7 @@ def friendly_camera_rotation(yaw_rad: float, pitch_rad: float, roll_rad: float):
     """
     import numpy as np
 
-    from converters.openlabel_values import axis_rotation
+    from usdscene.converters.openlabel_values import axis_rotation
 
     base = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
     return (np.asarray(axis_rotation("Z", yaw_rad)) @ np.asarray(axis_rotation("Y", -pitch_rad))

@@ -26,7 +26,7 @@ from typing import Any, Iterable
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
 
-from converters.openlabel_read import (
+from usdscene.converters.openlabel_read import (
     EQUISOLID_KB_COEFFS,
     LIGHT_TYPE,
     PLACE_TYPE,

@@ -13,7 +13,7 @@ and cropped from the image when the camera sees it:
 Label of a crop: the document's ``roi_rules`` (``metadata.usdscene.roi_rules``) applied to the
 relation of the region when some present object is in it at that frame, directly or through a
 chain of relations (``bag is_on suitcase is_below seat_03A`` is in seat_03A's ``is_below``
-region, see :func:`converters.openlabel_annotations.resolve_places`) (rule keys ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the
+region, see :func:`usdscene.converters.openlabel_annotations.resolve_places`) (rule keys ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the
 relation name itself), and ``empty`` when no object is there. Example rules for taxi, take-off
 and landing: ``{"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"}``.
 
@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from converters.openlabel_annotations import image_records, resolve_places
+from usdscene.converters.openlabel_annotations import image_records, resolve_places
 from usdscene import layout
 from usdscene.catalog import Catalog, PlaceRegion
 from usdscene.errors import AssetError, DocumentError, OutputError
@@ -132,7 +132,7 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
         DocumentError: the document does not read as a scene.
         AssetError: its environment or one of its places is not in the catalog.
     """
-    from converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel import read_openlabel
 
     scene = read_openlabel(document)
     if not scene.places:

@@ -26,8 +26,8 @@ from typing import Iterable
 
 import numpy as np
 
-from converters.coco import corner_box, object_rings
-from converters.openlabel_annotations import image_records, label_classes, labels_in
+from usdscene.converters.coco import corner_box, object_rings
+from usdscene.converters.openlabel_annotations import image_records, label_classes, labels_in
 from usdscene import layout
 from usdscene.files import write_bytes_atomic, write_text_atomic
 from usdscene.labels import bridge_rings

@@ -21,8 +21,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from converters.openlabel import load_document
-from converters.openlabel_annotations import image_records, labels_in
+from usdscene.converters.openlabel import load_document
+from usdscene.converters.openlabel_annotations import image_records, labels_in
 from usdscene import layout
 from usdscene.commands.preview import contact_sheet
 from usdscene.commands.stats import draw_chart, label_statistics
@@ -43,7 +43,7 @@ def draw_labels(image: np.ndarray, labels: list[dict], scale: int = 2) -> np.nda
 
     Args:
         image: (H, W, 3) uint8 BGR.
-        labels: :func:`converters.openlabel_annotations.labels_in` records.
+        labels: :func:`usdscene.converters.openlabel_annotations.labels_in` records.
     """
     big = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
 

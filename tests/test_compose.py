@@ -240,7 +240,7 @@ def test_lights_units_and_shapes(composed):
 def test_lighting_rigs_are_a_variant_set(composed, tmp_path):
     from pxr import Usd, UsdLux
 
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     stage = Usd.Stage.Open(str(composed.root_layer))
     rigs = stage.GetPrimAtPath(ss.LIGHTS).GetVariantSets().GetVariantSet(ss.VARIANT_SET_LIGHTING)
@@ -302,7 +302,7 @@ def test_bad_input_raises_composition_error_before_writing(tmp_path, catalog):
 
 
 def _write_document(path: Path, scene: m.SceneSpec) -> None:
-    from converters.openlabel import write_document, write_openlabel
+    from usdscene.converters.openlabel import write_document, write_openlabel
 
     write_document(path, write_openlabel(scene))
 
@@ -327,7 +327,7 @@ def test_compose_command_prints_a_summary(tmp_path, workdir, capsys):
      lambda doc: ("cyclic", next(o.uid for o in doc.objects if o.class_name == "box"))),
 ])
 def test_compose_command_exits_1_naming_the_element(tmp_path, workdir, capsys, change, expected):
-    from converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel import read_openlabel
     from usdscene.cli import main
 
     scene = change(dataclasses.replace(small_scene(), asset_paths=(str(workdir / "cat"),)))

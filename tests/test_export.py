@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from converters.coco import coco_dataset, export_coco
-from converters.openlabel_annotations import add_annotations, image_records, labels_in
-from converters.yolo import export_yolo
+from usdscene.converters.coco import coco_dataset, export_coco
+from usdscene.converters.openlabel_annotations import add_annotations, image_records, labels_in
+from usdscene.converters.yolo import export_yolo
 from usdscene.labels import AmodalProjection, box_of, label_image, label_images, rasterize_contours, Contour
 from usdscene.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
 
@@ -225,7 +225,7 @@ def test_coco_categories_from_catalog_classes(annotated):
 
 
 def test_annotated_document_from_writer_validates_and_reads_back(openlabel_schema_path, tmp_path):
-    from converters.openlabel import read_openlabel, schema_problems, write_openlabel
+    from usdscene.converters.openlabel import read_openlabel, schema_problems, write_openlabel
 
     scene = _scene()
     images = []
@@ -271,7 +271,7 @@ def _friendly_document() -> dict:
 
 
 def test_cameras_are_written_in_exact_calibrated_form(openlabel_schema_path, tmp_path):
-    from converters.openlabel import read_openlabel, schema_problems
+    from usdscene.converters.openlabel import read_openlabel, schema_problems
 
     source = _friendly_document()
     scene = read_openlabel(source)
@@ -291,7 +291,7 @@ def test_cameras_are_written_in_exact_calibrated_form(openlabel_schema_path, tmp
 
 
 def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
-    from converters.openlabel import read_openlabel, write_openlabel
+    from usdscene.converters.openlabel import read_openlabel, write_openlabel
     from usdscene.model import Pose
 
     base = _scene()
@@ -308,7 +308,7 @@ def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
 
 
 def test_resolve_places_follows_chains_and_stops_at_cycles():
-    from converters.openlabel_annotations import resolve_places
+    from usdscene.converters.openlabel_annotations import resolve_places
     from usdscene.model import FrameInterval, PlaceRef, Relation
 
     objects = tuple(SceneObject(uid, uid, "backpack", (FrameInterval(0, 5),)) for uid in "abcxy")

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from converters.openlabel import write_openlabel
-from converters.openlabel_annotations import add_annotations
-from converters.rois import export_rois, plan_rois, region_corners
+from usdscene.converters.openlabel import write_openlabel
+from usdscene.converters.openlabel_annotations import add_annotations
+from usdscene.converters.rois import export_rois, plan_rois, region_corners
 from usdscene.catalog import load_catalog
 from usdscene.labels import ImageLabels, label_images
 from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, PlaceRef, Pose, Relation,
@@ -94,7 +94,7 @@ def test_plan_labels_and_visibility(tmp_path, catalog):
 
 
 def test_document_records_resolved_places(tmp_path, openlabel_schema_path):
-    from converters.openlabel import schema_problems
+    from usdscene.converters.openlabel import schema_problems
 
     _, document = _annotated(tmp_path)
     assert schema_problems(json.loads(json.dumps(document)), openlabel_schema_path) == []

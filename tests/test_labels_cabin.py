@@ -61,7 +61,7 @@ def output(tmp_path_factory):
 
 
 def test_seat_hides_the_stowed_laptop(output):
-    from converters.openlabel_annotations import labels_in
+    from usdscene.converters.openlabel_annotations import labels_in
 
     document = json.loads((output / "annotations.openlabel.json").read_text())
     assert document["openlabel"]["metadata"]["name"] == "labels_cabin"  # the source document
@@ -74,7 +74,7 @@ def test_seat_hides_the_stowed_laptop(output):
 
 
 def test_document_valid_and_exports_consistent(output, openlabel_schema_path):
-    from converters.openlabel import read_openlabel, schema_problems
+    from usdscene.converters.openlabel import read_openlabel, schema_problems
 
     document = json.loads((output / "annotations.openlabel.json").read_text())
     assert schema_problems(document, openlabel_schema_path) == []

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from converters.openlabel import load_document, read_openlabel, schema_problems, write_openlabel
+from usdscene.converters.openlabel import load_document, read_openlabel, schema_problems, write_openlabel
 from usdscene.model import LensModel, Provenance
 
 CONFORMANCE_FILES = [

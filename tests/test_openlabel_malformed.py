@@ -275,7 +275,7 @@ def test_official_schema_is_used_by_default(tmp_path, capsys):
 def test_packaged_schema_is_the_official_file(openlabel_schema_path):
     import hashlib
 
-    from converters.openlabel import packaged_schema_path
+    from usdscene.converters.openlabel import packaged_schema_path
 
     packaged = packaged_schema_path()
     assert packaged is not None, "uai-openlabel is a runtime dependency and ships the schema"
@@ -319,7 +319,7 @@ def test_subprocess_validate_reports_without_traceback(tmp_path):
 
 
 def test_convert_writes_normalised_document(tmp_path, capsys, openlabel_schema_path):
-    from converters.openlabel import read_openlabel, schema_problems
+    from usdscene.converters.openlabel import read_openlabel, schema_problems
 
     out = tmp_path / "out" / "scene.json"
     assert main(["convert", "--no-catalog", str(EXAMPLE), "-o", str(out)]) == 0

@@ -11,7 +11,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from converters.openlabel import friendly_camera_rotation, read_openlabel, write_openlabel
+from usdscene.converters.openlabel import friendly_camera_rotation, read_openlabel, write_openlabel
 from usdscene.model import rotation_to_euler_zyx
 
 finite = st.floats(min_value=-50.0, max_value=50.0, allow_nan=False, allow_infinity=False)

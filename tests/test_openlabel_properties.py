@@ -9,7 +9,7 @@ import json
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from converters.openlabel import read_openlabel, schema_problems, write_openlabel
+from usdscene.converters.openlabel import read_openlabel, schema_problems, write_openlabel
 from usdscene.model import (
     Camera,
     FrameInterval,

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from converters.openlabel import (
+from usdscene.converters.openlabel import (
     EQUISOLID_KB_COEFFS,
     load_document,
     read_openlabel,

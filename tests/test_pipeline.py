@@ -34,7 +34,7 @@ def test_run_writes_every_product(run_output, capsys):
 
 
 def test_annotations_validate_and_read_back(run_output, openlabel_schema_path):
-    from converters.openlabel import load_document, read_openlabel, schema_problems
+    from usdscene.converters.openlabel import load_document, read_openlabel, schema_problems
 
     document = load_document(run_output / "annotations.openlabel.json")
     assert schema_problems(document, openlabel_schema_path) == []

@@ -16,10 +16,10 @@ PURE_MODULES = [
     "usdscene.placement",
     "usdscene.projection",
     "usdscene.labels",
-    "converters.openlabel",
-    "converters.openlabel_annotations",
-    "converters.coco",
-    "converters.yolo",
+    "usdscene.converters.openlabel",
+    "usdscene.converters.openlabel_annotations",
+    "usdscene.converters.coco",
+    "usdscene.converters.yolo",
 ]
 
 

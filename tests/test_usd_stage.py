@@ -133,7 +133,7 @@ def random_scenes(draw) -> m.SceneSpec:
 @given(scene=random_scenes())
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_random_scene_stage_round_trip(catalog, scene):
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     with tempfile.TemporaryDirectory() as tmp:
         result = compose_stage(scene, catalog, Path(tmp) / "stage")
@@ -154,8 +154,8 @@ def test_tolerance_helper_sees_small_differences():
 
 def test_document_to_stage_to_document(tmp_path, workdir, catalog):
     """OpenLABEL document → SceneSpec → stage → SceneSpec → OpenLABEL document → SceneSpec."""
-    from converters.openlabel import read_openlabel, write_document, write_openlabel
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
+    from usdscene.converters.usd_stage import scene_from_stage
 
     write_document(tmp_path / "in.json", write_openlabel(small_scene()))
     scene = read_openlabel(tmp_path / "in.json")
@@ -168,7 +168,7 @@ def test_document_to_stage_to_document(tmp_path, workdir, catalog):
 
 
 def test_export_openlabel_command(tmp_path, catalog, capsys):
-    from converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel import read_openlabel
     from usdscene.cli import main
 
     result = compose_stage(small_scene(), catalog, tmp_path / "stage")
@@ -192,7 +192,7 @@ def test_stage_edited_in_a_dcc_tool(tmp_path, catalog):
     re-lensed camera, a light re-posed with TRS ops, a moved object."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     result = compose_stage(small_scene(), catalog, tmp_path / "stage")
     edits = Sdf.Layer.CreateNew(str(tmp_path / "stage" / "edits.usda"))
@@ -240,7 +240,7 @@ def test_y_up_centimetre_stage(tmp_path):
     converted; object frames are asset frames (Z up), cameras and lights look down their -Z."""
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     stage = Usd.Stage.CreateNew(str(tmp_path / "yup.usda"))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
@@ -294,7 +294,7 @@ def test_transform_authored_only_as_one_time_sample(tmp_path):
     default value: it must read back as that transform, not as the identity."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     stage = Usd.Stage.CreateNew(str(tmp_path / "sampled.usda"))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
@@ -355,7 +355,7 @@ def test_blender_import_and_export(tmp_path, catalog):
     the light intensities as the document's watts and the colour opinions and appearance
     variants into the materials; the stages Blender exports (Z-up metres and Y-up centimetres)
     read back to the same cameras, lights and objects."""
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     scene = small_scene()
     result = compose_stage(scene, catalog, tmp_path / "stage")
@@ -411,7 +411,7 @@ def test_blender_import_and_export(tmp_path, catalog):
 @pytest.mark.blender
 def test_export_openlabel_reads_a_blend_project(tmp_path, catalog):
     """``usdscene export-openlabel scene.blend`` goes through the Blender project reader."""
-    from converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel import read_openlabel
     from usdscene.cli import main
     from usdscene.render.blend_io import write_blend
 
@@ -440,8 +440,8 @@ EXAMPLES = sorted((Path(__file__).resolve().parent.parent / "examples").glob("**
 @pytest.mark.parametrize("document", EXAMPLES, ids=[p.name for p in EXAMPLES])
 def test_shipped_example_document_to_stage_to_document(tmp_path, document):
     """Every shipped example composes with the shipped library and comes back equal."""
-    from converters.openlabel import read_openlabel, write_document, write_openlabel
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
+    from usdscene.converters.usd_stage import scene_from_stage
     from usdscene.catalog import load_catalog
 
     scene = read_openlabel(document)

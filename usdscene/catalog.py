@@ -141,11 +141,14 @@ class Catalog:
 
 
 def default_asset_folder() -> Path:
-    """The shipped asset library: ``$USDSCENE_ASSETS`` or ``<repo>/assets``."""
+    """The shipped asset library: ``$USDSCENE_ASSETS``, else the one installed with usdscene
+    (``assets/`` of a source checkout)."""
     env = os.environ.get("USDSCENE_ASSETS")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parent.parent / "assets"
+    from usdscene.shipped import shipped_folder
+
+    return shipped_folder("assets")
 
 
 def load_catalog(extra_folders: Iterable[str | os.PathLike] = (), *,

@@ -66,7 +66,7 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
     """
     import dataclasses
 
-    from converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel import read_openlabel
     from usdscene.catalog import load_catalog
     from usdscene.compose import compose_stage
 
@@ -99,7 +99,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
             composition or render (nothing half-written).
     """
-    from converters.openlabel import default_schema_path, schema_problems
+    from usdscene.converters.openlabel import default_schema_path, schema_problems
     from usdscene.catalog import load_catalog
     from usdscene.commands.annotate import annotate_output
     from usdscene.commands.export import export_formats

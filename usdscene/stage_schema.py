@@ -96,7 +96,7 @@ ATTR_PLACE_KIND = "usdscene:place:kind"        # token on the place prim: seat, 
 ATTR_PLACE_RELATION = "usdscene:place:relation"  # token on the region prim: is_on, ...
 ATTR_PLACE_SIZE = "usdscene:place:size"        # double3 on the region prim, metres
 
-# Composition (usdscene.compose) and Scene2VCD (converters.usd_stage). customData is authored
+# Composition (usdscene.compose) and Scene2VCD (usdscene.converters.usd_stage). customData is authored
 # nested ({usdscene = {uid, class, name}}), i.e. read it with prim.GetCustomDataByKey(CUSTOM_UID).
 ATTR_USER_NAME = "userProperties:usdscene_name"            # string
 ATTR_USER_MASK_ID = "userProperties:usdscene_mask_id"      # int, same as ATTR_MASK_ID

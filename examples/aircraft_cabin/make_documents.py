@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from converters.openlabel import write_document, write_openlabel
+from usdscene.converters.openlabel import write_document, write_openlabel
 from usdscene.catalog import load_catalog
 from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef,
                             Pose, Randomization, Relation, RenderSettings, SceneObject, SceneSpec)

@@ -80,8 +80,8 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
 
     import cv2
 
-    from converters.openlabel import load_document, read_openlabel, write_openlabel
-    from converters.openlabel_annotations import add_annotations
+    from usdscene.converters.openlabel import load_document, read_openlabel, write_openlabel
+    from usdscene.converters.openlabel_annotations import add_annotations
     from usdscene import layout
     from usdscene.errors import OutputError
     from usdscene.labels import DEFAULT_EPSILON_PX, amodal_projection, label_image, label_images
@@ -109,7 +109,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         document = load_document(document_path)
         scene = read_openlabel(document)
     else:
-        from converters.usd_stage import scene_from_stage
+        from usdscene.converters.usd_stage import scene_from_stage
 
         # Keep the stage's scene (its uids are the mask map's) even where the writer has to
         # renumber uids for OpenLABEL; add_annotations matches those by name and class.

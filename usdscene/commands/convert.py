@@ -20,7 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from converters.openlabel import schema_problems, write_document, write_openlabel
+    from usdscene.converters.openlabel import schema_problems, write_document, write_openlabel
     from usdscene.commands.validate import check_document
     from usdscene.errors import DocumentError
 

@@ -3,9 +3,9 @@
 Exporters read only the annotated document (and the asset catalog for class lists and place
 regions), never internal state:
 
-* ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`converters.coco`);
-* ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`converters.yolo`);
-* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`converters.rois`).
+* ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`usdscene.converters.coco`);
+* ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`usdscene.converters.yolo`);
+* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`usdscene.converters.rois`).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -63,7 +63,7 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
     """The catalog for an annotated document (see the module docstring)."""
     from pathlib import Path
 
-    from converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel import read_openlabel
     from usdscene.catalog import load_catalog
 
     scene = read_openlabel(document)
@@ -94,7 +94,7 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     import logging
     from pathlib import Path
 
-    from converters.openlabel import load_document
+    from usdscene.converters.openlabel import load_document
     from usdscene import layout
     from usdscene.errors import AssetError, OutputError
 
@@ -121,15 +121,15 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     written = {}
     for fmt in dict.fromkeys(formats):
         if fmt == "coco":
-            from converters.coco import export_coco
+            from usdscene.converters.coco import export_coco
 
             written[fmt] = export_coco(document, out, classes)
         elif fmt == "yolo":
-            from converters.yolo import export_yolo
+            from usdscene.converters.yolo import export_yolo
 
             written[fmt] = export_yolo(document, out, classes, link_images=True, copy_images=copy_images)
         elif fmt == "rois":
-            from converters.rois import export_rois
+            from usdscene.converters.rois import export_rois
 
             written[fmt] = export_rois(document, out, catalog, min_size_px=min_roi_px)
         else:

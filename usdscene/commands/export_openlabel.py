@@ -23,7 +23,7 @@ def run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
-    from converters.openlabel import write_document, write_openlabel
+    from usdscene.converters.openlabel import write_document, write_openlabel
     from usdscene.errors import DocumentError
 
     source = Path(args.stage)
@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     if source.is_dir():  # a composed stage folder
         suffix = ".usda"
     if suffix in USD_SUFFIXES:
-        from converters.usd_stage import scene_from_stage
+        from usdscene.converters.usd_stage import scene_from_stage
 
         scene = scene_from_stage(source)
     elif suffix == ".blend":

@@ -27,7 +27,7 @@ def label_statistics(document: dict) -> dict:
         visible fractions in [0, 0.1), ..., [0.9, 1.0]], "visibility_unknown": int}``; classes and
         cameras sorted by name. Hidden objects count in the first visibility bin.
     """
-    from converters.openlabel_annotations import image_records, labels_in
+    from usdscene.converters.openlabel_annotations import image_records, labels_in
 
     classes: dict[str, dict] = {}
     cameras: dict[str, dict] = {}
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from converters.openlabel import load_document
+    from usdscene.converters.openlabel import load_document
     from usdscene import layout
     from usdscene.errors import OutputError
     from usdscene.files import write_bytes_atomic

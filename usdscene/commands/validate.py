@@ -39,7 +39,7 @@ def schema_path(args: argparse.Namespace):
     """The schema chosen by ``--schema``, the environment or the installed package, or None."""
     from pathlib import Path
 
-    from converters.openlabel import default_schema_path
+    from usdscene.converters.openlabel import default_schema_path
 
     return Path(args.schema) if args.schema else default_schema_path()
 
@@ -63,7 +63,7 @@ def check_document_file(path, schema, *, use_catalog: bool = True):
     """
     from pathlib import Path
 
-    from converters.openlabel import load_with_provenance, read_loaded, schema_problems
+    from usdscene.converters.openlabel import load_with_provenance, read_loaded, schema_problems
     from usdscene.errors import DocumentError
 
     # bad JSON stops here with line and column; the file is parsed once

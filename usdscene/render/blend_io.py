@@ -4,7 +4,7 @@
   keyframed, pass index = mask id), one Blender camera per stage camera with its exact
   calibration kept in custom properties, render settings as for ``usdscene render``.
 * :func:`scene_from_blend`: a (possibly edited) .blend back to a SceneSpec, through Blender's
-  USD export and :func:`converters.usd_stage.scene_from_stage`. Blender's USD exporter writes
+  USD export and :func:`usdscene.converters.usd_stage.scene_from_stage`. Blender's USD exporter writes
   only perspective cameras, so cameras (pose per frame and lens) are read from the .blend
   itself. A camera whose Blender lens settings are unchanged keeps its exact calibration
   (including OpenCV distortion); an edited one gets the model of its Blender settings.
@@ -67,7 +67,7 @@ def scene_from_blend(path: str | Path) -> SceneSpec:
         RenderError: the file is missing or Blender failed.
         DocumentError: the exported stage is malformed (from ``scene_from_stage``).
     """
-    from converters.usd_stage import scene_from_stage
+    from usdscene.converters.usd_stage import scene_from_stage
 
     from usdscene.render.driver import run_job
 

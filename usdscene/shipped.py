@@ -1,0 +1,24 @@
+"""Where the data shipped with usdscene lives: the asset library and the reusable USD layers.
+
+In an installed wheel they are package data (``usdscene/assets``, ``usdscene/layers``); in a
+source checkout (and an editable install) they are the repository's top-level ``assets/`` and
+``layers/`` folders, which the build maps into the package (see ``pyproject.toml``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+_PACKAGE = Path(__file__).resolve().parent
+
+
+def shipped_folder(name: str) -> Path:
+    """The shipped data folder ``name`` (``"assets"`` or ``"layers"``).
+
+    Returns the installed package's copy when there is one, else the source checkout's
+    top-level folder (which may not exist when neither is there; callers report that).
+    """
+    installed = _PACKAGE / name
+    if installed.is_dir():
+        return installed
+    return _PACKAGE.parent / name
