@@ -63,7 +63,7 @@ def scene_stage(root: Path, frames: int) -> tuple[Path, str]:
     """Compose the cabin example if possible, else write the synthetic cabin-like scene."""
     doc = REPO / "examples" / "aircraft_cabin" / "cabin.openlabel.json"
     try:
-        from usdscene.commands.render import stage_for_input
+        from usdscene.pipeline import stage_for_input
 
         return stage_for_input(doc, root), f"aircraft cabin example ({doc.name})"
     except Exception as exc:  # the example is not composable in this checkout yet

@@ -24,7 +24,7 @@ import numpy as np
 from usdscene.converters.openlabel import load_document
 from usdscene.converters.openlabel_annotations import image_records, labels_in
 from usdscene import layout
-from usdscene.commands.preview import contact_sheet
+from usdscene.contact_sheet import contact_sheet
 from usdscene.commands.stats import draw_chart, label_statistics
 from usdscene.files import write_bytes_atomic
 

@@ -31,7 +31,7 @@ def _lens_fraction(d: float, r: float) -> float:
 
 @pytest.fixture(scope="module")
 def annotated(tmp_path_factory):
-    from usdscene.commands.annotate import annotate_output
+    from usdscene.annotation import annotate_output
     from usdscene.render.driver import render
     from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
 

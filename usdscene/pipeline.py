@@ -78,6 +78,15 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
     return scene, compose_stage(scene, catalog, stage_dir)
 
 
+def stage_for_input(path: str | Path, out_dir: str | Path) -> Path:
+    """The stage to render for an input path: the stage itself (``.usd*``), or for a scene
+    document (``.json``) the stage composed from it into ``out_dir/stage``."""
+    path = Path(path)
+    if path.suffix.lower() != ".json":
+        return path
+    return Path(compose_document(path, Path(out_dir) / layout.STAGE_DIR)[1].root_layer)
+
+
 def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[int] | None = None,
                  cameras: Sequence[str] | None = None, exports: Sequence[str] | None = None,
                  samples: int | None = None, workers: int = 1, progress: bool = True,
@@ -99,15 +108,12 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
             composition or render (nothing half-written).
     """
-    from usdscene.converters.openlabel import default_schema_path, schema_problems
+    from usdscene.annotation import write_annotations
     from usdscene.catalog import load_catalog
-    from usdscene.commands.annotate import annotate_output
-    from usdscene.commands.export import export_formats
-    from usdscene.commands.validate import check_document_file
     from usdscene.compose import compose_stage
-    from usdscene.errors import OutputError
-    from usdscene.files import write_json_atomic
+    from usdscene.export import export_formats
     from usdscene.render.driver import render
+    from usdscene.validation import DEFAULT_SCHEMA, validate_document
 
     doc_path, out = Path(document), Path(out_dir)
     seconds: dict[str, float] = {}
@@ -120,8 +126,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
 
     t = step("validate")
     # Exactly the checks of `usdscene validate`: official schema, usdscene's own, the catalog.
-    schema = default_schema_path()
-    scene, _, catalog = check_document_file(doc_path, schema)
+    checked = validate_document(doc_path, schema=DEFAULT_SCHEMA)
+    scene, catalog = checked.scene, checked.catalog
     if catalog is None:  # no catalog was found to check against: composing needs one, say why
         catalog = load_catalog(scene.asset_paths, base_dir=doc_path.parent)
     seconds["validate"] = time.perf_counter() - t
@@ -137,12 +143,9 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     seconds["render"] = time.perf_counter() - t
 
     t = step("annotate")
-    annotated, annotations = annotate_output(out, document_path=doc_path, progress=progress)
-    if schema is not None:  # never write an output document that the official schema rejects
-        problems = schema_problems(annotated, schema)
-        if problems:
-            raise OutputError(problems)
-    write_json_atomic(out / layout.ANNOTATIONS_FILE, annotated)
+    # never writes an output document that the official schema rejects
+    _, annotations = write_annotations(out, document_path=doc_path, progress=progress,
+                                       schema=checked.schema)
     seconds["annotate"] = time.perf_counter() - t
 
     formats = tuple(exports) if exports is not None else scene.exports

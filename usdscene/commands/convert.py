@@ -11,20 +11,21 @@ ORDER = 11
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from usdscene.commands.validate import add_common_arguments
+    from usdscene.commands._arguments import add_document_check_arguments
 
     parser.add_argument("document", help="scene document (.json, root 'openlabel' or 'vcd')")
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
                         help="output file (written atomically; nothing is written when the input is invalid)")
-    add_common_arguments(parser)
+    add_document_check_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
+    from usdscene.commands._arguments import validate_from_arguments
     from usdscene.converters.openlabel import schema_problems, write_document, write_openlabel
-    from usdscene.commands.validate import check_document
     from usdscene.errors import DocumentError
 
-    scene, schema, _ = check_document(args)
+    checked = validate_from_arguments(args)
+    scene, schema = checked.scene, checked.schema
     document = write_openlabel(scene)
     if schema is not None:
         problems = schema_problems(document, schema)

@@ -24,42 +24,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def parse_frames(text: str | None) -> list[int] | None:
-    """``"A:B"`` → [A..B] (closed), ``"N"`` → [N], ``"N,M"`` → [N, M]; None → None.
-
-    Raises:
-        UsageError-like ValueError with the bad text.
-    """
-    if text is None:
-        return None
-    text = text.strip()
-    if ":" in text:
-        a, _, b = text.partition(":")
-        start, end = int(a), int(b)
-        if end < start:
-            raise ValueError(f"--frames {text!r}: end {end} is before start {start}")
-        return list(range(start, end + 1))
-    return [int(v) for v in text.split(",") if v.strip()]
-
-
-def stage_for_input(path, out_dir):
-    """The stage to render: ``path`` itself, or the stage composed from a scene document."""
-    from pathlib import Path
-
-    from usdscene import layout
-
-    path = Path(path)
-    if path.suffix.lower() != ".json":
-        return path
-    from usdscene.pipeline import compose_document
-
-    return Path(compose_document(path, Path(out_dir) / layout.STAGE_DIR)[1].root_layer)
-
-
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from usdscene.commands._arguments import parse_frames
     from usdscene.errors import Problem, RenderError
+    from usdscene.pipeline import stage_for_input
     from usdscene.render.driver import render
 
     try:

@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
+from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
+
 NAME = "run"
 HELP = ("the whole job: validate the scene document, compose the USD stage, render every camera "
         "of every frame, write labels into OUT/annotations.openlabel.json and export datasets; "
         "re-running resumes")
 ORDER = 5
-FORMATS = ("coco", "yolo", "rois")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene.commands.render import parse_frames
+    from usdscene.commands._arguments import parse_frames
     from usdscene.errors import DocumentError, Problem
     from usdscene.pipeline import run_pipeline, summary_text
 

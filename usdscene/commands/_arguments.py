@@ -1,0 +1,47 @@
+"""Command-line arguments shared by several sub-commands (not a sub-command itself: the
+leading underscore keeps it out of the command discovery)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_document_check_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--schema`` and ``--no-catalog``, shared by ``validate`` and ``convert``."""
+    parser.add_argument(
+        "--schema", metavar="PATH",
+        help="official OpenLABEL 1.0.0 JSON schema file to validate against as well; default: "
+             "$USDSCENE_OPENLABEL_SCHEMA, else the copy shipped by the uai-openlabel package. "
+             "Without any, only usdscene's own checks run (they cover intrinsics, poses, "
+             "intervals, uids and the usdscene vocabulary, but not every schema rule)")
+    parser.add_argument(
+        "--no-catalog", action="store_true",
+        help="do not check object classes, place names and relations against the asset catalog "
+             "(shipped library + metadata.usdscene.asset_paths)")
+
+
+def validate_from_arguments(args: argparse.Namespace):
+    """:func:`usdscene.validation.validate_document` with the choices of
+    :func:`add_document_check_arguments` (and ``args.document``)."""
+    from usdscene.validation import DEFAULT_SCHEMA, validate_document
+
+    return validate_document(args.document, schema=args.schema or DEFAULT_SCHEMA,
+                             use_catalog=not args.no_catalog)
+
+
+def parse_frames(text: str | None) -> list[int] | None:
+    """``--frames``: ``"A:B"`` → [A..B] (closed), ``"N"`` → [N], ``"N,M"`` → [N, M]; None → None.
+
+    Raises:
+        ValueError: naming the bad text.
+    """
+    if text is None:
+        return None
+    text = text.strip()
+    if ":" in text:
+        a, _, b = text.partition(":")
+        start, end = int(a), int(b)
+        if end < start:
+            raise ValueError(f"--frames {text!r}: end {end} is before start {start}")
+        return list(range(start, end + 1))
+    return [int(v) for v in text.split(",") if v.strip()]

@@ -1,0 +1,112 @@
+"""Check a scene document with every check that applies, and read it.
+
+The checks, all reported at once: the official OpenLABEL 1.0.0 schema, usdscene's own checks of
+what the schema misses (intrinsics, poses, intervals, uids, the usdscene vocabulary) and the
+asset catalog (object classes, place names, relations). ``usdscene validate``, ``usdscene
+convert`` and ``usdscene run`` all check with :func:`validate_document`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:
+    from usdscene.catalog import Catalog
+    from usdscene.model import SceneSpec
+
+log = logging.getLogger(__name__)
+
+DEFAULT_SCHEMA = "default"
+"""``schema=DEFAULT_SCHEMA``: ``$USDSCENE_OPENLABEL_SCHEMA``, else the official schema file
+shipped by the ``uai-openlabel`` package."""
+
+
+@dataclass(frozen=True)
+class ValidatedDocument:
+    """A scene document that passed every check.
+
+    Attributes:
+        scene: the document read into the scene model.
+        schema: the official schema file it was checked against (None: none was found).
+        catalog: the asset catalog it was checked against (None: none was found or asked for).
+    """
+
+    scene: SceneSpec
+    schema: Path | None
+    catalog: Catalog | None
+
+
+def resolve_schema(schema: str | os.PathLike | None) -> Path | None:
+    """The schema file meant by ``schema``: :data:`DEFAULT_SCHEMA`, a path, or None for none."""
+    if schema is None:
+        return None
+    if isinstance(schema, str) and schema == DEFAULT_SCHEMA:
+        from usdscene.converters.openlabel import default_schema_path
+
+        return default_schema_path()
+    return Path(schema)
+
+
+def validate_document(path: str | os.PathLike, *,
+                      schema: str | os.PathLike | None | Literal["default"] = DEFAULT_SCHEMA,
+                      use_catalog: bool = True) -> ValidatedDocument:
+    """Read a scene document with every check that applies (see the module docstring).
+
+    The file is parsed once.
+
+    Args:
+        path: scene document (``.json``, root ``openlabel`` or ``vcd``).
+        schema: official schema to check against: :data:`DEFAULT_SCHEMA`, a file, or None.
+        use_catalog: check object classes, places and relations against the asset catalog
+            (shipped library + the document's ``metadata.usdscene.asset_paths``).
+
+    Returns:
+        The scene with the schema and catalog used.
+
+    Raises:
+        DocumentError: every problem (schema + usdscene's checks + catalog) at once.
+    """
+    from usdscene.converters.openlabel import load_with_provenance, read_loaded, schema_problems
+    from usdscene.errors import DocumentError
+
+    schema_path = resolve_schema(schema)
+    # bad JSON stops here with line and column
+    document, provenance = load_with_provenance(path)
+    problems = []
+    if schema_path is not None:
+        problems.extend(schema_problems(document, schema_path))
+    catalog = catalog_for_document(document, Path(path).parent) if use_catalog else None
+    try:
+        scene = read_loaded(document, provenance, catalog=catalog)
+    except DocumentError as exc:
+        problems.extend(exc.problems)
+        scene = None
+    if problems:
+        raise DocumentError(problems)
+    return ValidatedDocument(scene=scene, schema=schema_path, catalog=catalog)
+
+
+def catalog_for_document(document: dict, base_dir: str | os.PathLike) -> Catalog | None:
+    """The asset catalog a loaded document would be composed with, or None (with a warning)
+    when there is none to check against.
+
+    Args:
+        document: the loaded ``{"openlabel": ...}`` document.
+        base_dir: folder that the document's relative ``asset_paths`` are relative to.
+    """
+    from usdscene.catalog import CATALOG_FILE, default_asset_folder, load_catalog
+
+    block = document["openlabel"].get("metadata", {})
+    block = block.get("usdscene", {}) if isinstance(block, dict) else {}
+    extra = block.get("asset_paths", []) if isinstance(block, dict) else []
+    extra = [p for p in extra if isinstance(p, str)] if isinstance(extra, list) else []
+    include_default = (default_asset_folder() / CATALOG_FILE).is_file()
+    if not include_default and not extra:
+        log.warning("no asset catalog found (%s); object classes and places are not checked",
+                    default_asset_folder() / CATALOG_FILE)
+        return None
+    return load_catalog(extra, include_default=include_default, base_dir=base_dir)
