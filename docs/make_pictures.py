@@ -25,7 +25,7 @@ from usdscene.converters.openlabel import load_document
 from usdscene.converters.openlabel_annotations import image_records, labels_in
 from usdscene import layout
 from usdscene.contact_sheet import contact_sheet
-from usdscene.commands.stats import draw_chart, label_statistics
+from usdscene.statistics import draw_chart, label_statistics
 from usdscene.files import write_bytes_atomic
 
 IMG = Path(__file__).resolve().parent / "img"

@@ -244,7 +244,7 @@ def test_annotated_document_from_writer_validates_and_reads_back(openlabel_schem
 
 
 def test_label_statistics_counts(annotated):
-    from usdscene.commands.stats import draw_chart, label_statistics
+    from usdscene.statistics import draw_chart, label_statistics
 
     _, document, annotations, _ = annotated
     stats = label_statistics(document)

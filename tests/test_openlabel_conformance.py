@@ -40,13 +40,13 @@ def _no_provenance(scene):
     return dataclasses.replace(scene, provenance=Provenance())
 
 
-def test_every_conformance_file_is_listed(openlabel_reference: Path):
-    assert sorted(p.name for p in (openlabel_reference / "conformance").glob("*.json")) == sorted(CONFORMANCE_FILES)
+def test_every_conformance_file_is_listed(openlabel_conformance: Path):
+    assert sorted(p.name for p in openlabel_conformance.glob("*.json")) == sorted(CONFORMANCE_FILES)
 
 
 @pytest.mark.parametrize("name", CONFORMANCE_FILES)
-def test_conformance_round_trip(name, openlabel_reference: Path, openlabel_schema_path: Path):
-    path = openlabel_reference / "conformance" / name
+def test_conformance_round_trip(name, openlabel_conformance: Path, openlabel_schema_path: Path):
+    path = openlabel_conformance / name
     assert schema_problems(load_document(path), openlabel_schema_path) == []  # the input is valid
     scene = read_openlabel(path)
     assert scene.provenance.source == str(path) and len(scene.provenance.source_sha256) == 64
@@ -59,12 +59,12 @@ def test_conformance_round_trip(name, openlabel_reference: Path, openlabel_schem
     assert write_openlabel(again) == document
 
 
-def _read(openlabel_reference, name):
-    return read_openlabel(openlabel_reference / "conformance" / name)
+def _read(openlabel_conformance, name):
+    return read_openlabel(openlabel_conformance / name)
 
 
-def test_kitti_cameras_follow_the_vehicle(openlabel_reference):
-    scene = _read(openlabel_reference, "openlabel100_test_scene_KITTI_Tracking_3.json")
+def test_kitti_cameras_follow_the_vehicle(openlabel_conformance):
+    scene = _read(openlabel_conformance, "openlabel100_test_scene_KITTI_Tracking_3.json")
     assert [c.name for c in scene.cameras] == ["CAM_LEFT", "CAM_RIGHT"]
     left = scene.camera("CAM_LEFT")
     assert left.intrinsics.lens is LensModel.PERSPECTIVE
@@ -82,8 +82,8 @@ def test_kitti_cameras_follow_the_vehicle(openlabel_reference):
     assert {o.uid for o in scene.objects} >= {"-1", "-2"}
 
 
-def test_raillabel_schema_dialect_and_quaternions(openlabel_reference):
-    scene = _read(openlabel_reference, "raillabel_openlabel_v1_short.json")
+def test_raillabel_schema_dialect_and_quaternions(openlabel_conformance):
+    scene = _read(openlabel_conformance, "raillabel_openlabel_v1_short.json")
     rgb = scene.camera("rgb_middle")
     assert rgb.intrinsics.lens is LensModel.OPENCV_PINHOLE
     assert rgb.intrinsics.distortion == (0.49, 0.69, 0.31, 0.81, 0.99)
@@ -93,8 +93,8 @@ def test_raillabel_schema_dialect_and_quaternions(openlabel_reference):
     assert any(len(o.uid) == 36 for o in scene.objects)  # UUID keys
 
 
-def test_intrinsics_file_fisheye_and_vcd_dialect(openlabel_reference):
-    scene = _read(openlabel_reference, "openlabel100_test_intrinsics.json")
+def test_intrinsics_file_fisheye_and_vcd_dialect(openlabel_conformance):
+    scene = _read(openlabel_conformance, "openlabel100_test_intrinsics.json")
     assert [c.name for c in scene.cameras] == ["CAM_PINHOLE", "CAM_FISHEYE"]  # CAM_CUSTOM skipped
     fisheye = scene.camera("CAM_FISHEYE").intrinsics
     assert fisheye.lens is LensModel.OPENCV_FISHEYE
@@ -102,17 +102,17 @@ def test_intrinsics_file_fisheye_and_vcd_dialect(openlabel_reference):
     assert fisheye.distortion == (333.437012, 0.307729989, 2.4235599, 11.0495005)
 
 
-def test_relation_frame_intervals(openlabel_reference):
-    scene = _read(openlabel_reference, "openlabel100_test_relations_2.json")
+def test_relation_frame_intervals(openlabel_conformance):
+    scene = _read(openlabel_conformance, "openlabel100_test_relations_2.json")
     (relation,) = scene.relations
     assert (relation.type, relation.subject_uid, relation.object_uid) == ("isNear", "0", "1")
     assert [(iv.frame_start, iv.frame_end) for iv in relation.frame_intervals] == [(7, 9)]
 
 
-def test_poses_file_matrix_equals_euler(openlabel_reference):
+def test_poses_file_matrix_equals_euler(openlabel_conformance):
     """The poses file states one pose as ``matrix4x4`` and as ZYX euler angles [rz, ry, rx].
     Its cameras have no intrinsics, so a friendly lens is added to read them as cameras."""
-    document = copy.deepcopy(load_document(openlabel_reference / "conformance" / "openlabel100_test_poses.json"))
+    document = copy.deepcopy(load_document(openlabel_conformance / "openlabel100_test_poses.json"))
     for stream in document["openlabel"]["streams"].values():
         stream["stream_properties"] = {"usdscene": {"model": "perspective", "fov_deg": 60.0}}
     scene = read_openlabel(document)
@@ -121,10 +121,10 @@ def test_poses_file_matrix_equals_euler(openlabel_reference):
     assert a.translation_m.tolist() == [2.3, 0.0, 1.3]
 
 
-def test_per_frame_transform_direction(openlabel_reference):
+def test_per_frame_transform_direction(openlabel_conformance):
     """``transform_src_to_dst`` maps src coordinates to dst coordinates (X_dst = M X_src):
     here src is the parent (vehicle) and dst the camera, so the camera pose is M⁻¹."""
-    scene = _read(openlabel_reference, "openlabel100_test_create_streams_simple.json")
+    scene = _read(openlabel_conformance, "openlabel100_test_create_streams_simple.json")
     cam = scene.camera("Camera1")
     assert cam.pose.translation_m.tolist() == [0.0, 0.0, 0.0]
     frames = dict(cam.frame_poses)
