@@ -8,7 +8,9 @@
     write_document("out.openlabel.json", write_openlabel(scene))
 
 The document vocabulary is described in ``docs/scene-format.md``. Implementation:
-``openlabel_read`` (loading, VCD conversion, reading and checks the schema misses),
+``openlabel_load`` (files, JSON, VCD 4.3 → OpenLABEL, provenance), ``openlabel_read`` (the reader
+that ties the sections together: ``openlabel_metadata``, ``openlabel_cameras`` with
+``openlabel_poses`` and ``openlabel_intrinsics``, ``openlabel_objects``, ``openlabel_relations``),
 ``openlabel_write`` (the normal form), ``openlabel_checks`` (the official schema),
 ``openlabel_values`` (value readers and pose encodings).
 """
@@ -20,15 +22,10 @@ from usdscene.converters.openlabel_checks import (
     schema_path_from_env,
     schema_problems,
 )
-from usdscene.converters.openlabel_read import (
-    EQUISOLID_KB_COEFFS,
-    SCHEMA_VERSION,
-    friendly_camera_rotation,
-    load_document,
-    load_with_provenance,
-    read_loaded,
-    read_openlabel,
-)
+from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
+from usdscene.converters.openlabel_load import SCHEMA_VERSION, load_document, load_with_provenance
+from usdscene.converters.openlabel_poses import friendly_camera_rotation
+from usdscene.converters.openlabel_read import read_loaded, read_openlabel
 from usdscene.converters.openlabel_write import write_document, write_openlabel
 
 __all__ = [

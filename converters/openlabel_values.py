@@ -20,6 +20,11 @@ from typing import Any, Iterable, Sequence
 from usdscene.errors import ProblemCollector
 from usdscene.model import FrameInterval, Pose, euler_zyx_to_rotation, quaternion_to_rotation
 
+# Returned by readers of optional parts (a pose, a calibration) whose value was present but
+# invalid, as opposed to None for absent: the problem is already recorded, and the caller must
+# not fall back to a default as it would for an absent part.
+INVALID = object()
+
 # Orthonormality tolerance of rotation blocks read from documents (absolute, per entry of
 # R·Rᵀ - I). Loose enough for matrices printed with 7 significant digits.
 ROTATION_TOLERANCE = 1e-5
@@ -116,6 +121,16 @@ def read_numbers(value: Any, where: str, problems: ProblemCollector, *,
         else:
             out.append(float(item))
     return tuple(out) if ok else None
+
+
+def read_resolution(value: Any, where: str, problems: ProblemCollector) -> tuple[int, int] | None:
+    """``[width, height]`` in pixels (positive integers)."""
+    if not isinstance(value, list) or len(value) != 2:
+        problems.add(where, f"expected [width, height] in pixels, got {describe(value)}")
+        return None
+    w = read_int(value[0], f"{where}[0]", problems, positive=True)
+    h = read_int(value[1], f"{where}[1]", problems, positive=True)
+    return (w, h) if w is not None and h is not None else None
 
 
 def read_object(value: Any, where: str, problems: ProblemCollector) -> dict | None:

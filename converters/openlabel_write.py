@@ -26,13 +26,9 @@ from typing import Any, Iterable
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
 
-from usdscene.converters.openlabel_read import (
-    EQUISOLID_KB_COEFFS,
-    LIGHT_TYPE,
-    PLACE_TYPE,
-    SCHEMA_VERSION,
-    UID_PATTERN,
-)
+from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
+from usdscene.converters.openlabel_load import SCHEMA_VERSION
+from usdscene.converters.openlabel_objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
 
 log = logging.getLogger(__name__)
 

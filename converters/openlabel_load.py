@@ -1,0 +1,266 @@
+"""Loading OpenLABEL 1.0.0 / VCD 4.3 documents: JSON, dialects, provenance. Pure module.
+
+A document is read from a file or a mapping into ``{"openlabel": {...}}``; a VCD 4.3 document
+(root ``vcd``) is converted to the OpenLABEL 1.0.0 form on the way. Problems found while
+loading (bad JSON, repeated keys, NaN/Infinity) are raised at once as one
+:class:`~usdscene.errors.DocumentError`: nothing after loading can work around them.
+
+:class:`DocumentBody` is the loaded ``openlabel`` object as the section readers
+(``openlabel_metadata``, ``openlabel_cameras``, ``openlabel_objects``) see it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any, Iterator, Mapping
+
+from usdscene.errors import DocumentError, ProblemCollector
+from usdscene.model import Provenance
+
+from usdscene.converters.openlabel_values import describe
+
+SCHEMA_VERSION = "1.0.0"
+
+_NON_FINITE_TEXT = re.compile(r"NaN|Infinity|[eE]\+?[0-9]{3,}")
+
+
+def load_document(source: str | os.PathLike | Mapping) -> dict:
+    """Read an OpenLABEL 1.0.0 or VCD 4.3 document into ``{"openlabel": {...}}``.
+
+    Args:
+        source: a path to a JSON file, or an already parsed mapping.
+
+    Returns:
+        The document with root ``openlabel``; a VCD document (root ``vcd``) is converted to
+        the OpenLABEL 1.0.0 form on the fly (flat 16-number poses → ``matrix4x4``,
+        ``transform_src_to_dst_4x4`` → ``transform_src_to_dst``, ``schema_version`` 1.0.0).
+
+    Raises:
+        DocumentError: unreadable file, bad JSON (with line and column), a root that is not an
+            object or is neither ``openlabel`` nor ``vcd``, non-finite numbers (NaN, Infinity).
+    """
+    document, _ = load_with_provenance(source)
+    return document
+
+
+def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Provenance]:
+    """:func:`load_document` plus the provenance :func:`read_openlabel` would record, so that
+    a caller that also needs the raw document (schema validation) parses the file once.
+
+    Returns:
+        (document, provenance): provenance names the path (empty for a mapping), the sha256 of
+        the file's bytes (of the canonical JSON for a mapping), the root key and the toolkit
+        version.
+
+    Raises:
+        DocumentError: as :func:`load_document`.
+    """
+    from usdscene import __version__
+
+    problems = ProblemCollector()
+    if isinstance(source, Mapping):
+        data: Any = source
+        label = ""
+        try:
+            canonical = json.dumps(source, sort_keys=True, separators=(",", ":"), allow_nan=True)
+        except (TypeError, ValueError) as exc:
+            raise DocumentError(f"the document is not JSON data: {exc}", where="document") from None
+        digest = hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+        scan_non_finite = True
+    else:
+        path = Path(source)
+        label = str(path)
+        try:
+            raw = path.read_bytes()
+        except OSError as exc:
+            raise DocumentError(f"cannot read the document: {exc.strerror or exc}", where=label) from None
+        digest = hashlib.sha256(raw).hexdigest()
+        try:
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise DocumentError(f"the document is not UTF-8 text ({exc.reason} at byte {exc.start})",
+                                where=label) from None
+        duplicated: list[tuple[dict, list[str]]] = []
+
+        def keep_duplicates(pairs: list) -> dict:
+            # json keeps the last of repeated keys silently; a repeated uid in a hand-edited
+            # document would drop an element without a word, so remember where it happened.
+            obj = dict(pairs)
+            if len(obj) != len(pairs):
+                seen: set = set()
+                duplicated.append((obj, sorted({k for k, _ in pairs if k in seen or seen.add(k)})))
+            return obj
+
+        try:
+            data = json.loads(text, object_pairs_hook=keep_duplicates)
+        except json.JSONDecodeError as exc:
+            raise DocumentError(f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}",
+                                where=f"{label}:{exc.lineno}:{exc.colno}") from None
+        except RecursionError:
+            raise DocumentError("invalid JSON: nested too deeply", where=label) from None
+        # Python's json accepts NaN/Infinity (and 1e999 → inf); look for them only when the
+        # text could hold one, so that a clean large document is not walked twice.
+        scan_non_finite = bool(_NON_FINITE_TEXT.search(text))
+        if duplicated:
+            targets = {id(obj): keys for obj, keys in duplicated}
+            for where, keys in _find_objects(data, "", targets):
+                for key in keys:
+                    problems.add(f"{where}.{key}" if where else key,
+                                 f"key {key!r} appears more than once in one JSON object (only the last would count)")
+    if not isinstance(data, Mapping):
+        raise DocumentError(f"the document root must be a JSON object, got {type(data).__name__}",
+                            where=label or "document")
+    if "openlabel" in data:
+        root_key = "openlabel"
+    elif "vcd" in data:
+        root_key = "vcd"
+    else:
+        keys = sorted(str(k) for k in data)[:5]
+        raise DocumentError(f"the root object must have the key 'openlabel' (OpenLABEL 1.0.0) or "
+                            f"'vcd' (VCD 4.3); found {keys}", where=label or "document")
+    extra = sorted(str(k) for k in data if k != root_key)
+    if extra:
+        problems.add(extra[0], f"unexpected key {extra[0]!r} beside {root_key!r} at the root")
+    if scan_non_finite:
+        _find_non_finite(data, "", problems)
+    problems.raise_if_any(DocumentError)
+    body = data[root_key]
+    if isinstance(body, Mapping) and not isinstance(body, dict):
+        body = dict(body)
+    if not isinstance(body, dict):
+        raise DocumentError(f"expected a JSON object, got {describe(body)}", where=root_key)
+    if root_key == "vcd":
+        body = vcd_to_openlabel(body)
+    provenance = Provenance(source=label, source_sha256=digest, source_format=root_key,
+                            toolkit_version=__version__)
+    return {"openlabel": dict(body)}, provenance
+
+
+def _find_non_finite(value: Any, where: str, problems: ProblemCollector) -> None:
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            problems.add(where or "document", f"non-finite number {value!r} (JSON has no NaN or Infinity)")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _find_non_finite(item, f"{where}.{key}" if where else str(key), problems)
+    elif isinstance(value, (list, tuple)):
+        for index, item in enumerate(value):
+            _find_non_finite(item, f"{where}[{index}]", problems)
+
+
+def _find_objects(value: Any, where: str, targets: dict):
+    """(JSON path, keys) of the objects whose ``id`` is in ``targets``."""
+    if isinstance(value, dict):
+        if id(value) in targets:
+            yield where, targets[id(value)]
+        for key, item in value.items():
+            yield from _find_objects(item, f"{where}.{key}" if where else str(key), targets)
+    elif isinstance(value, list):
+        for index, item in enumerate(value):
+            yield from _find_objects(item, f"{where}[{index}]", targets)
+
+
+def vcd_to_openlabel(vcd: Mapping) -> dict:
+    """VCD 4.3 → OpenLABEL 1.0.0 (copies what it changes; the input is not modified)."""
+    out = dict(vcd)
+    metadata = dict(out.get("metadata") or {}) if isinstance(out.get("metadata"), dict) else out.get("metadata")
+    if isinstance(metadata, dict):
+        metadata["schema_version"] = SCHEMA_VERSION
+        out["metadata"] = metadata
+    elif "metadata" not in out:
+        out["metadata"] = {"schema_version": SCHEMA_VERSION}
+    systems = out.get("coordinate_systems")
+    if isinstance(systems, dict):
+        converted = {}
+        for name, cs in systems.items():
+            if isinstance(cs, dict) and isinstance(cs.get("pose_wrt_parent"), list):
+                cs = dict(cs)
+                cs["pose_wrt_parent"] = {"matrix4x4": cs["pose_wrt_parent"]}
+            converted[name] = cs
+        out["coordinate_systems"] = converted
+    frames = out.get("frames")
+    if isinstance(frames, dict):
+        new_frames = {}
+        for key, frame in frames.items():
+            props = frame.get("frame_properties") if isinstance(frame, dict) else None
+            transforms = props.get("transforms") if isinstance(props, dict) else None
+            if isinstance(transforms, dict):
+                new_transforms = {}
+                for tname, t in transforms.items():
+                    if isinstance(t, dict) and "transform_src_to_dst_4x4" in t:
+                        t = dict(t)
+                        t["transform_src_to_dst"] = {"matrix4x4": t.pop("transform_src_to_dst_4x4")}
+                    new_transforms[tname] = t
+                frame = dict(frame)
+                frame["frame_properties"] = dict(props, transforms=new_transforms)
+            new_frames[key] = frame
+        out["frames"] = new_frames
+    return out
+
+
+class DocumentBody:
+    """The ``openlabel`` object of one loaded document, as the section readers see it.
+
+    It hands out the top-level sections (each checked to be a JSON object once) and the
+    frames, and collects the problems every reader finds, so that they are raised together.
+
+    Args:
+        body: the ``openlabel`` object (``load_document(...)["openlabel"]``).
+        root: the root key the document was written with (``"openlabel"`` or ``"vcd"``); it
+            starts every JSON path in messages.
+    """
+
+    def __init__(self, body: Mapping, root: str = "openlabel") -> None:
+        self.body = body
+        self.root = root
+        self.problems = ProblemCollector()
+        self._sections: dict[str, Mapping] = {}
+        self._frames: dict[int, Mapping] | None = None
+
+    def add(self, where: str, message: str) -> None:
+        """Record one problem at the JSON path ``where``."""
+        self.problems.add(where, message)
+
+    def section(self, key: str) -> Mapping:
+        """A top-level section as a dict ({} and one problem if it is not an object)."""
+        if key not in self._sections:
+            value = self.body.get(key, {})
+            if not isinstance(value, dict):
+                self.add(f"{self.root}.{key}", f"expected a JSON object, got {describe(value)}")
+                value = {}
+            self._sections[key] = value
+        return self._sections[key]
+
+    def frames(self) -> dict[int, Mapping]:
+        """``frames`` as ``{frame number: frame object}``; bad keys and frames are reported once."""
+        if self._frames is None:
+            self._frames = {}
+            for key, frame in self.section("frames").items():
+                where = f"{self.root}.frames.{key}"
+                if not isinstance(key, str) or not key.isdigit():
+                    self.add(where, f"frame keys are frame numbers (digits), got {key!r}")
+                    continue
+                if not isinstance(frame, dict):
+                    self.add(where, f"expected a JSON object, got {describe(frame)}")
+                    continue
+                self._frames[int(key)] = frame
+        return self._frames
+
+    def frame_sections(self, key: str) -> Iterator[tuple[int, str, Mapping]]:
+        """``(frame, JSON path, frames[f][key])`` for every frame, in frame order, that has a
+        ``key`` object; a ``key`` that is not a JSON object is reported and skipped."""
+        frames = self.frames()
+        for number in sorted(frames):
+            section = frames[number].get(key)
+            if section is None:
+                continue
+            where = f"{self.root}.frames.{number}.{key}"
+            if not isinstance(section, dict):
+                self.add(where, f"expected a JSON object, got {describe(section)}")
+                continue
+            yield number, where, section

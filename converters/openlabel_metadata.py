@@ -1,0 +1,155 @@
+"""``metadata`` of an OpenLABEL document: name, comment and the ``usdscene`` block. Pure module.
+
+The ``metadata.usdscene`` block holds what a scene needs beyond OpenLABEL: the random seed, the
+environment asset, extra asset folders, export formats, ROI rules, an explicit frame range and
+the render settings (``docs/scene-format.md`` lists every key).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from usdscene.model import RenderSettings
+
+from usdscene.converters.openlabel_load import SCHEMA_VERSION, DocumentBody
+from usdscene.converters.openlabel_values import (
+    describe,
+    read_bool,
+    read_int,
+    read_interval,
+    read_number,
+    read_object,
+    read_resolution,
+    read_text,
+    suggest,
+)
+from usdscene.errors import ProblemCollector
+
+METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range")
+RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "denoise", "denoiser",
+               "denoising_quality", "denoising_prefilter", "max_bounces", "caustics", "tile_size_px",
+               "resolution_px", "seed")
+ENGINES = ("cycles", "eevee", "workbench")
+DEVICES = ("cpu", "gpu")
+DENOISERS = ("openimagedenoise", "optix")
+DENOISING_QUALITIES = ("high", "balanced", "fast")
+DENOISING_PREFILTERS = ("accurate", "fast", "none")
+EXPORT_FORMATS = ("coco", "yolo", "rois")
+
+
+def read_metadata(doc: DocumentBody) -> dict:
+    """The scene-wide settings of ``metadata``.
+
+    Returns:
+        ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
+        ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules`` and
+        ``frame_range`` (a :class:`FrameInterval` or None), with defaults for what is absent
+        or bad (the problem is recorded in ``doc``).
+    """
+    problems = doc.problems
+    R = doc.root
+    where = f"{R}.metadata"
+    meta = doc.body.get("metadata")
+    out: dict = dict(name="scene", description="", render=RenderSettings(), seed=0, environment=None,
+                     asset_paths=(), exports=(), roi_rules={}, frame_range=None)
+    if meta is None:
+        problems.add(where, f"missing 'metadata' with 'schema_version': '{SCHEMA_VERSION}'")
+        return out
+    if not isinstance(meta, dict):
+        problems.add(where, f"expected a JSON object, got {describe(meta)}")
+        return out
+    version = meta.get("schema_version")
+    if version != SCHEMA_VERSION:
+        problems.add(f"{where}.schema_version", f"expected '{SCHEMA_VERSION}', got {describe(version)}")
+    if "name" in meta:
+        name = read_text(meta["name"], f"{where}.name", problems)
+        if name:
+            out["name"] = name
+    if "comment" in meta:
+        comment = read_text(meta["comment"], f"{where}.comment", problems)
+        out["description"] = comment or ""
+    block = meta.get("usdscene")
+    if block is None:
+        return out
+    where = f"{where}.usdscene"
+    if not isinstance(block, dict):
+        problems.add(where, f"expected a JSON object, got {describe(block)}")
+        return out
+    for key in block:
+        if key not in METADATA_KEYS:
+            problems.add(f"{where}.{key}", f"unknown key {key!r}{suggest(key, METADATA_KEYS)}; "
+                                           f"known keys: {', '.join(METADATA_KEYS)}")
+    if "seed" in block:
+        seed = read_int(block["seed"], f"{where}.seed", problems, non_negative=True)
+        out["seed"] = seed if seed is not None else 0
+    if "environment" in block:
+        out["environment"] = read_text(block["environment"], f"{where}.environment", problems,
+                                       non_empty=True)
+    if "asset_paths" in block:
+        out["asset_paths"] = _read_strings(block["asset_paths"], f"{where}.asset_paths", problems)
+    if "exports" in block:
+        exports = _read_strings(block["exports"], f"{where}.exports", problems)
+        for index, fmt in enumerate(exports):
+            if fmt not in EXPORT_FORMATS:
+                problems.add(f"{where}.exports[{index}]",
+                             f"unknown export format {fmt!r}; expected one of {', '.join(EXPORT_FORMATS)}")
+        out["exports"] = exports
+    if "roi_rules" in block:
+        rules = read_object(block["roi_rules"], f"{where}.roi_rules", problems) or {}
+        out["roi_rules"] = {k: v for k, v in rules.items()
+                            if read_text(v, f"{where}.roi_rules.{k}", problems, non_empty=True)}
+    if "frame_range" in block:
+        out["frame_range"] = read_interval(block["frame_range"], f"{where}.frame_range", problems)
+    if "render" in block:
+        out["render"] = read_render(block["render"], f"{where}.render", problems)
+    return out
+
+
+def _read_strings(value: Any, where: str, problems: ProblemCollector) -> tuple[str, ...]:
+    """A list of non-empty strings (bad items are reported and left out)."""
+    if not isinstance(value, list):
+        problems.add(where, f"expected a list of strings, got {describe(value)}")
+        return ()
+    out = []
+    for index, item in enumerate(value):
+        text = read_text(item, f"{where}[{index}]", problems, non_empty=True)
+        if text:
+            out.append(text)
+    return tuple(out)
+
+
+def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSettings:
+    """``metadata.usdscene.render`` → :class:`RenderSettings` (defaults for bad or absent keys)."""
+    block = read_object(value, where, problems)
+    if block is None:
+        return RenderSettings()
+    P = problems
+    kwargs: dict = {}
+    for key, item in block.items():
+        here = f"{where}.{key}"
+        if key not in RENDER_KEYS:
+            problems.add(here, f"unknown render setting {key!r}{suggest(key, RENDER_KEYS)}; "
+                               f"known: {', '.join(RENDER_KEYS)}")
+            continue
+        parsed: Any
+        if key in ("engine", "device", "denoiser", "denoising_quality", "denoising_prefilter"):
+            choices = {"engine": ENGINES, "device": DEVICES, "denoiser": DENOISERS,
+                       "denoising_quality": DENOISING_QUALITIES,
+                       "denoising_prefilter": DENOISING_PREFILTERS}[key]
+            parsed = read_text(item, here, P)
+            if parsed is not None and parsed not in choices:
+                problems.add(here, f"unknown {key} {parsed!r}; expected one of {', '.join(choices)}")
+                parsed = None
+        elif key in ("samples", "tile_size_px"):
+            parsed = read_int(item, here, P, positive=True)
+        elif key in ("max_bounces", "seed"):
+            parsed = read_int(item, here, P, non_negative=True)
+        elif key == "adaptive_threshold":
+            parsed = read_number(item, here, P, non_negative=True)
+        elif key in ("denoise", "caustics"):
+            parsed = read_bool(item, here, P)
+        else:  # resolution_px
+            parsed = read_resolution(item, here, P)
+        if parsed is not None:
+            kwargs[key] = parsed
+    return RenderSettings(**kwargs)
