@@ -21,7 +21,8 @@ import time
 import cv2
 import numpy as np
 
-from usdscene.labels import DEFAULT_EPSILON_PX, amodal_projection, label_image
+from usdscene.amodal import amodal_projection
+from usdscene.labels import DEFAULT_EPSILON_PX, label_image
 from usdscene.model import Camera, Intrinsics, LensModel
 
 W, H = 640, 480

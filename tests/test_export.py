@@ -12,7 +12,8 @@ import pytest
 from usdscene.converters.coco import coco_dataset, export_coco
 from usdscene.converters.openlabel_annotations import add_annotations, image_records, labels_in
 from usdscene.converters.yolo import export_yolo
-from usdscene.labels import AmodalProjection, box_of, label_image, label_images, rasterize_contours, Contour
+from usdscene.amodal import AmodalProjection
+from usdscene.labels import box_of, label_image, label_images, rasterize_contours, Contour
 from usdscene.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
 
 W, H = 64, 48
@@ -62,7 +63,7 @@ def _masks(frame: int, camera: str) -> tuple[np.ndarray, dict[str, AmodalProject
     mask[amodal["2"]] = 3
     amodal["0"] = ring | amodal["0"] if camera == "cam_b" and frame == 1 else amodal["0"]
     truncated = {"1": False, "0": False, "2": False}
-    return mask, {uid: AmodalProjection(m, truncated[uid]) for uid, m in amodal.items()}
+    return mask, {uid: AmodalProjection.from_mask(m, truncated[uid]) for uid, m in amodal.items()}
 
 
 IDS = {1: "0", 2: "1", 3: "2"}

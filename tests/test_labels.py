@@ -6,15 +6,14 @@ import cv2
 import numpy as np
 import pytest
 
+from usdscene.amodal import AmodalProjection, rasterize_triangles
 from usdscene.labels import (
-    AmodalProjection,
     PixelBox,
     box_of,
     bridge_rings,
     contours_of,
     label_image,
     rasterize_contours,
-    rasterize_triangles,
 )
 
 H, W = 48, 64

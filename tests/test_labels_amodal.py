@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdscene.labels import amodal_projection, box_of, label_image
+from usdscene.amodal import amodal_projection
+from usdscene.labels import box_of, label_image
 from usdscene.model import Camera, Intrinsics, LensModel
 
 W, H = 64, 48

@@ -75,7 +75,7 @@ def test_world_triangles_follow_time_samples_and_visibility():
 
 
 def test_stage_triangles_give_amodal_masks():
-    from usdscene.labels import amodal_projection
+    from usdscene.amodal import amodal_projection
     from usdscene.model import Camera, Intrinsics, LensModel, Pose
     from usdscene.stage_geometry import StageGeometry
 

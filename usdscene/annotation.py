@@ -105,7 +105,8 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
     from usdscene.converters.openlabel_annotations import add_annotations
     from usdscene import layout
     from usdscene.errors import OutputError
-    from usdscene.labels import DEFAULT_EPSILON_PX, amodal_projection, label_image, label_images
+    from usdscene.amodal import amodal_projection
+    from usdscene.labels import DEFAULT_EPSILON_PX, label_image, label_images
 
     out = Path(out_dir)
     epsilon = DEFAULT_EPSILON_PX if epsilon_px is None else float(epsilon_px)
@@ -177,7 +178,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
                 amodal_masks = {uid: amodal_projection(camera, tris, frame)
                                 for uid, tris in triangles.items() if len(tris)}
                 # Objects the camera does not see at all carry no label there.
-                amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.mask.any()}
+                amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
             images.append(label_image(mask, ids, amodal_masks, classes=classes, camera=camera_name,
                                       frame=frame, epsilon_px=epsilon,
                                       min_visible_fraction=min_visible_fraction))

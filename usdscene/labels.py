@@ -22,7 +22,7 @@ Visibility:
 
 * *visible* = pixels of the object in the instance mask (occluders removed);
 * *amodal* = pixels of the object's whole projection through the camera model, as if nothing
-  occluded it, clipped to the image (:func:`rasterize_triangles` / :func:`amodal_projection`);
+  occluded it, clipped to the image (:mod:`usdscene.amodal`);
 * ``visible_fraction = visible pixels / amodal pixels``, clipped to ``[0, 1]`` (the two
   rasterisations differ by a few boundary pixels, so the raw ratio can exceed 1 slightly);
 * ``truncated`` = the unclipped projection leaves the image (or, without an amodal
@@ -33,22 +33,16 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Collection, Iterable, Iterator, Mapping, Sequence
+from typing import Collection, Iterable, Iterator, Mapping, Sequence
 
 import cv2
 import numpy as np
 
-if TYPE_CHECKING:  # the projection module is pure too, but only needed for amodal labels
-    from usdscene.model import Camera
+from usdscene.amodal import AmodalProjection
 
 log = logging.getLogger(__name__)
 
 DEFAULT_EPSILON_PX = 0.75
-# Projected triangle edges of distorting lenses are curves; triangles are split until their
-# projected edges are at most this long (pixels), so the straight-edge raster stays within a
-# fraction of a pixel of the curved one.
-MAX_PROJECTED_EDGE_PX = 8.0
-_MAX_SUBDIVISIONS = 5
 
 
 # --------------------------------------------------------------------------------------------
@@ -194,19 +188,6 @@ class Annotations:
         return iter(self.images)
 
 
-@dataclass(frozen=True, eq=False)
-class AmodalProjection:
-    """An object's whole projection into one image.
-
-    Attributes:
-        mask: (H, W) bool, True where the projection covers a pixel centre.
-        truncated: the unclipped projection leaves the image.
-    """
-
-    mask: np.ndarray
-    truncated: bool = False
-
-
 # --------------------------------------------------------------------------------------------
 # Mask → labels
 
@@ -343,13 +324,17 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
         amodal_box = amodal_count = fraction = None
         is_truncated = uid in truncated
         if amodal is not None:
-            amodal_mask = amodal.mask if isinstance(amodal, AmodalProjection) else amodal
-            if amodal_mask.shape != mask.shape:
-                raise ValueError(f"amodal mask of {uid!r} has shape {amodal_mask.shape}, "
-                                 f"the instance mask {mask.shape}")
             if isinstance(amodal, AmodalProjection):
+                if amodal.image_size_px != (width, height):
+                    raise ValueError(f"amodal projection of {uid!r} is for a {amodal.image_size_px} "
+                                     f"image, the instance mask is {(width, height)}")
                 is_truncated = is_truncated or amodal.truncated
-            amodal_box, amodal_count = _box_and_count(amodal_mask)
+                amodal_box, amodal_count = amodal.box, amodal.pixel_count
+            else:
+                if amodal.shape != mask.shape:
+                    raise ValueError(f"amodal mask of {uid!r} has shape {amodal.shape}, "
+                                     f"the instance mask {mask.shape}")
+                amodal_box, amodal_count = _box_and_count(amodal)
             if amodal_count:
                 fraction = min(1.0, pixel_count / amodal_count)
             else:
@@ -435,180 +420,6 @@ def bridge_rings(rings: Sequence[np.ndarray]) -> np.ndarray:
         entered = np.concatenate([ring[j:], ring[:j + 1]])  # closed walk around the ring
         merged = np.concatenate([merged[:i + 1], entered, merged[i:]])
     return merged
-
-
-# --------------------------------------------------------------------------------------------
-# Amodal projection
-
-
-def _clip_polygon(poly: np.ndarray, axis: int, bound: float, keep_greater: bool) -> np.ndarray:
-    """Sutherland-Hodgman: clip a (N, D) polygon by the half-space coord[axis] >=/<= bound."""
-    out = []
-    n = len(poly)
-    for k in range(n):
-        a, b = poly[k], poly[(k + 1) % n]
-        a_in = a[axis] >= bound if keep_greater else a[axis] <= bound
-        b_in = b[axis] >= bound if keep_greater else b[axis] <= bound
-        if a_in:
-            out.append(a)
-        if a_in != b_in:
-            t = (bound - a[axis]) / (b[axis] - a[axis])
-            out.append(a + t * (b - a))
-    return np.asarray(out).reshape(-1, poly.shape[1])
-
-
-def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
-                        valid: np.ndarray | None = None) -> AmodalProjection:
-    """Fill projected triangles into an image-sized mask by pixel-centre sampling.
-
-    A pixel belongs to the projection when its centre lies inside or on the edge of a
-    triangle, the sampling rule of a renderer's one-sample-per-pixel id pass (OpenCV's
-    ``fillConvexPoly`` instead rounds edges outwards, up to a pixel too wide).
-
-    Args:
-        uv_px: (T, 3, 2) float vertex pixel coordinates (pixel centres at integers).
-        width_px, height_px: image size.
-        valid: (T, 3) bool, False for vertices the lens cannot image; triangles with an
-            invalid vertex are skipped and make the projection count as truncated.
-
-    Returns:
-        AmodalProjection: mask (H, W) bool, truncated = some vertex lies outside the image
-        area ``[-0.5, W - 0.5] × [-0.5, H - 0.5]`` or was invalid.
-    """
-    uv = np.asarray(uv_px, dtype=np.float64).reshape(-1, 3, 2)
-    mask = np.zeros((height_px, width_px), dtype=bool)
-    truncated = False
-    if valid is not None:
-        ok = np.asarray(valid, dtype=bool).reshape(-1, 3).all(axis=1)
-        truncated = bool((~ok).any())
-        uv = uv[ok]
-    finite = np.isfinite(uv).all(axis=(1, 2))
-    truncated = truncated or bool((~finite).any())
-    uv = uv[finite]
-    if uv.size == 0:
-        return AmodalProjection(mask, truncated)
-    lo = uv.min(axis=1)
-    hi = uv.max(axis=1)
-    truncated = truncated or bool(((lo[:, 0] < -0.5) | (lo[:, 1] < -0.5)
-                                   | (hi[:, 0] > width_px - 0.5) | (hi[:, 1] > height_px - 0.5)).any())
-    # Candidate pixel centres of each triangle: its bounding box clipped to the image.
-    x0 = np.clip(np.ceil(lo[:, 0]), 0, width_px).astype(np.int64)
-    x1 = np.clip(np.floor(hi[:, 0]), -1, width_px - 1).astype(np.int64)
-    y0 = np.clip(np.ceil(lo[:, 1]), 0, height_px).astype(np.int64)
-    y1 = np.clip(np.floor(hi[:, 1]), -1, height_px - 1).astype(np.int64)
-    bw = np.maximum(x1 - x0 + 1, 0)
-    bh = np.maximum(y1 - y0 + 1, 0)
-    a, b, c = uv[:, 0], uv[:, 1], uv[:, 2]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    count = np.where(area2 != 0, bw * bh, 0)
-    keep = np.flatnonzero(count)
-    # Vectorised over triangles, in chunks that bound the candidate arrays (~4 M pixels).
-    start = 0
-    cumulative = np.cumsum(count[keep])
-    while start < keep.size:
-        base = cumulative[start - 1] if start else 0
-        stop = max(start + 1, int(np.searchsorted(cumulative, base + _CANDIDATES_PER_CHUNK, side="right")))
-        _fill_chunk(mask, keep[start:stop], count, x0, y0, bw, a, b, c, area2)
-        start = stop
-    return AmodalProjection(mask, truncated)
-
-
-_CANDIDATES_PER_CHUNK = 1 << 22
-
-
-def _fill_chunk(mask, tris, count, x0, y0, bw, a, b, c, area2) -> None:
-    n = count[tris]
-    owner = np.repeat(tris, n)
-    local = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-    px = x0[owner] + local % bw[owner]
-    py = y0[owner] + local // bw[owner]
-    sign = np.sign(area2[owner])
-    inside = np.ones(owner.size, dtype=bool)
-    for p, q in ((a, b), (b, c), (c, a)):
-        # Edge function of p→q at the pixel centre, oriented so the interior is >= 0.
-        e = ((q[owner, 0] - p[owner, 0]) * (py - p[owner, 1])
-             - (q[owner, 1] - p[owner, 1]) * (px - p[owner, 0])) * sign
-        inside &= e >= 0
-    mask[py[inside], px[inside]] = True
-
-
-def _clip_triangles_near(tris_cam: np.ndarray, near_m: float) -> tuple[np.ndarray, bool]:
-    """Clip (T, 3, 3) camera-frame triangles (OpenCV axes) to z >= near; returns the
-    surviving triangles and whether any was cut."""
-    z = tris_cam[:, :, 2]
-    inside = z >= near_m
-    all_in = inside.all(axis=1)
-    crossing = inside.any(axis=1) & ~all_in
-    pieces = [tris_cam[all_in]]
-    for tri in tris_cam[crossing]:
-        poly = _clip_polygon(tri, 2, near_m, True)
-        for k in range(1, len(poly) - 1):  # fan triangulation of the convex clipped polygon
-            pieces.append(np.stack([poly[0], poly[k], poly[k + 1]])[None])
-    return np.concatenate(pieces) if pieces else np.zeros((0, 3, 3)), bool((~all_in).any())
-
-
-def amodal_projection(camera: "Camera", triangles_world_m: np.ndarray, frame: int | None = None, *,
-                      max_edge_px: float = MAX_PROJECTED_EDGE_PX) -> AmodalProjection:
-    """Rasterise an object's world-space triangles through a camera model.
-
-    Triangles are clipped at the camera's near plane (pinhole-like lenses) so that geometry
-    behind the camera never folds into the image, projected with
-    :func:`usdscene.projection.project_points` (every lens model, distortion included), split
-    while a projected edge of a distorting lens is longer than ``max_edge_px``, and filled.
-
-    Args:
-        camera: the camera (intrinsics + pose at ``frame``).
-        triangles_world_m: (T, 3, 3) float world coordinates in metres.
-        frame: frame number for per-frame camera poses; None = the static pose.
-        max_edge_px: subdivision threshold for distorting lenses, pixels.
-
-    Returns:
-        AmodalProjection of image size.
-    """
-    from usdscene.model import LensModel
-    from usdscene.projection import project_points
-
-    intr = camera.intrinsics
-    tris = np.asarray(triangles_world_m, dtype=np.float64).reshape(-1, 3, 3)
-    cut = False
-    if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-        pose = camera.pose_at(frame) if frame is not None else camera.pose
-        world_to_cam = pose.inverse()
-        cam_pts = world_to_cam.transform_points(tris.reshape(-1, 3)).reshape(-1, 3, 3)
-        cam_pts, cut = _clip_triangles_near(cam_pts, max(camera.clip_near_m, 1e-6))
-        tris = pose.transform_points(cam_pts.reshape(-1, 3)).reshape(-1, 3, 3)
-    curved = intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion)
-
-    def project(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        uv, ok = project_points(camera, t.reshape(-1, 3), frame)
-        return np.asarray(uv, dtype=np.float64).reshape(-1, 3, 2), np.asarray(ok, bool).reshape(-1, 3)
-
-    uv, ok = project(tris) if len(tris) else (np.zeros((0, 3, 2)), np.zeros((0, 3), bool))
-    if curved and len(tris):
-        done_uv, done_ok = [], []
-        for _ in range(_MAX_SUBDIVISIONS):
-            edges = np.linalg.norm(uv - np.roll(uv, -1, axis=1), axis=2).max(axis=1)
-            split = ok.all(axis=1) & (edges > max_edge_px)
-            done_uv.append(uv[~split])
-            done_ok.append(ok[~split])
-            if not split.any():
-                break
-            tris = _subdivide(tris[split])
-            uv, ok = project(tris)
-        else:
-            done_uv.append(uv)
-            done_ok.append(ok)
-        uv, ok = np.concatenate(done_uv), np.concatenate(done_ok)
-    result = rasterize_triangles(uv, intr.width_px, intr.height_px, ok)
-    return AmodalProjection(result.mask, result.truncated or cut)
-
-
-def _subdivide(tris: np.ndarray) -> np.ndarray:
-    """Split (T, 3, 3) triangles at their edge midpoints → (4T, 3, 3)."""
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-    ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
-    return np.concatenate([np.stack(t, axis=1) for t in
-                           ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
 
 
 def label_images(items: Iterable[ImageLabels], *, epsilon_px: float = DEFAULT_EPSILON_PX,

@@ -1,0 +1,382 @@
+"""Amodal projections: an object's whole projection into a camera image, as if nothing
+occluded it, from its world-space triangles. Pure (numpy + numba; no pxr, no bpy).
+
+Rasterisation samples pixel centres (a pixel belongs to the projection when its centre lies
+inside or on the edge of a projected triangle), the rule of a renderer's one-sample-per-pixel
+id pass. It runs as one compiled loop over the triangles (numba) into a crop of the image the
+size of the projection's box, so its cost is the covered pixels, not the image.
+
+Exactness, per lens:
+
+* perspective and orthographic: triangles are clipped at the near plane and projected; straight
+  edges stay straight, so the raster is the exact full-mesh projection;
+* distorting lenses (OpenCV pinhole with distortion, fisheye models): projected edges are
+  curves; triangles are split until their projected edges are at most
+  :data:`MAX_PROJECTED_EDGE_PX` long, which keeps the raster within a fraction of a pixel of
+  the curved one;
+* fisheye lenses with a field of view (``fov_deg``): the image is empty beyond the image circle.
+  A vertex outside the field of view is moved along its azimuth onto the circle's cone, and
+  triangles that cross the circle are split like curved ones, so an object cut by the circle
+  keeps the part inside it (instead of losing every triangle with a vertex outside).
+
+Objects whose bounding sphere lies outside a camera's field of view are culled before any
+triangle is projected.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from usdscene.labels import PixelBox
+    from usdscene.model import Camera, Intrinsics
+
+# Projected triangle edges of distorting lenses are curves; triangles are split until their
+# projected edges are at most this long (pixels), so the straight-edge raster stays within a
+# fraction of a pixel of the curved one.
+MAX_PROJECTED_EDGE_PX = 8.0
+_MAX_SUBDIVISIONS = 5
+# Vertices outside a fisheye's field of view are moved to just inside its cone (radians), so
+# that the lens model still counts them as imaged.
+_CONE_MARGIN_RAD = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class AmodalProjection:
+    """An object's whole projection into one image, stored as the crop of its box.
+
+    Attributes:
+        crop: (h, w) bool, True where the projection covers a pixel centre; (0, 0) when it
+            covers none.
+        origin_px: ``(x, y)`` image position of ``crop[0, 0]``.
+        image_size_px: ``(width, height)`` of the image.
+        truncated: the unclipped projection leaves the image (or the lens cannot image part
+            of the object).
+    """
+
+    crop: np.ndarray
+    origin_px: tuple[int, int]
+    image_size_px: tuple[int, int]
+    truncated: bool = False
+
+    @classmethod
+    def from_mask(cls, mask: np.ndarray, truncated: bool = False) -> AmodalProjection:
+        """Wrap a (H, W) bool image-sized mask."""
+        mask = np.asarray(mask, dtype=bool)
+        height, width = mask.shape
+        return cls(mask, (0, 0), (width, height), truncated)
+
+    @property
+    def mask(self) -> np.ndarray:
+        """(H, W) bool image-sized mask (built on demand)."""
+        width, height = self.image_size_px
+        full = np.zeros((height, width), dtype=bool)
+        x, y = self.origin_px
+        h, w = self.crop.shape
+        full[y:y + h, x:x + w] = self.crop
+        return full
+
+    @functools.cached_property
+    def pixel_count(self) -> int:
+        """Pixels of the projection inside the image."""
+        return int(np.count_nonzero(self.crop))
+
+    @functools.cached_property
+    def box(self) -> PixelBox | None:
+        """Tight box of the projection's pixels (image coordinates); None when it has none."""
+        from usdscene.labels import PixelBox
+
+        rows = np.flatnonzero(self.crop.any(axis=1))
+        if rows.size == 0:
+            return None
+        cols = np.flatnonzero(self.crop.any(axis=0))
+        x, y = self.origin_px
+        return PixelBox(int(cols[0]) + x, int(rows[0]) + y, int(cols[-1]) + x, int(rows[-1]) + y)
+
+
+def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
+                        valid: np.ndarray | None = None) -> AmodalProjection:
+    """Fill projected triangles by pixel-centre sampling (see the module docstring).
+
+    Args:
+        uv_px: (T, 3, 2) float vertex pixel coordinates (pixel centres at integers).
+        width_px, height_px: image size.
+        valid: (T, 3) bool, False for vertices the lens cannot image; triangles with an
+            invalid vertex are skipped and make the projection count as truncated.
+
+    Returns:
+        AmodalProjection; truncated = some vertex lies outside the image area
+        ``[-0.5, W - 0.5] × [-0.5, H - 0.5]`` or was invalid.
+    """
+    uv = np.ascontiguousarray(uv_px, dtype=np.float64).reshape(-1, 3, 2)
+    imaged = (np.ones(len(uv), dtype=np.bool_) if valid is None
+              else np.ascontiguousarray(valid, dtype=np.bool_).reshape(-1, 3))
+    if valid is not None:
+        imaged = imaged[:, 0] & imaged[:, 1] & imaged[:, 2]
+    kernels = _kernels()
+    x0, y0, x1, y1, truncated = kernels.crop_bounds(uv, imaged, width_px, height_px)
+    if x1 < x0 or y1 < y0:
+        return AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), (width_px, height_px), bool(truncated))
+    crop = np.zeros((y1 - y0 + 1, x1 - x0 + 1), dtype=np.bool_)
+    kernels.fill(uv, imaged, x0, y0, crop)
+    return AmodalProjection(crop, (int(x0), int(y0)), (width_px, height_px), bool(truncated))
+
+
+@functools.cache
+def _kernels():
+    """The compiled triangle loops (compiled on first use, cached on disk by numba)."""
+    import types
+
+    import numba
+
+    @numba.njit(cache=True, nogil=True)
+    def crop_bounds(uv, imaged, width, height):
+        """Pixel-centre box (x0, y0, x1, y1) covered by the imaged, finite triangles' boxes
+        inside the image (empty: x1 < x0), and whether the projection is truncated."""
+        x0, y0, x1, y1 = width, height, -1, -1
+        truncated = False
+        for t in range(uv.shape[0]):
+            if not imaged[t]:
+                truncated = True
+                continue
+            lo_x = min(uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0])
+            hi_x = max(uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0])
+            lo_y = min(uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
+            hi_y = max(uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
+            if not (math.isfinite(lo_x) and math.isfinite(hi_x) and math.isfinite(lo_y)
+                    and math.isfinite(hi_y)):
+                truncated = True
+                continue
+            if lo_x < -0.5 or lo_y < -0.5 or hi_x > width - 0.5 or hi_y > height - 0.5:
+                truncated = True
+            x0 = min(x0, max(0, int(math.ceil(lo_x))))
+            y0 = min(y0, max(0, int(math.ceil(lo_y))))
+            x1 = max(x1, min(width - 1, int(math.floor(hi_x))))
+            y1 = max(y1, min(height - 1, int(math.floor(hi_y))))
+        return x0, y0, x1, y1, truncated
+
+    @numba.njit(cache=True, nogil=True)
+    def fill(uv, imaged, x_origin, y_origin, crop):
+        """Set the crop's pixels whose centre lies inside or on an imaged triangle."""
+        height, width = crop.shape
+        for t in range(uv.shape[0]):
+            if not imaged[t]:
+                continue
+            ax, ay = uv[t, 0, 0], uv[t, 0, 1]
+            bx, by = uv[t, 1, 0], uv[t, 1, 1]
+            cx, cy = uv[t, 2, 0], uv[t, 2, 1]
+            area2 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+            if not math.isfinite(area2) or area2 == 0.0:
+                continue
+            sign = 1.0 if area2 > 0.0 else -1.0
+            px0 = max(int(math.ceil(min(ax, bx, cx))), x_origin)
+            px1 = min(int(math.floor(max(ax, bx, cx))), x_origin + width - 1)
+            py0 = max(int(math.ceil(min(ay, by, cy))), y_origin)
+            py1 = min(int(math.floor(max(ay, by, cy))), y_origin + height - 1)
+            for py in range(py0, py1 + 1):
+                for px in range(px0, px1 + 1):
+                    # Edge functions at the pixel centre, oriented so the interior is >= 0.
+                    if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
+                        continue
+                    if ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0:
+                        continue
+                    if ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0:
+                        continue
+                    crop[py - y_origin, px - x_origin] = True
+
+    @numba.njit(cache=True, nogil=True)
+    def bounding_sphere(points):
+        """Centre (3,) and radius of the bounding box's sphere of (N, 3) points."""
+        lo = points[0].copy()
+        hi = points[0].copy()
+        for i in range(1, points.shape[0]):
+            for k in range(3):
+                lo[k] = min(lo[k], points[i, k])
+                hi[k] = max(hi[k], points[i, k])
+        centre = (lo + hi) / 2.0
+        radius = math.sqrt(((hi - lo) ** 2).sum()) / 2.0
+        return centre, radius
+
+    return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, bounding_sphere=bounding_sphere)
+
+
+def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int | None = None, *,
+                      max_edge_px: float = MAX_PROJECTED_EDGE_PX) -> AmodalProjection:
+    """Rasterise an object's world-space triangles through a camera model.
+
+    See the module docstring for what is exact on each lens model.
+
+    Args:
+        camera: the camera (intrinsics + pose at ``frame``).
+        triangles_world_m: (T, 3, 3) float world coordinates in metres.
+        frame: frame number for per-frame camera poses; None = the static pose.
+        max_edge_px: subdivision threshold for distorting lenses, pixels.
+
+    Returns:
+        AmodalProjection of the image size (empty when the object is out of view).
+    """
+    from usdscene.model import LensModel
+    from usdscene.projection import project_camera_points
+
+    intr = camera.intrinsics
+    size = (intr.width_px, intr.height_px)
+    tris = np.asarray(triangles_world_m, dtype=np.float64).reshape(-1, 3, 3)
+    if not len(tris):
+        return AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
+    pose = camera.pose_at(frame) if frame is not None else camera.pose
+    m = pose.as_array()
+    # world → camera (OpenCV axes): R^T (p - t), written for row vectors.
+    cam = ((tris.reshape(-1, 3) - m[:3, 3]) @ m[:3, :3]).reshape(-1, 3, 3)
+    if not _may_be_in_view(intr, cam):
+        return AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
+    cut = False
+    if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+        cam, cut = _clip_triangles_near(cam, max(camera.clip_near_m, 1e-6))
+    cone = _fisheye_cone_rad(intr)
+    curved = intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion)
+
+    def project(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """→ uv (T, 3, 2), imaged (T, 3) bool, inside the field of view (T, 3) bool."""
+        points = t.reshape(-1, 3)
+        inside = np.ones(len(points), dtype=bool)
+        if cone is not None:
+            points, inside = _onto_cone(points, cone)
+        uv, ok = project_camera_points(intr, points)
+        return (np.asarray(uv, dtype=np.float64).reshape(-1, 3, 2), np.asarray(ok, bool).reshape(-1, 3),
+                inside.reshape(-1, 3))
+
+    uv, ok, inside = project(cam)
+    if curved:
+        done_uv, done_ok, done_inside = [], [], []
+        for _ in range(_MAX_SUBDIVISIONS):
+            edges = np.linalg.norm(uv - np.roll(uv, -1, axis=1), axis=2)
+            longest = np.maximum(np.maximum(edges[:, 0], edges[:, 1]), edges[:, 2])
+            split = ok[:, 0] & ok[:, 1] & ok[:, 2] & (longest > max_edge_px)
+            done_uv.append(uv[~split])
+            done_ok.append(ok[~split])
+            done_inside.append(inside[~split])
+            if not split.any():
+                break
+            cam = _subdivide(cam[split])
+            uv, ok, inside = project(cam)
+        else:
+            done_uv.append(uv)
+            done_ok.append(ok)
+            done_inside.append(inside)
+        uv, ok, inside = np.concatenate(done_uv), np.concatenate(done_ok), np.concatenate(done_inside)
+    if cone is not None:
+        # Pieces entirely beyond the image circle are not imaged: drop them.
+        beyond = ~(inside[:, 0] | inside[:, 1] | inside[:, 2])
+        cut = cut or bool((~inside).any())
+        uv, ok = uv[~beyond], ok[~beyond]
+    result = rasterize_triangles(uv, intr.width_px, intr.height_px, ok)
+    return AmodalProjection(result.crop, result.origin_px, size, result.truncated or cut)
+
+
+def _fisheye_cone_rad(intrinsics: Intrinsics) -> float | None:
+    """Half field of view of a fisheye lens with a declared ``fov_deg`` (radians), else None."""
+    from usdscene.model import LensModel
+
+    fisheye = intrinsics.lens in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID,
+                                  LensModel.OPENCV_FISHEYE)
+    if not fisheye or intrinsics.fov_deg is None:
+        return None
+    return math.radians(intrinsics.fov_deg) / 2.0
+
+
+def _onto_cone(points_cam: np.ndarray, half_angle_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Move (N, 3) camera-frame points further than ``half_angle_rad`` from the optical axis
+    onto the cone (same azimuth, unit distance; a lens only images directions).
+
+    Returns:
+        ``(points (N, 3), inside (N,) bool)``; inside = the point was within the cone.
+    """
+    x, y, z = points_cam[:, 0], points_cam[:, 1], points_cam[:, 2]
+    rho = np.hypot(x, y)
+    inside = np.arctan2(rho, z) <= half_angle_rad
+    if inside.all():
+        return points_cam, inside
+    edge = half_angle_rad - _CONE_MARGIN_RAD
+    safe = np.where(rho > 0, rho, 1.0)
+    moved = np.stack([np.where(rho > 0, x / safe, 1.0) * math.sin(edge),
+                      np.where(rho > 0, y / safe, 0.0) * math.sin(edge),
+                      np.full_like(z, math.cos(edge))], axis=1)
+    return np.where(inside[:, None], points_cam, moved), inside
+
+
+@functools.lru_cache(maxsize=256)
+def _view_half_angle_rad(intrinsics: Intrinsics) -> float:
+    """Largest angle from the optical axis (radians) of any ray the image can show; π when
+    unknown (orthographic, or a distortion that cannot be inverted at the border)."""
+    from usdscene.model import LensModel
+    from usdscene.projection import _border_pixels, pixel_rays
+
+    if intrinsics.lens is LensModel.ORTHOGRAPHIC:
+        return math.pi
+    cone = _fisheye_cone_rad(intrinsics)
+    if intrinsics.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+        rays, valid = pixel_rays(intrinsics, _border_pixels(intrinsics.width_px, intrinsics.height_px))
+        if not valid.all():
+            return math.pi
+        # 1° of margin for the straight border between sampled border points.
+        return min(math.pi / 2, float(np.arccos(np.clip(rays[:, 2], -1, 1)).max()) + math.radians(1.0))
+    return cone if cone is not None else math.pi
+
+
+def _may_be_in_view(intrinsics: Intrinsics, triangles_cam: np.ndarray) -> bool:
+    """False when the bounding sphere of (T, 3, 3) camera-frame triangles lies wholly outside
+    the camera's field of view (conservative: True when unsure)."""
+    half_angle = _view_half_angle_rad(intrinsics)
+    if half_angle >= math.pi:
+        return True
+    centre, radius = _kernels().bounding_sphere(np.ascontiguousarray(triangles_cam).reshape(-1, 3))
+    distance = math.sqrt(float(centre @ centre))
+    if distance <= radius:
+        return True
+    off_axis = math.atan2(math.hypot(centre[0], centre[1]), centre[2])
+    return off_axis - math.asin(radius / distance) <= half_angle
+
+
+def _subdivide(tris: np.ndarray) -> np.ndarray:
+    """Split (T, 3, 3) triangles at their edge midpoints → (4T, 3, 3)."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+    return np.concatenate([np.stack(t, axis=1) for t in
+                           ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+
+
+def _clip_polygon(poly: np.ndarray, axis: int, bound: float, keep_greater: bool) -> np.ndarray:
+    """Sutherland-Hodgman: clip a (N, D) polygon by the half-space coord[axis] >=/<= bound."""
+    out = []
+    n = len(poly)
+    for k in range(n):
+        a, b = poly[k], poly[(k + 1) % n]
+        a_in = a[axis] >= bound if keep_greater else a[axis] <= bound
+        b_in = b[axis] >= bound if keep_greater else b[axis] <= bound
+        if a_in:
+            out.append(a)
+        if a_in != b_in:
+            t = (bound - a[axis]) / (b[axis] - a[axis])
+            out.append(a + t * (b - a))
+    return np.asarray(out).reshape(-1, poly.shape[1])
+
+
+def _clip_triangles_near(tris_cam: np.ndarray, near_m: float) -> tuple[np.ndarray, bool]:
+    """Clip (T, 3, 3) camera-frame triangles (OpenCV axes) to z >= near; returns the
+    surviving triangles and whether any was cut."""
+    inside = tris_cam[:, :, 2] >= near_m
+    all_in = inside[:, 0] & inside[:, 1] & inside[:, 2]
+    if all_in.all():
+        return tris_cam, False
+    crossing = (inside[:, 0] | inside[:, 1] | inside[:, 2]) & ~all_in
+    pieces = [tris_cam[all_in]]
+    for tri in tris_cam[crossing]:
+        poly = _clip_polygon(tri, 2, near_m, True)
+        for k in range(1, len(poly) - 1):  # fan triangulation of the convex clipped polygon
+            pieces.append(np.stack([poly[0], poly[k], poly[k + 1]])[None])
+    return np.concatenate(pieces) if pieces else np.zeros((0, 3, 3)), bool((~all_in).any())
