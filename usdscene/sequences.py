@@ -213,13 +213,16 @@ def _selected_places(catalog: Catalog, environment: str, patterns: Sequence[str]
 # Plans: per frame, the combinations it holds
 
 
-def plan_single_class(combinations: Sequence[Combination],
-                      conflicts: Mapping[Region, frozenset[Region]]) -> list[list[Combination]]:
+def plan_single_class(combinations: Sequence[Combination], conflicts: Mapping[Region, frozenset[Region]],
+                      blocked: Iterable[Region] = ()) -> list[list[Combination]]:
     """One frame per (class, relation), holding every fitting place (sorted); places whose
-    regions overlap (:func:`region_conflicts`) go to a further frame of the same group."""
+    regions overlap (:func:`region_conflicts`) go to a further frame of the same group.
+    ``blocked`` regions (those of the setup's fixed objects) are left out."""
+    blocked = set(blocked)
     groups: dict[tuple[str, str], list[Combination]] = collections.defaultdict(list)
     for combo in sorted(combinations):
-        groups[(combo.class_name, combo.relation)].append(combo)
+        if combo.region not in blocked:
+            groups[(combo.class_name, combo.relation)].append(combo)
     frames = []
     for key in sorted(groups):
         pending = groups[key]
@@ -350,7 +353,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
                    for region in conflicts.get(fixed_region, {fixed_region})]
 
     if options.strategy == "single-class":
-        plan = plan_single_class(combos, conflicts)
+        plan = plan_single_class(combos, conflicts, (region for region, _ in fixed_taken))
         n_frames = len(plan)
         per_frame = max((len(p) for p in plan), default=0)
     else:
