@@ -285,3 +285,17 @@ def test_balance_report_counts_a_hand_written_scene():
     assert report["class_relation"]["phone"] == {"is_on": 1}  # on the laptop, on the seat
     assert report["places"] == {"seat_03A": 6} and report["place_kinds"] == {"seat": 6}
     assert report["instance_frames"] == 6
+
+
+def test_stats_on_a_scene_document(car_park, tmp_path, capsys):
+    import cv2
+
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=6, seed=2, objects_per_frame=4))
+    doc = tmp_path / "seq.json"
+    write_document(doc, write_openlabel(gen.scene))
+    assert main(["stats", str(doc)]) == 0
+    out = capsys.readouterr().out
+    assert "instance-frames" in out and "ladder" in out
+    chart = cv2.imread(str(tmp_path / "seq.json.stats.png"))
+    assert chart is not None and chart.shape[1] == 720 and chart.shape[0] > 200
