@@ -177,28 +177,51 @@ def resolve_places(scene: SceneSpec, frame: int) -> dict[str, tuple[str, str]]:
     Returns:
         uid → (place uid, relation type) for every object that resolves to a place.
     """
+    return resolve_places_over(scene, (frame,))[frame]
+
+
+def resolve_places_over(scene: SceneSpec, frames: Iterable[int]) -> dict[int, dict[str, tuple[str, str]]]:
+    """:func:`resolve_places` for many frames in one pass over the relations (a generated
+    sequence holds thousands of one-frame relations).
+
+    Returns:
+        frame → (uid → (place uid, relation type)), for every frame of ``frames``.
+    """
+    wanted = sorted(set(frames))
+    out: dict[int, dict[str, tuple[str, str]]] = {f: {} for f in wanted}
+    if not wanted:
+        return out
+    lo, hi = wanted[0], wanted[-1]
+    every = frozenset(wanted)
+
+    def within(intervals) -> set[int] | frozenset[int]:
+        return {f for iv in intervals for f in range(max(iv.frame_start, lo), min(iv.frame_end, hi) + 1)
+                if f in every}
+
+    present = {o.uid: (within(o.frame_intervals) if o.frame_intervals else every) for o in scene.objects}
     placement = {r.value for r in RelationType}
-    present = {o.uid for o in scene.objects_present(frame)}
     places = {p.uid for p in scene.places}
-    support: dict[str, tuple[str, str]] = {}
+    support: dict[int, dict[str, tuple[str, str]]] = {f: {} for f in wanted}
     for rel in scene.relations:
-        if rel.type not in placement or rel.subject_uid not in present or rel.subject_uid in support:
+        subject_frames = present.get(rel.subject_uid)
+        if rel.type not in placement or not subject_frames:
             continue
-        if rel.frame_intervals and not in_intervals(frame, rel.frame_intervals):
-            continue
-        support[rel.subject_uid] = (rel.object_uid, rel.type)
-    resolved: dict[str, tuple[str, str]] = {}
-    for uid in support:
-        seen, current = {uid}, support[uid]
-        while current[0] not in places:
-            nxt = support.get(current[0])
-            if nxt is None or current[0] in seen:
-                break
-            seen.add(current[0])
-            current = nxt
-        if current[0] in places:
-            resolved[uid] = current
-    return resolved
+        active = subject_frames if not rel.frame_intervals else within(rel.frame_intervals) & subject_frames
+        for f in active:
+            support[f].setdefault(rel.subject_uid, (rel.object_uid, rel.type))
+    for f in wanted:
+        links, resolved = support[f], out[f]
+        for uid in links:
+            seen, current = {uid}, links[uid]
+            while current[0] not in places:
+                nxt = links.get(current[0])
+                if nxt is None or current[0] in seen:
+                    break
+                seen.add(current[0])
+                current = nxt
+            if current[0] in places:
+                resolved[uid] = current
+    return out
 
 
 def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
@@ -308,8 +331,8 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
     problems.raise_if_any(DocumentError)
 
     place_names = {p.uid: p.name for p in scene.places}
-    for frame_number in annotations.frames():
-        for uid, (place_uid, relation) in sorted(resolve_places(scene, frame_number).items()):
+    for frame_number, where in resolve_places_over(scene, annotations.frames()).items():
+        for uid, (place_uid, relation) in sorted(where.items()):
             key = _document_key(uid, objects, scene)
             if key is None:
                 continue

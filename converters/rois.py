@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdscene.converters.openlabel_annotations import image_records, resolve_places
+from usdscene.converters.openlabel_annotations import image_records, resolve_places_over
 from usdscene import layout
 from usdscene.catalog import Catalog, PlaceRegion
 from usdscene.errors import AssetError, DocumentError, OutputError
@@ -150,7 +150,7 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
     cameras = {c.name: c for c in scene.cameras}
     crops = []
     records = image_records(document)
-    resolved = {f: resolve_places(scene, f) for f in {r["frame"] for r in records}}
+    resolved = resolve_places_over(scene, {r["frame"] for r in records})
     for record in records:
         camera = cameras.get(record["camera"])
         if camera is None:

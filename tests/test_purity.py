@@ -14,6 +14,7 @@ PURE_MODULES = [
     "usdscene.catalog",
     "usdscene.cli",
     "usdscene.placement",
+    "usdscene.sequences",
     "usdscene.projection",
     "usdscene.labels",
     "usdscene.validation",

@@ -148,7 +148,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
                                where="frame_end")
     check_placement_inputs(scene, catalog)
     _check_prim_names(scene)
-    choices = _draw_looks(scene, catalog, rng)
+    choices = draw_looks(scene, catalog, rng)
     placements = place_objects(scene, catalog, rng)
     resolved = resolved_scene(scene, placements, choices)
     try:
@@ -200,9 +200,13 @@ def _check_prim_names(scene: SceneSpec) -> None:
     problems.raise_if_any(CompositionError)
 
 
-def _draw_looks(scene: SceneSpec, catalog: Catalog,
+def draw_looks(scene: SceneSpec, catalog: Catalog,
                 rng: np.random.Generator) -> dict[str, tuple[str | None, tuple[float, float, float] | None]]:
-    """uid → (appearance variant, colour) as composed (document order of draws)."""
+    """uid → (appearance variant, colour) as composed.
+
+    The first draws of a composition (document order), before placement; ``usdscene.sequences``
+    replays them to check that a generated document composes.
+    """
     out = {}
     for obj in scene.objects:
         entry = catalog[obj.class_name]

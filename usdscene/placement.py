@@ -177,6 +177,14 @@ def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
     k = centres.shape[0]
     if k == 0:
         return np.zeros(0, dtype=bool)
+    # Bounding spheres first: most boxes of a frame are far apart, and the full test is costly.
+    near = (np.linalg.norm(centres - centre, axis=1)
+            < np.linalg.norm(half) + np.linalg.norm(halves, axis=1) - tolerance_m)
+    if not near.all():
+        out = np.zeros(k, dtype=bool)
+        if near.any():
+            out[near] = boxes_overlap(centre, axes, half, centres[near], axes_k[near], halves[near], tolerance_m)
+        return out
     a = np.broadcast_to(axes.T, (k, 3, 3))             # rows = axes of the box
     b = np.transpose(axes_k, (0, 2, 1))                 # rows = axes of the others
     cross = np.cross(a[:, :, None, :], b[:, None, :, :]).reshape(k, 9, 3)
@@ -393,21 +401,26 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     places = scene.place_by_uid()
     env_places = catalog.places(scene.environment) if scene.environment in catalog else {}
 
+    # Placement relations per subject, in document order (one pass: generated sequences hold
+    # thousands of relations).
+    by_subject: dict[str, list[int]] = collections.defaultdict(list)
+    for index, rel in enumerate(scene.relations):
+        if rel.type in PLACEMENT_RELATIONS:
+            by_subject[rel.subject_uid].append(index)
     infos: dict[str, _Info] = {}
     for obj in scene.objects:
         entry = catalog[obj.class_name]
         rel_index = np.full(n_frames, -1, dtype=np.int64)
         present = _frame_mask(obj.frame_intervals, frame_start, n_frames)
         # Reverse document order so the first relation that holds wins.
-        for index in range(len(scene.relations) - 1, -1, -1):
-            rel = scene.relations[index]
-            if rel.subject_uid == obj.uid and rel.type in PLACEMENT_RELATIONS:
-                rel_index[_frame_mask(rel.frame_intervals, frame_start, n_frames)] = index
+        for index in reversed(by_subject.get(obj.uid, ())):
+            rel_index[_frame_mask(scene.relations[index].frame_intervals, frame_start, n_frames)] = index
         size = entry.size_m
         infos[obj.uid] = _Info(obj, entry, present, rel_index, 0, float(size[0] * size[1]))
     # Support depth: an object is placed after everything it rests on.
+    memo: dict[str, int] = {}
     for info in infos.values():
-        info.level = _level(info.obj.uid, scene, objects, {})
+        info.level = _level(info.obj.uid, scene, objects, memo, by_subject)
     order = sorted(infos.values(), key=lambda i: i.level)  # stable: document order per level
 
     explicit: dict[str, dict[int, tuple[float, ...]]] = {
@@ -415,6 +428,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
     states: dict[str, _State] = {}
     warned_unplaced: set[str] = set()
+    orientation_cache: dict[tuple, list[_Orientation]] = {}
     problems = ProblemCollector()
 
     for fi in range(n_frames):
@@ -475,7 +489,10 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                                                           np.asarray(target.world).reshape(4, 4))
                 label = f"object {rel.object_uid!r} ({rel.type})"
                 exclude = rel.object_uid
-            orientations = _orientations(info.entry, size)
+            cache_key = (info.obj.class_name, size)
+            if cache_key not in orientation_cache:
+                orientation_cache[cache_key] = _orientations(info.entry, size)
+            orientations = orientation_cache[cache_key]
             if not orientations:
                 lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
                 dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
@@ -524,14 +541,16 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
         for o in scene.objects}
 
 
-def _level(uid: str, scene: SceneSpec, objects: Mapping[str, SceneObject], memo: dict[str, int]) -> int:
+def _level(uid: str, scene: SceneSpec, objects: Mapping[str, SceneObject], memo: dict[str, int],
+           by_subject: Mapping[str, list[int]]) -> int:
     """Support depth (cycles were refused before)."""
     if uid in memo:
         return memo[uid]
     level = 0
-    for rel in scene.relations:
-        if rel.subject_uid == uid and rel.type in PLACEMENT_RELATIONS and rel.object_uid in objects:
-            level = max(level, 1 + _level(rel.object_uid, scene, objects, memo))
+    for index in by_subject.get(uid, ()):
+        rel = scene.relations[index]
+        if rel.object_uid in objects:
+            level = max(level, 1 + _level(rel.object_uid, scene, objects, memo, by_subject))
     memo[uid] = level
     return level
 
@@ -637,6 +656,19 @@ _QUARTER = math.pi / 2.0
 _LAY_ROTATIONS = (np.eye(3),
                   np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
                   np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]))
+
+
+def fits_region(entry: AssetEntry, size_m: tuple[float, float, float]) -> bool:
+    """Can an object of this class rest alone in a support region of this size?
+
+    The same test :func:`place_objects` applies before sampling (upright, turned a quarter or
+    lying on a side), so a region that passes holds one such object whatever the noise draws.
+
+    Args:
+        entry: catalog entry of the object's class.
+        size_m: (x, y, z) size of the region in metres (z may be ``inf``).
+    """
+    return bool(_orientations(entry, tuple(float(v) for v in size_m)))  # type: ignore[arg-type]
 
 
 def _orientations(entry: AssetEntry, size: tuple[float, float, float]) -> list[_Orientation]:

@@ -1,4 +1,9 @@
-"""``usdscene stats OUT``: what the labels of an output contain.
+"""``usdscene stats OUT`` / ``usdscene stats DOC``: what the labels of an output contain, or
+what a scene document will hold.
+
+Given a scene document (a file) instead of an output folder, it prints the balance report of
+:func:`usdscene.sequences.balance_report` (instance-frames per class, class × relation,
+place kinds) and draws it at ``DOC.stats.png`` (or ``--chart``).
 
 Reads ``OUT/annotations.openlabel.json`` and prints per-class and per-camera counts and the
 histogram of visible fractions as tables, and draws the same as a PNG chart at
@@ -14,9 +19,70 @@ HELP = "per-class and per-camera label counts and the visibility histogram (tabl
 ORDER = 60
 
 
+def draw_balance_chart(report: dict, width_px: int = 720) -> "np.ndarray":
+    """(H, width_px, 3) uint8 BGR image: instance-frames per class, per relation, per place kind."""
+    import numpy as np
+
+    classes = report["classes"]
+    kinds = report["place_kinds"] or report["places"]
+    panels = [
+        _bar_panel(f"instance-frames per class ({report['frames']} frames)", list(classes),
+                   [c["instance_frames"] for c in classes.values()], width_px, (180, 120, 40)),
+        _bar_panel("instance-frames per relation", list(report["relations"]), list(report["relations"].values()),
+                   width_px, (60, 160, 60)),
+        _bar_panel("instance-frames per place kind" if report["place_kinds"] else "instance-frames per place",
+                   list(kinds), list(kinds.values()), width_px, (50, 90, 200)),
+    ]
+    return np.concatenate(panels, axis=0)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("output", metavar="OUT", help="output folder with annotations.openlabel.json")
-    parser.add_argument("--chart", metavar="PNG", help="where to write the chart (default OUT/stats.png)")
+    parser.add_argument("output", metavar="OUT|DOC",
+                        help="output folder with annotations.openlabel.json, or a scene document")
+    parser.add_argument("--chart", metavar="PNG",
+                        help="where to write the chart (default OUT/stats.png, or DOC.stats.png)")
+
+
+def _document_stats(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    import cv2
+    from rich.console import Console
+    from rich.table import Table
+
+    from usdscene.catalog import load_catalog
+    from usdscene.converters.openlabel import read_openlabel
+    from usdscene.errors import OutputError
+    from usdscene.files import write_bytes_atomic
+    from usdscene.sequences import balance_report
+
+    path = Path(args.output)
+    scene = read_openlabel(path)
+    catalog = load_catalog(scene.asset_paths, base_dir=path.resolve().parent)
+    report = balance_report(scene, catalog)
+    console = Console()
+    relations = list(report["relations"])
+    table = Table(title=f"{path.name}: {report['frames']} frames, {report['cameras']} cameras, "
+                        f"{report['images']} images, {report['instance_frames']} instance-frames")
+    for column in ("class", "objects", "instance-frames", *relations):
+        table.add_column(column, justify="left" if column == "class" else "right")
+    for name, c in report["classes"].items():
+        row = report["class_relation"][name]
+        table.add_row(name, str(c["objects"]), str(c["instance_frames"]), *(str(row.get(r, 0)) for r in relations))
+    console.print(table)
+    table = Table(title=f"place kinds ({len(report['places'])} places used)")
+    table.add_column("kind")
+    table.add_column("instance-frames", justify="right")
+    for kind, count in report["place_kinds"].items():
+        table.add_row(kind, str(count))
+    console.print(table)
+    chart = Path(args.chart) if args.chart else path.with_name(path.name + ".stats.png")
+    ok, encoded = cv2.imencode(".png", draw_balance_chart(report))
+    if not ok:
+        raise OutputError("cannot encode the chart", where=str(chart))
+    write_bytes_atomic(chart, encoded.tobytes())
+    console.print(f"chart: {chart}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.statistics import HISTOGRAM_BINS, draw_chart, label_statistics
 
     out = Path(args.output)
+    if out.is_file():
+        return _document_stats(args)
     path = out / layout.ANNOTATIONS_FILE
     if not path.is_file():
         raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))

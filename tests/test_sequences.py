@@ -1,0 +1,301 @@
+"""Generated sequence documents: balance, coverage, capacity (they compose), determinism.
+
+On a tiny synthetic car park built in the test (places named ``bay_*``, ``kerb_*``,
+``shelf_*``, nothing like the cabin) and on the shipped cabin with a few classes.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from test_compose_support import _asset_usda, _environment_usda, _yaw_pose, look_at_cv, pinhole
+from usdscene import model as m
+from usdscene.catalog import load_catalog
+from usdscene.cli import main
+from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
+from usdscene.errors import DocumentError
+from usdscene.sequences import (GenerateOptions, balance_report, check_composes, fitting_combinations,
+                                generate_sequence, report_path)
+
+CLASSES = {  # class: (extent min, extent max, appearance variants)
+    "crate": ((-0.3, -0.2, 0.0), (0.3, 0.2, 0.4), ("wood", "plastic")),
+    "cone": ((-0.15, -0.15, 0.0), (0.15, 0.15, 0.5), ("orange", "yellow", "white")),
+    "tyre": ((-0.35, -0.35, 0.0), (0.35, 0.35, 0.25), ()),
+    "ladder": ((-0.25, -1.2, 0.0), (0.25, 1.2, 0.1), ("alu",)),  # only the bays are long enough
+}
+SITTER = ((-0.25, -0.25, -0.45), (0.25, 0.25, 0.8))
+
+
+def _car_park_places() -> dict:
+    places = {}
+    for i in range(3):
+        places[f"bay_{i + 1:02d}"] = {"kind": "bay", "regions": {
+            "is_on": (_yaw_pose(0.0, 3.0 * i, 0.0, 0.0), (2.4, 4.8, 2.5)),
+            "is_in_front_of": (_yaw_pose(0.0, 3.0 * i, -3.0, 0.0), (2.0, 1.0, 2.0))}}
+    for i in range(2):
+        places[f"kerb_{chr(ord('a') + i)}"] = {"kind": "kerb", "regions": {
+            "is_on": (_yaw_pose(90.0, -3.0, 4.0 * i, 0.5), (0.8, 0.8, 1.5))}}  # a bench: people sit here
+    places["shelf_x"] = {"kind": "shelf", "regions": {
+        "is_in": (_yaw_pose(0.0, 10.0, 0.0, 1.0), (0.8, 0.5, 0.45)),
+        "is_below": (_yaw_pose(0.0, 10.0, 0.0, 0.0), (0.8, 0.5, 0.3))}}
+    return places
+
+
+@pytest.fixture(scope="module")
+def car_park(tmp_path_factory):
+    """(catalog, setup scene, catalog folder) of the synthetic car park."""
+    folder = tmp_path_factory.mktemp("car_park")
+    (folder / "objects").mkdir()
+    (folder / "environments").mkdir()
+    classes = {}
+    for name, (lo, hi, variants) in {**CLASSES, "sitter": (*SITTER, ("red", "blue", "green"))}.items():
+        (folder / "objects" / f"{name}.usda").write_text(_asset_usda(name, lo, hi, variants))
+        classes[name] = {"kind": "passenger" if name == "sitter" else "object", "usd": f"objects/{name}.usda",
+                         "variants": {"appearance": list(variants)} if variants else {},
+                         "default_variants": {"appearance": variants[0]} if variants else {},
+                         "extent_m": [list(lo), list(hi)],
+                         "relations": ["is_on"] if name == "sitter" else ["is_on", "is_in", "is_below", "is_in_front_of"]}
+    places = _car_park_places()
+    (folder / "environments" / "car_park.usda").write_text(_environment_usda(places).replace("test_cabin", "car_park"))
+    classes["car_park"] = {"kind": "environment", "usd": "environments/car_park.usda", "extent_m": [[-5, -5, 0], [15, 5, 3]],
+                           "places": {n: {"kind": p["kind"], "regions": {
+                               rel: {"matrix": list(pose.matrix), "size_m": list(size)}
+                               for rel, (pose, size) in p["regions"].items()}} for n, p in places.items()}}
+    (folder / "catalog.json").write_text(json.dumps({"format": "usdscene-catalog", "version": 1, "classes": classes}))
+    catalog = load_catalog([folder], include_default=False)
+    setup = m.SceneSpec(
+        name="car_park_setup", environment="car_park", seed=0, asset_paths=(str(folder),),
+        cameras=(m.Camera("overview", pinhole(), pose=look_at_cv((4.0, -9.0, 6.0), (4.0, 0.0, 0.0))),),
+        render=m.RenderSettings(samples=1, resolution_px=(64, 48)))
+    return catalog, setup, folder
+
+
+def _instances(scene: m.SceneSpec) -> list[tuple[int, str, str, str]]:
+    """(frame, class, relation, place name) of every generated relation."""
+    objects = scene.object_by_uid()
+    places = {p.uid: p.name for p in scene.places}
+    return [(rel.frame_intervals[0].frame_start, objects[rel.subject_uid].class_name, rel.type, places[rel.object_uid])
+            for rel in scene.relations if rel.frame_intervals]  # the setup's own relations have none
+
+
+def test_fitting_combinations_follow_region_sizes(car_park):
+    catalog, setup, _ = car_park
+    combos = fitting_combinations(catalog, "car_park", sorted(CLASSES))
+    ladder = {(c.relation, c.place) for c in combos if c.class_name == "ladder"}
+    assert ladder == {("is_on", f"bay_{i:02d}") for i in (1, 2, 3)}  # 2.4 m long: only the bays
+    tyre = {(c.relation, c.place) for c in combos if c.class_name == "tyre"}
+    assert ("is_in", "shelf_x") not in tyre  # 0.7 m wide does not fit a 0.5 m deep shelf either way
+    assert ("is_on", "kerb_a") in tyre
+
+
+@pytest.mark.parametrize("strategy", ["balanced", "appearance"])
+def test_balanced_equal_per_class_and_covers_every_combination(car_park, strategy):
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy=strategy, frames=12, seed=5,
+                                                            objects_per_frame=4))
+    rows = _instances(gen.scene)
+    per_class = collections.Counter(cls for _, cls, _, _ in rows)
+    assert set(per_class) == set(CLASSES)
+    assert sum(per_class.values()) == 12 * 4
+    assert max(per_class.values()) - min(per_class.values()) <= 1
+    combos = set(fitting_combinations(catalog, "car_park", sorted(CLASSES)))
+    seen = {(cls, rel, place) for _, cls, rel, place in rows}
+    assert {(c.class_name, c.relation, c.place) for c in combos} <= seen
+    assert gen.report["coverage"]["uncovered_count"] == 0
+    # One object per region and frame.
+    assert len({(f, rel, place) for f, _, rel, place in rows}) == len(rows)
+    counts = {c: v["instance_frames"] for c, v in gen.report["classes"].items()}
+    assert counts == dict(per_class)
+
+
+def test_too_few_frames_reports_uncovered_and_the_frames_that_would(car_park):
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=2, seed=1,
+                                                            objects_per_frame=4))
+    coverage = gen.report["coverage"]
+    assert coverage["uncovered_count"] > 0
+    assert coverage["uncovered_count"] == len(coverage["uncovered"])
+    more = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=coverage["frames_for_full_coverage"],
+                                                             seed=1, objects_per_frame=4))
+    assert more.report["coverage"]["uncovered_count"] == 0
+
+
+def test_single_class_one_class_and_relation_per_frame_every_place(car_park):
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="single-class", seed=2))
+    rows = _instances(gen.scene)
+    frames = collections.defaultdict(set)
+    for f, cls, rel, place in rows:
+        frames[f].add((cls, rel))
+    assert all(len(v) == 1 for v in frames.values())
+    combos = fitting_combinations(catalog, "car_park", sorted(CLASSES))
+    assert sorted((cls, rel, place) for _, cls, rel, place in rows) == sorted(
+        (c.class_name, c.relation, c.place) for c in combos)
+    assert len(frames) == len({(c.class_name, c.relation) for c in combos})
+
+
+def test_occupancy_seats_passengers_only_where_legs_fit(car_park):
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=6, seed=3,
+                                                            objects_per_frame=3, occupancy=1.0))
+    rows = _instances(gen.scene)
+    seated = [(f, place) for f, cls, _, place in rows if cls == "sitter"]
+    assert seated and {p for _, p in seated} <= {"kerb_a", "kerb_b"}  # bays are on the floor: no legroom
+    taken = collections.Counter((f, rel, place) for f, _, rel, place in rows)
+    assert max(taken.values()) == 1  # a passenger's seat holds nothing else
+    looks = {o.appearance for o in gen.scene.objects if o.class_name == "sitter"}
+    assert looks <= {"red", "blue", "green"} and None not in looks
+
+
+def test_generated_documents_compose_with_usd(car_park, tmp_path):
+    from usdscene.compose import compose_stage
+
+    catalog, setup, _ = car_park
+    for strategy in ("single-class", "balanced", "appearance"):
+        frames = None if strategy == "single-class" else 5
+        gen = generate_sequence(setup, catalog, GenerateOptions(strategy=strategy, frames=frames, seed=4,
+                                                                objects_per_frame=None if frames is None else 4,
+                                                                occupancy=0.5))
+        scene = read_openlabel(write_openlabel(gen.scene))
+        result = compose_stage(scene, catalog, tmp_path / strategy)
+        assert result.root_layer.is_file()
+        present = {f: sum(1 for p in result.placements.values() if p.pose_at(f) is not None) for f in scene.frames}
+        per_frame = collections.Counter(f for f, *_ in _instances(gen.scene))
+        assert present == {f: per_frame[f] for f in scene.frames}  # every instance placed in every frame
+
+
+def test_appearance_provenance_is_in_the_document(car_park):
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="appearance", frames=10, seed=8,
+                                                            objects_per_frame=4))
+    scene = read_openlabel(write_openlabel(gen.scene))
+    objects = [o for o in scene.objects if o.class_name in CLASSES]
+    assert all(o.color_rgb is not None and all(0.0 <= c <= 1.0 for c in o.color_rgb) for o in objects)
+    for o in objects:
+        variants = CLASSES[o.class_name][2]
+        assert (o.appearance in variants) if variants else o.appearance is None
+    assert len({o.color_rgb for o in objects}) == len(objects)
+    # Each object keeps its look for at most 5 frames.
+    assert all(sum(len(iv.frames()) for iv in o.frame_intervals) <= 5 for o in objects)
+    balanced = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=10, seed=8,
+                                                                 objects_per_frame=4))
+    assert all(o.color_rgb is None and o.appearance == (CLASSES[o.class_name][2] or (None,))[0]
+               for o in balanced.scene.objects)
+
+
+def test_same_setup_and_seed_give_identical_bytes(car_park, tmp_path):
+    catalog, setup, folder = car_park
+    setup_path = tmp_path / "setup.json"
+    write_document(setup_path, write_openlabel(setup))
+    outputs = []
+    for run in ("a", "b", "c"):
+        out = tmp_path / run / "seq.json"
+        out.parent.mkdir()
+        seed = "9" if run != "c" else "10"
+        assert main(["generate", "appearance", "--setup", str(setup_path), "-o", str(out), "--frames", "4",
+                     "--objects-per-frame", "3", "--occupancy", "0.5", "--seed", seed]) == 0
+        outputs.append((out.read_bytes(), report_path(out).read_bytes()))
+    assert outputs[0] == outputs[1]
+    assert outputs[0][0] != outputs[2][0]
+    report = json.loads(report_path(tmp_path / "a" / "seq.json").read_text())
+    assert report["generator"]["seed"] == 9 and report["frames"] == 4
+
+
+def test_fixed_objects_of_the_setup_keep_their_region(car_park):
+    catalog, setup, _ = car_park
+    fixed = dataclasses.replace(
+        setup, objects=(m.SceneObject("100", "parked_crate", "crate"),), places=(m.PlaceRef("200", "bay_01"),),
+        relations=(m.Relation("300", "is_on", "100", "200"),))
+    gen = generate_sequence(fixed, catalog, GenerateOptions(strategy="single-class", seed=1))
+    assert gen.scene.objects[0].uid == "100" and gen.scene.places[0].uid == "200"
+    assert all(not (rel == "is_on" and place == "bay_01") for _, _, rel, place in _instances(gen.scene))
+    check_composes(read_openlabel(write_openlabel(gen.scene)), catalog)
+
+
+def test_bad_options_are_one_readable_error(car_park, tmp_path, capsys):
+    catalog, setup, _ = car_park
+    with pytest.raises(DocumentError) as info:
+        generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", classes=("crate", "sofa"),
+                                                          place_patterns=("nowhere_*",)))
+    text = str(info.value)
+    assert "'sofa'" in text
+    with pytest.raises(DocumentError, match="--places"):
+        generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", place_patterns=("nowhere_*",)))
+    with pytest.raises(DocumentError, match="single-class decides"):
+        generate_sequence(setup, catalog, GenerateOptions(strategy="single-class", frames=3))
+    setup_path = tmp_path / "setup.json"
+    write_document(setup_path, write_openlabel(setup))
+    assert main(["generate", "balanced", "--setup", str(setup_path), "-o", str(tmp_path / "x.json"),
+                 "--classes", "sofa"]) == 1
+    assert "usdscene: error: --classes: unknown object class 'sofa'" in capsys.readouterr().err
+    assert main(["generate", "balanced", "--setup", str(setup_path), "-o", "x.json", "--occupancy", "1.5"]) == 2
+
+
+def test_cabin_balanced_and_single_class_compose(tmp_path):
+    """The shipped cabin, a few classes, seats and bins of three rows, passengers."""
+    catalog = load_catalog()
+    setup = m.SceneSpec(name="cabin", environment="aircraft_cabin", seed=0,
+                        cameras=(m.Camera("c", pinhole(), pose=look_at_cv((-1.0, 0.0, 1.9), (-2.0, 1.0, 0.3))),))
+    classes = ("backpack", "laptop", "trolley_suitcase")
+    places = ("seat_0[123]?", "bin_0[12]?", "aisle_02")
+    combos = fitting_combinations(catalog, "aircraft_cabin", classes, places)
+    frames = math.ceil(len(classes) * max(collections.Counter(c.class_name for c in combos).values()) / 6)
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=frames, seed=3, classes=classes,
+                                                            place_patterns=places, objects_per_frame=6, occupancy=0.4))
+    rows = _instances(gen.scene)
+    per_class = collections.Counter(cls for _, cls, _, _ in rows if cls != "passenger")
+    assert max(per_class.values()) - min(per_class.values()) <= 1
+    assert {(c.class_name, c.relation, c.place) for c in combos} <= {r[1:] for r in rows}
+    assert not any(cls == "trolley_suitcase" and rel == "is_below" for _, cls, rel, _ in rows)  # 0.64 m tall
+    assert any(cls == "passenger" for _, cls, _, _ in rows)
+    scene = read_openlabel(write_openlabel(gen.scene))
+    from usdscene.compose import compose_stage
+
+    result = compose_stage(scene, catalog, tmp_path / "stage")
+    assert sum(1 for p in result.placements.values() for s in p.spans for _ in s.frames()) == len(rows)
+    single = generate_sequence(setup, catalog, GenerateOptions(strategy="single-class", seed=3, classes=classes,
+                                                               place_patterns=places))
+    check_composes(read_openlabel(write_openlabel(single.scene)), catalog)
+    # seat_01* and seat_02* share the floor under the front row: never both in one frame.
+    under = collections.defaultdict(set)
+    for f, _, rel, place in _instances(single.scene):
+        if rel == "is_below":
+            under[f].add(place)
+    assert all(not ({"seat_01A", "seat_02A"} <= v) for v in under.values())
+
+
+def test_balance_report_counts_a_hand_written_scene():
+    scene = m.SceneSpec(
+        frame_start=0, frame_end=2, environment="aircraft_cabin",
+        objects=(m.SceneObject("1", "a", "backpack", (m.FrameInterval(0, 1),)),
+                 m.SceneObject("2", "b", "laptop"), m.SceneObject("3", "c", "phone", (m.FrameInterval(2, 2),))),
+        places=(m.PlaceRef("10", "seat_03A"),),
+        relations=(m.Relation("20", "is_below", "1", "10"), m.Relation("21", "is_on", "2", "10"),
+                   m.Relation("22", "is_on", "3", "2")))
+    report = balance_report(scene, load_catalog())
+    assert report["classes"] == {"backpack": {"objects": 1, "instance_frames": 2},
+                                 "laptop": {"objects": 1, "instance_frames": 3},
+                                 "phone": {"objects": 1, "instance_frames": 1}}
+    assert report["class_relation"]["phone"] == {"is_on": 1}  # on the laptop, on the seat
+    assert report["places"] == {"seat_03A": 6} and report["place_kinds"] == {"seat": 6}
+    assert report["instance_frames"] == 6
+
+
+def test_stats_on_a_scene_document(car_park, tmp_path, capsys):
+    import cv2
+
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=6, seed=2, objects_per_frame=4))
+    doc = tmp_path / "seq.json"
+    write_document(doc, write_openlabel(gen.scene))
+    assert main(["stats", str(doc)]) == 0
+    out = capsys.readouterr().out
+    assert "instance-frames" in out and "ladder" in out
+    chart = cv2.imread(str(tmp_path / "seq.json.stats.png"))
+    assert chart is not None and chart.shape[1] == 720 and chart.shape[0] > 200

@@ -1,0 +1,83 @@
+"""``usdscene generate STRATEGY --setup SETUP -o DOC``: a balanced sequence document from a
+camera setup (see ``usdscene.sequences`` and ``docs/generating.md``)."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "generate"
+HELP = "generate a sequence document (single-class, balanced, appearance) from a setup document"
+ORDER = 8
+
+_STRATEGIES = ("single-class", "balanced", "appearance")  # usdscene.sequences.STRATEGIES, without its import
+
+
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}") from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("strategy", choices=_STRATEGIES,
+                        help="single-class: one class in one relation at every place it fits, per frame; "
+                             "balanced: equal instance-frames per class, every fitting (class, relation, place) "
+                             "at least once; appearance: balanced with random variants and colours")
+    parser.add_argument("--setup", metavar="SETUP_DOC", required=True,
+                        help="setup document: environment, cameras, lights, render settings, fixed objects")
+    parser.add_argument("-o", "--output", metavar="DOC", required=True,
+                        help="sequence document to write; the balance report goes to DOC.report.json")
+    parser.add_argument("--frames", type=_positive, default=None,
+                        help="sequence length (balanced, appearance); default: what full coverage needs")
+    parser.add_argument("--objects-per-frame", type=_positive, default=None,
+                        help="generated objects per frame (balanced, appearance); default: the class count, "
+                             "or what coverage within --frames needs")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--classes", nargs="+", metavar="NAME", default=(),
+                        help="object classes to place (default: every object class of the catalog)")
+    parser.add_argument("--places", nargs="+", metavar="GLOB", default=(),
+                        help="place name patterns to use, e.g. 'seat_*' 'bin_*' (default: every place)")
+    parser.add_argument("--occupancy", type=_fraction, default=0.0,
+                        help="fraction of the seats with a passenger in each frame (default 0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from usdscene.sequences import GenerateOptions, generate_document, report_path
+
+    options = GenerateOptions(strategy=args.strategy, frames=args.frames, seed=args.seed,
+                              classes=tuple(args.classes), place_patterns=tuple(args.places),
+                              occupancy=args.occupancy, objects_per_frame=args.objects_per_frame)
+    result = generate_document(args.setup, args.output, options)
+    report = result.report
+    coverage = report["coverage"]
+    console = Console(highlight=False, soft_wrap=True)
+    console.print(f"wrote {args.output}: {report['frames']} frames, {report['objects']} objects, "
+                  f"{report['instance_frames']} instance-frames, {report['images']} images")
+    counts = {name: c["instance_frames"] for name, c in report["classes"].items()}
+    placed = {name: n for name, n in counts.items() if name in report["generator"]["classes"]}
+    if placed:
+        console.print(f"  per class: {min(placed.values())}..{max(placed.values())} instance-frames "
+                      f"over {len(placed)} classes")
+    console.print(f"  coverage: {coverage['covered']} of {coverage['combinations']} (class, relation, place) "
+                  f"combinations")
+    if coverage["uncovered_count"]:
+        console.print(f"  {coverage['uncovered_count']} not covered; --frames "
+                      f"{coverage['frames_for_full_coverage']} would cover all")
+    console.print(f"  report: {report_path(args.output)}")
+    return 0

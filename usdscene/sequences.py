@@ -1,0 +1,758 @@
+"""Dataset programs: sequence documents generated from one camera setup.
+
+A *setup* scene (environment, cameras, lights, render settings, asset paths, ROI rules and any
+fixed objects) becomes a *sequence* scene: the generator adds dynamic objects, their placement
+relations to the environment's places, frame intervals and the frame range. Nothing here knows
+a particular environment: it works from the catalog's places (their support regions) and each
+class's supported relations and extent.
+
+Strategies (:data:`STRATEGIES`):
+
+* ``single-class``: one frame per (class, relation) that fits somewhere; the frame holds that
+  class at every place whose region for that relation holds it ("backpacks on all the seats").
+  Every fitting (class, relation, place) *combination* occurs exactly once.
+* ``balanced``: ``frames × objects_per_frame`` instance-frames shared out so that every class
+  has the same number of instance-frames (within 1); each class first takes every combination
+  it fits, in random order, then random extra ones (relation first, uniform, then place), so
+  every fitting combination occurs at least once when the frame count allows
+  (:func:`frames_for_coverage`); the report lists those that do not.
+* ``appearance``: like ``balanced``, with a random appearance variant and a random colour per
+  object, and each object used for at most :data:`APPEARANCE_LIFETIME_FRAMES` frames.
+
+Capacity: a support region (one relation of one place) holds at most one generated object per
+frame, and only objects that :func:`usdscene.placement.fits_region` accepts; regions of fixed
+objects of the setup and of seated passengers are taken first. Then every generated document is
+checked by running the placement exactly as composition will (same draws, see
+:func:`check_composes`), so a generated document always composes.
+
+Objects are reused across frames (a pool per class, the k-th instance of a class in a frame is
+its k-th object), which keeps a 500-frame document at a few hundred USD prims; each relation
+holds for one frame. The chosen appearance variant and colour of every object are written into
+the document (explicit object data), so every label traces back to its variant and colour, and
+the generator's seed and options to the report.
+
+Passengers (``occupancy``): per frame that fraction of the places whose ``is_on`` region seats a
+passenger-kind class gets one, drawn from a per-class pool whose objects have random appearance
+variants; the pool is shuffled over the seats every frame.
+"""
+
+from __future__ import annotations
+
+import collections
+import fnmatch
+import hashlib
+import logging
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from usdscene.catalog import Catalog, place_items
+from usdscene.errors import CompositionError, DocumentError, ProblemCollector
+from usdscene.model import FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec
+from usdscene.placement import PLACEMENT_RELATIONS, fits_region
+
+log = logging.getLogger(__name__)
+
+STRATEGIES = ("single-class", "balanced", "appearance")
+APPEARANCE_LIFETIME_FRAMES = 5
+"""An ``appearance`` object keeps its look for at most this many frames (fresh looks often,
+without a USD prim per instance-frame)."""
+PASSENGER_RELATION = "is_on"
+REPORT_FORMAT = "usdscene-sequence-report"
+OPEN_HEIGHT_M = 3.0
+REGION_TOUCH_M = 1e-3
+"""Regions that overlap by less than this (neighbours sharing a face) do not conflict."""
+SEAT_HEIGHT_TOLERANCE_M = 0.05
+"""How much shorter than a seated asset's legs a seat may be."""
+COLOR_DECIMALS = 4
+
+Region = tuple[str, str]
+"""(place name, relation): one support region of the environment."""
+
+
+@dataclass(frozen=True, order=True)
+class Combination:
+    """One class at one configuration and place: ``backpack is_below seat_03A``."""
+
+    class_name: str
+    relation: str
+    place: str
+
+    @property
+    def region(self) -> Region:
+        return (self.place, self.relation)
+
+
+@dataclass(frozen=True)
+class GenerateOptions:
+    """What to generate.
+
+    Attributes:
+        strategy: one of :data:`STRATEGIES`.
+        frames: sequence length for ``balanced``/``appearance``; None = what full coverage
+            needs (:func:`frames_for_coverage`). ``single-class`` decides its own length.
+        seed: seed of the generator and of the document (composition draws from it too).
+        classes: object classes to place; empty = every ``object``-kind class of the catalog.
+        place_patterns: shell-style patterns (``seat_*``) of the places to use; empty = all.
+        occupancy: fraction (0..1) of the passenger seats taken per frame.
+        objects_per_frame: generated objects per frame (``balanced``/``appearance``); None = the
+            class count, or what coverage within ``frames`` needs when ``frames`` is given.
+        position_noise_m: position noise (standard deviation, metres) of generated objects.
+        rotation_noise_deg: yaw noise (standard deviation, degrees) of generated objects.
+    """
+
+    strategy: str
+    frames: int | None = None
+    seed: int = 0
+    classes: tuple[str, ...] = ()
+    place_patterns: tuple[str, ...] = ()
+    occupancy: float = 0.0
+    objects_per_frame: int | None = None
+    position_noise_m: float = 0.03
+    rotation_noise_deg: float = 20.0
+
+
+@dataclass(frozen=True)
+class GeneratedSequence:
+    """A generated sequence.
+
+    Attributes:
+        scene: the setup plus the generated objects, places, relations and frame range.
+        report: the balance report (see :func:`balance_report`) plus ``generator`` (strategy,
+            seed, options) and ``coverage`` (fitting combinations, the uncovered ones, the
+            frame count that covers all).
+    """
+
+    scene: SceneSpec
+    report: dict = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------------------------
+# What fits where
+
+
+def fitting_combinations(catalog: Catalog, environment: str, classes: Sequence[str],
+                         place_patterns: Sequence[str] = ()) -> tuple[Combination, ...]:
+    """Every (class, relation, place) whose region holds one object of the class.
+
+    Args:
+        catalog: asset catalog (class extents and relations, the environment's places).
+        environment: environment class.
+        classes: classes to consider.
+        place_patterns: shell-style place name patterns; empty = every place.
+
+    Returns:
+        Sorted combinations.
+    """
+    out = []
+    fits: dict[tuple, bool] = {}  # places of one kind share region sizes
+    for name, place in _selected_places(catalog, environment, place_patterns):
+        for relation, region in sorted(place.regions.items()):
+            for class_name in classes:
+                entry = catalog[class_name]
+                key = (class_name, tuple(region.size_m))
+                if key not in fits:
+                    fits[key] = fits_region(entry, region.size_m)
+                if relation in entry.relations and fits[key]:
+                    out.append(Combination(class_name, relation, name))
+    return tuple(sorted(out))
+
+
+def region_conflicts(catalog: Catalog, environment: str,
+                     regions: Iterable[Region]) -> dict[Region, frozenset[Region]]:
+    """Regions whose boxes overlap (each region conflicts with itself).
+
+    An object stays inside its region's box (footprint inside, height within the clearance),
+    so objects in regions that do not overlap never collide; regions that do overlap (the
+    legroom in front of one seat and the floor below the next) take one object between them
+    per frame. Unlimited heights count as :data:`OPEN_HEIGHT_M`.
+
+    Returns:
+        region → the regions it overlaps, itself included.
+    """
+    from usdscene.placement import boxes_overlap
+
+    places = catalog.places(environment)
+    regions = sorted(set(regions))
+    centres, axes, halves = [], [], []
+    for name, relation in regions:
+        region = places[name].regions[relation]
+        pose = region.pose.as_array()
+        height = min(float(region.size_m[2]), OPEN_HEIGHT_M)
+        centres.append(pose[:3, :3] @ np.array([0.0, 0.0, height / 2.0]) + pose[:3, 3])
+        axes.append(pose[:3, :3])
+        halves.append(np.array([region.size_m[0] / 2.0, region.size_m[1] / 2.0, height / 2.0]))
+    centres_a, axes_a, halves_a = np.asarray(centres), np.asarray(axes), np.asarray(halves)
+    out = {}
+    for i, region in enumerate(regions):
+        hits = boxes_overlap(centres_a[i], axes_a[i], halves_a[i], centres_a, axes_a, halves_a,
+                             tolerance_m=REGION_TOUCH_M) if regions else np.zeros(0, bool)
+        out[region] = frozenset({regions[j] for j in np.flatnonzero(hits)} | {region})
+    return out
+
+
+def frames_for_coverage(combinations: Iterable[Combination], classes: Sequence[str],
+                        objects_per_frame: int) -> int:
+    """Frames that ``balanced`` needs for every combination to occur once: the class with the
+    most combinations needs that many instance-frames, and so does every other class."""
+    per_class = collections.Counter(c.class_name for c in combinations)
+    most = max((per_class[c] for c in classes), default=0)
+    return max(1, math.ceil(len(classes) * most / max(objects_per_frame, 1)))
+
+
+def _selected_places(catalog: Catalog, environment: str, patterns: Sequence[str]):
+    return [(name, place) for name, place in place_items(catalog.places(environment))
+            if not patterns or any(fnmatch.fnmatchcase(name, p) for p in patterns)]
+
+
+# --------------------------------------------------------------------------------------------
+# Plans: per frame, the combinations it holds
+
+
+def plan_single_class(combinations: Sequence[Combination], conflicts: Mapping[Region, frozenset[Region]],
+                      blocked: Iterable[Region] = ()) -> list[list[Combination]]:
+    """One frame per (class, relation), holding every fitting place (sorted); places whose
+    regions overlap (:func:`region_conflicts`) go to a further frame of the same group.
+    ``blocked`` regions (those of the setup's fixed objects) are left out."""
+    blocked = set(blocked)
+    groups: dict[tuple[str, str], list[Combination]] = collections.defaultdict(list)
+    for combo in sorted(combinations):
+        if combo.region not in blocked:
+            groups[(combo.class_name, combo.relation)].append(combo)
+    frames = []
+    for key in sorted(groups):
+        pending = groups[key]
+        while pending:
+            used: set[Region] = set()
+            frame, later = [], []
+            for combo in pending:
+                if combo.region in used:
+                    later.append(combo)
+                else:
+                    frame.append(combo)
+                    used |= conflicts.get(combo.region, {combo.region})
+            frames.append(frame)
+            pending = later
+    return frames
+
+
+def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n_frames: int,
+                  objects_per_frame: int, taken: Sequence[set[Region]],
+                  conflicts: Mapping[Region, frozenset[Region]],
+                  rng: np.random.Generator) -> list[list[Combination]]:
+    """Share ``n_frames × objects_per_frame`` instance-frames equally among the classes.
+
+    Args:
+        combinations: the fitting combinations (:func:`fitting_combinations`).
+        classes: classes to balance (each has at least one combination).
+        n_frames: sequence length.
+        objects_per_frame: instance-frames per frame.
+        taken: per frame, regions already used (fixed objects); not changed.
+        conflicts: region → overlapping regions (:func:`region_conflicts`); one object
+            among them per frame.
+        rng: generator (draw order: class shares, per-class orders and extras, the shuffle).
+
+    Returns:
+        Per frame, its combinations. A class that cannot get a free region in any frame with
+        room loses that instance (logged; the report shows the counts).
+    """
+    by_class: dict[str, list[Combination]] = collections.defaultdict(list)
+    for combo in sorted(combinations):
+        by_class[combo.class_name].append(combo)
+    total = n_frames * objects_per_frame
+    base, extra = divmod(total, len(classes))
+    lucky = set(int(i) for i in rng.permutation(len(classes))[:extra])
+    instances: list[Combination] = []
+    firsts: set[int] = set()  # positions of each class's first pass over its combinations
+    for index, class_name in enumerate(classes):
+        want = base + (1 if index in lucky else 0)
+        own = by_class[class_name]
+        order = [own[int(i)] for i in rng.permutation(len(own))]
+        chosen = order[:want]
+        firsts.update(range(len(instances), len(instances) + len(chosen)))
+        relations = sorted({c.relation for c in own})
+        by_relation = {r: [c for c in own if c.relation == r] for r in relations}
+        for _ in range(want - len(chosen)):
+            pool = by_relation[relations[int(rng.integers(len(relations)))]]
+            chosen.append(pool[int(rng.integers(len(pool)))])
+        instances.extend(chosen)
+    # Random order, but coverage first, and within it classes with the fewest combinations
+    # first: they have the fewest regions to choose from once frames fill up.
+    shuffled = [int(i) for i in rng.permutation(len(instances))]
+    shuffled.sort(key=lambda i: (i not in firsts, len(by_class[instances[i].class_name])))
+    instances = [instances[i] for i in shuffled]
+
+    frames: list[list[Combination]] = [[] for _ in range(n_frames)]
+    used = [set(t) for t in taken]
+    cursor = 0
+    dropped: collections.Counter = collections.Counter()
+    for combo in instances:
+        frame = _free_frame(combo.region, frames, used, objects_per_frame, cursor)
+        if frame is None:
+            # Its own region is busy wherever there is room: any other region of the class.
+            for alt in (by_class[combo.class_name][int(i)] for i in rng.permutation(len(by_class[combo.class_name]))):
+                frame = _free_frame(alt.region, frames, used, objects_per_frame, cursor)
+                if frame is not None:
+                    combo = alt
+                    break
+        if frame is None:
+            dropped[combo.class_name] += 1
+            continue
+        frames[frame].append(combo)
+        used[frame] |= conflicts.get(combo.region, {combo.region})
+        cursor = (frame + 1) % n_frames
+    for class_name, count in sorted(dropped.items()):
+        log.warning("no frame had a free region for %d %s instance(s); fewer objects per frame "
+                    "(or more frames) keep the classes balanced", count, class_name)
+    return frames
+
+
+def _free_frame(region: Region, frames: list[list[Combination]], used: list[set[Region]],
+                capacity: int, start: int) -> int | None:
+    """First frame from ``start`` (cyclic) with room and ``region`` free."""
+    n = len(frames)
+    for k in range(n):
+        f = (start + k) % n
+        if len(frames[f]) < capacity and region not in used[f]:
+            return f
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# The generator
+
+
+def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptions, *,
+                      setup_sha256: str = "") -> GeneratedSequence:
+    """Generate a sequence scene from a setup scene.
+
+    Args:
+        setup: the setup (environment, cameras, lights, render settings, fixed objects).
+        catalog: asset catalog with the environment and the classes.
+        options: strategy and knobs.
+        setup_sha256: digest of the setup document, recorded in the report.
+
+    Returns:
+        The sequence and its report.
+
+    Raises:
+        DocumentError: bad options (unknown strategy, class or pattern, occupancy outside
+            [0, 1]), a setup without environment.
+    """
+    classes, combos, passenger_classes = _check_options(setup, catalog, options)
+    rng = np.random.default_rng(options.seed)
+    n_places_regions = {c.region for c in combos}
+    all_regions = [(name, relation) for name, place in catalog.places(setup.environment).items()
+                   for relation in place.regions]
+    conflicts = region_conflicts(catalog, setup.environment, all_regions)
+    fixed_taken = [(region, when) for fixed_region, when in _fixed_regions(setup)
+                   for region in conflicts.get(fixed_region, {fixed_region})]
+
+    if options.strategy == "single-class":
+        plan = plan_single_class(combos, conflicts, (region for region, _ in fixed_taken))
+        n_frames = len(plan)
+        per_frame = max((len(p) for p in plan), default=0)
+    else:
+        per_frame = options.objects_per_frame
+        if per_frame is None:
+            per_frame = len(classes) if options.frames is None else math.ceil(
+                len(classes) * _most_combinations(combos, classes) / options.frames)
+        per_frame = max(1, min(per_frame, len(n_places_regions)))
+        n_frames = options.frames or frames_for_coverage(combos, classes, per_frame)
+        taken = [_taken_at(fixed_taken, f) for f in range(n_frames)]
+        plan = plan_balanced(combos, classes, n_frames, per_frame, taken, conflicts, rng)
+
+    looks = _draw_looks(plan, catalog, options, rng)
+    seats = _seat_passengers(plan, setup, catalog, passenger_classes, options, fixed_taken, conflicts, rng)
+    scene = _sequence_scene(setup, plan, looks, seats, options)
+    covered = {c for frame in plan for c in frame}
+    uncovered = sorted(set(combos) - covered)
+    report = balance_report(scene, catalog)
+    report["generator"] = {
+        "strategy": options.strategy, "seed": int(options.seed), "setup_sha256": setup_sha256,
+        "classes": list(classes), "place_patterns": list(options.place_patterns),
+        "occupancy": float(options.occupancy), "objects_per_frame": int(per_frame),
+        "frames": int(n_frames), "position_noise_m": float(options.position_noise_m),
+        "rotation_noise_deg": float(options.rotation_noise_deg)}
+    report["coverage"] = {
+        "combinations": len(combos), "covered": len(covered), "uncovered_count": len(uncovered),
+        "uncovered": [[c.class_name, c.relation, c.place] for c in uncovered],
+        "frames_for_full_coverage": (n_frames if options.strategy == "single-class"
+                                     else frames_for_coverage(combos, classes, per_frame)),
+        "classes_fitting_nowhere": sorted(set(options.classes or catalog.classes("object")) - set(classes)),
+    }
+    return GeneratedSequence(scene=scene, report=report)
+
+
+def _most_combinations(combos: Sequence[Combination], classes: Sequence[str]) -> int:
+    per_class = collections.Counter(c.class_name for c in combos)
+    return max((per_class[c] for c in classes), default=1)
+
+
+def _check_options(setup: SceneSpec, catalog: Catalog, options: GenerateOptions):
+    problems = ProblemCollector()
+    if options.strategy not in STRATEGIES:
+        problems.add("strategy", f"unknown strategy {options.strategy!r}; expected one of {', '.join(STRATEGIES)}")
+    if setup.environment is None:
+        problems.add("metadata.usdscene.environment", "the setup document names no environment; "
+                                                      "the generator places objects at its places")
+    elif setup.environment not in catalog:
+        problems.add("metadata.usdscene.environment", f"environment {setup.environment!r} is not in the "
+                                                      f"asset catalog (known: {', '.join(catalog.classes('environment'))})")
+    if options.frames is not None and options.frames < 1:
+        problems.add("--frames", f"frame count must be at least 1, got {options.frames}")
+    if options.frames is not None and options.strategy == "single-class":
+        problems.add("--frames", "single-class decides its length (one frame per class and relation); "
+                                 "leave --frames out")
+    if options.objects_per_frame is not None and options.objects_per_frame < 1:
+        problems.add("--objects-per-frame", f"must be at least 1, got {options.objects_per_frame}")
+    if not 0.0 <= options.occupancy <= 1.0:
+        problems.add("--occupancy", f"occupancy must be a fraction in [0, 1], got {options.occupancy}")
+    if options.seed < 0:
+        problems.add("--seed", f"seed must be non-negative, got {options.seed}")
+    known = catalog.classes("object")
+    for name in options.classes:
+        if name not in catalog or catalog[name].kind != "object":
+            problems.add("--classes", f"unknown object class {name!r} (known: {', '.join(known)})")
+    problems.raise_if_any(DocumentError)
+    places = _selected_places(catalog, setup.environment, options.place_patterns)
+    if options.place_patterns and not places:
+        problems.add("--places", f"no place of {setup.environment!r} matches "
+                                 f"{', '.join(repr(p) for p in options.place_patterns)}")
+    wanted = tuple(sorted(dict.fromkeys(options.classes))) or known
+    combos = fitting_combinations(catalog, setup.environment, wanted, options.place_patterns)
+    classes = tuple(c for c in wanted if any(k.class_name == c for k in combos))
+    if not classes:
+        problems.add("--classes", f"none of the classes {', '.join(wanted) or '(none)'} fits any selected "
+                                  f"place of {setup.environment!r}")
+    for name in sorted(set(wanted) - set(classes)):
+        log.warning("class %r fits no selected place of %r; it is left out", name, setup.environment)
+    problems.raise_if_any(DocumentError)
+    return classes, combos, catalog.classes("passenger")
+
+
+def _fixed_regions(setup: SceneSpec) -> list[tuple[Region, tuple[FrameInterval, ...]]]:
+    """Regions the setup's own objects use, with when (empty intervals = always)."""
+    places = setup.place_by_uid()
+    objects = setup.object_by_uid()
+    out = []
+    for rel in setup.relations:
+        if rel.type in PLACEMENT_RELATIONS and rel.object_uid in places and rel.subject_uid in objects:
+            intervals = rel.frame_intervals or objects[rel.subject_uid].frame_intervals
+            out.append(((places[rel.object_uid].name, rel.type), tuple(intervals)))
+    return out
+
+
+def _taken_at(fixed: Sequence[tuple[Region, tuple[FrameInterval, ...]]], frame: int) -> set[Region]:
+    return {region for region, intervals in fixed if not intervals or any(frame in iv for iv in intervals)}
+
+
+def _random_color(rng: np.random.Generator) -> tuple[float, float, float]:
+    return tuple(round(float(v), COLOR_DECIMALS) for v in rng.random(3))  # type: ignore[return-value]
+
+
+def _draw_looks(plan: list[list[Combination]], catalog: Catalog, options: GenerateOptions,
+                rng: np.random.Generator) -> list[list[tuple[str | None, tuple[float, float, float] | None]]]:
+    """Per frame and instance: (appearance variant, colour). ``appearance`` draws one per
+    object of the pool (see :func:`_pool_indices`), the others use the class default."""
+    slots = _pool_indices(plan, options.strategy)
+    drawn: dict[tuple[str, int], tuple] = {}
+    out = []
+    for frame, combos in enumerate(plan):
+        row = []
+        for combo, slot in zip(combos, slots[frame]):
+            entry = catalog[combo.class_name]
+            variants = entry.variants.get("appearance", ())
+            default = entry.default_variants.get("appearance", variants[0]) if variants else None
+            if options.strategy != "appearance":
+                row.append((default, None))
+                continue
+            key = (combo.class_name, slot)
+            if key not in drawn:
+                variant = variants[int(rng.integers(len(variants)))] if variants else None
+                drawn[key] = (variant, _random_color(rng))
+            row.append(drawn[key])
+        out.append(row)
+    return out
+
+
+def _pool_indices(plan: list[list[Combination]], strategy: str) -> list[list[int]]:
+    """Per frame and instance: the index of its object in the class's pool.
+
+    The k-th instance of a class in a frame is object k of the pool; ``appearance`` moves on
+    to fresh objects every :data:`APPEARANCE_LIFETIME_FRAMES` frames.
+    """
+    lifetime = APPEARANCE_LIFETIME_FRAMES if strategy == "appearance" else None
+    width: collections.Counter = collections.Counter()  # class → pool objects per frame block
+    for combos in plan:
+        for name, count in collections.Counter(c.class_name for c in combos).items():
+            width[name] = max(width[name], count)
+    out = []
+    for frame, combos in enumerate(plan):
+        seen: collections.Counter = collections.Counter()
+        block = frame // lifetime if lifetime else 0
+        row = []
+        for combo in combos:
+            row.append(block * width[combo.class_name] + seen[combo.class_name])
+            seen[combo.class_name] += 1
+        out.append(row)
+    return out
+
+
+def passenger_seats(catalog: Catalog, environment: str, class_name: str,
+                    place_patterns: Sequence[str] = ()) -> tuple[str, ...]:
+    """Places whose ``is_on`` region seats a passenger-kind class: the region holds it and its
+    support is high enough above the floor (world z = 0) for the legs, which reach
+    ``-extent_min_m[2]`` below the origin (an aisle floor does not seat anybody)."""
+    entry = catalog[class_name]
+    legs_m = max(-entry.extent_min_m[2], 0.0)
+    out = []
+    for name, place in _selected_places(catalog, environment, place_patterns):
+        region = place.regions.get(PASSENGER_RELATION)
+        if (region is not None and PASSENGER_RELATION in entry.relations and fits_region(entry, region.size_m)
+                and float(region.pose.translation_m[2]) >= legs_m - SEAT_HEIGHT_TOLERANCE_M):
+            out.append(name)
+    return tuple(out)
+
+
+def _seat_passengers(plan: list[list[Combination]], setup: SceneSpec, catalog: Catalog,
+                     passenger_classes: Sequence[str], options: GenerateOptions,
+                     fixed: Sequence[tuple[Region, tuple[FrameInterval, ...]]],
+                     conflicts: Mapping[Region, frozenset[Region]],
+                     rng: np.random.Generator) -> list[list[tuple[str, int, str, str | None]]]:
+    """Per frame: (passenger class, pool index, seat place, appearance) of each passenger.
+
+    ``occupancy`` of the seats, among those the frame's objects and fixed objects leave free,
+    in random seats; the class's pool objects are dealt to them in random order, and each
+    pool object draws its appearance variant when first used.
+    """
+    if options.occupancy <= 0.0 or not passenger_classes:
+        return [[] for _ in plan]
+    seats_by_class = {c: set(passenger_seats(catalog, setup.environment, c, options.place_patterns))
+                      for c in passenger_classes}
+    all_seats = sorted(set().union(*seats_by_class.values()))
+    wanted = int(round(options.occupancy * len(all_seats)))
+    looks: dict[tuple[str, int], str | None] = {}
+    out = []
+    for frame, combos in enumerate(plan):
+        busy = {r for c in combos for r in conflicts.get(c.region, {c.region})} | _taken_at(fixed, frame)
+        free = [s for s in all_seats if (s, PASSENGER_RELATION) not in busy]
+        chosen = [free[int(i)] for i in rng.permutation(len(free))]
+        # Seats whose regions overlap take one passenger.
+        free, taken_now = [], set()
+        for seat in chosen:
+            if (seat, PASSENGER_RELATION) not in taken_now:
+                free.append(seat)
+                taken_now |= conflicts.get((seat, PASSENGER_RELATION), {(seat, PASSENGER_RELATION)})
+        chosen = free[:wanted]
+        dealt: collections.Counter = collections.Counter()
+        row = []
+        for seat in chosen:
+            fitting = [c for c in passenger_classes if seat in seats_by_class[c]]
+            class_name = fitting[int(rng.integers(len(fitting)))]
+            slot = dealt[class_name]
+            dealt[class_name] += 1
+            if (class_name, slot) not in looks:
+                variants = catalog[class_name].variants.get("appearance", ())
+                looks[(class_name, slot)] = variants[int(rng.integers(len(variants)))] if variants else None
+            row.append((class_name, slot, seat, looks[(class_name, slot)]))
+        out.append(row)
+    return out
+
+
+def _sequence_scene(setup: SceneSpec, plan: list[list[Combination]], looks, seats,
+                    options: GenerateOptions) -> SceneSpec:
+    """The setup plus pooled objects, their per-frame relations and the frame range."""
+    int_uids = [int(u) for u in (*(o.uid for o in setup.objects), *(p.uid for p in setup.places),
+                                 *(lt.uid for lt in setup.lights)) if u.isdigit()]
+    next_uid = iter(range(max(int_uids, default=-1) + 1, 1 << 62))
+    rel_uids = [int(r.uid) for r in setup.relations if r.uid.isdigit()]
+    next_rel = iter(range(max(rel_uids, default=-1) + 1, 1 << 62))
+    place_uid = {p.name: p.uid for p in setup.places}
+    new_places: list[PlaceRef] = []
+
+    def place_ref(name: str) -> str:
+        if name not in place_uid:
+            place_uid[name] = str(next(next_uid))
+            new_places.append(PlaceRef(place_uid[name], name))
+        return place_uid[name]
+
+    noise = Randomization(position_noise_m=float(options.position_noise_m),
+                          rotation_noise_deg=float(options.rotation_noise_deg))
+    # (class, pool index) → frames, look; then relations per frame.
+    uses: dict[tuple[str, int], list[int]] = collections.defaultdict(list)
+    look_of: dict[tuple[str, int], tuple] = {}
+    per_frame: list[list[tuple[tuple[str, int], str, str]]] = []
+    slots = _pool_indices(plan, options.strategy)
+    for frame, combos in enumerate(plan):
+        row = []
+        for combo, slot, look in zip(combos, slots[frame], looks[frame]):
+            key = (combo.class_name, slot)
+            uses[key].append(frame)
+            look_of[key] = look
+            row.append((key, combo.relation, combo.place))
+        for class_name, slot, seat, appearance in seats[frame]:
+            key = (class_name, -1 - slot)  # passengers: pool index below zero
+            uses[key].append(frame)
+            look_of[key] = (appearance, None)
+            row.append((key, PASSENGER_RELATION, seat))
+        per_frame.append(row)
+    uid_of: dict[tuple[str, int], str] = {}
+    objects = list(setup.objects)
+    for key in sorted(uses, key=lambda k: (k[0], k[1] < 0, abs(k[1]))):
+        class_name, slot = key
+        uid = str(next(next_uid))
+        uid_of[key] = uid
+        appearance, color = look_of[key]
+        label = f"{class_name}_{slot:04d}" if slot >= 0 else f"{class_name}_seated_{-1 - slot:03d}"
+        objects.append(SceneObject(
+            uid=uid, name=label, class_name=class_name,
+            frame_intervals=_intervals(uses[key]), appearance=appearance, color_rgb=color,
+            randomization=noise if slot >= 0 else Randomization()))
+    relations = list(setup.relations)
+    for frame, row in enumerate(per_frame):
+        for key, relation, place in row:
+            relations.append(Relation(uid=str(next(next_rel)), type=relation, subject_uid=uid_of[key],
+                                      object_uid=place_ref(place),
+                                      frame_intervals=(FrameInterval(frame, frame),)))
+    n_frames = max(len(plan), 1)
+    return replace(setup, frame_start=0, frame_end=n_frames - 1, objects=tuple(objects),
+                   places=tuple(setup.places) + tuple(new_places), relations=tuple(relations),
+                   seed=int(options.seed),
+                   description=(setup.description + " " if setup.description else "")
+                   + f"Generated by usdscene generate {options.strategy} (seed {options.seed}).")
+
+
+def _intervals(frames: Iterable[int]) -> tuple[FrameInterval, ...]:
+    runs: list[list[int]] = []
+    for f in sorted(set(frames)):
+        if runs and f == runs[-1][1] + 1:
+            runs[-1][1] = f
+        else:
+            runs.append([f, f])
+    return tuple(FrameInterval(a, b) for a, b in runs)
+
+
+# --------------------------------------------------------------------------------------------
+# Checks and reports
+
+
+def check_composes(scene: SceneSpec, catalog: Catalog) -> None:
+    """Run the placement of ``scene`` with the draws composition will make.
+
+    Raises:
+        CompositionError: what composing the scene would raise.
+    """
+    from usdscene.compose import draw_looks  # the composer's own first draws (no pxr at import)
+    from usdscene.placement import place_objects
+
+    rng = np.random.default_rng(scene.seed)
+    draw_looks(scene, catalog, rng)
+    place_objects(scene, catalog, rng)
+
+
+def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
+    """Counts of a scene document: what a dataset built from it holds.
+
+    An *instance-frame* is one object present in one frame. Objects placed on another object
+    count at the place and relation their chain of relations ends at.
+
+    Args:
+        scene: the scene.
+        catalog: when given, per place *kind* counts too (``seat``, ``bin``, ...).
+
+    Returns:
+        ``{"format", "frames", "cameras", "images", "objects", "instance_frames",
+        "classes": {class: {"objects", "instance_frames"}},
+        "class_relation": {class: {relation: instance-frames}}, "relations": {relation: n},
+        "places": {place: n}, "place_kinds": {kind: n}}``, every mapping sorted by key.
+        ``relation`` is ``"none"`` for objects without a placement relation in that frame.
+    """
+    from usdscene.converters.openlabel_annotations import resolve_places_over
+
+    place_names = {p.uid: p.name for p in scene.places}
+    kinds: Mapping[str, str] = {}
+    if catalog is not None and scene.environment in catalog:
+        kinds = {name: place.kind for name, place in catalog.places(scene.environment).items()}
+    classes: dict[str, dict[str, int]] = {}
+    matrix: dict[str, collections.Counter] = {}
+    places: collections.Counter = collections.Counter()
+    place_kinds: collections.Counter = collections.Counter()
+    relations: collections.Counter = collections.Counter()
+    total = 0
+    for obj in scene.objects:
+        classes.setdefault(obj.class_name, {"objects": 0, "instance_frames": 0})["objects"] += 1
+    resolved_at = resolve_places_over(scene, scene.frames)
+    for obj in scene.objects:
+        intervals = obj.frame_intervals or (FrameInterval(scene.frame_start, scene.frame_end),)
+        frames = sorted({f for iv in intervals for f in iv.frames() if f in resolved_at})
+        for frame in frames:
+            resolved = resolved_at[frame]
+            total += 1
+            classes[obj.class_name]["instance_frames"] += 1
+            place_uid, relation = resolved.get(obj.uid, (None, "none"))
+            matrix.setdefault(obj.class_name, collections.Counter())[relation] += 1
+            relations[relation] += 1
+            if place_uid is not None:
+                name = place_names.get(place_uid, place_uid)
+                places[name] += 1
+                if name in kinds:
+                    place_kinds[kinds[name]] += 1
+    n_frames = len(scene.frames)
+    return {
+        "format": REPORT_FORMAT, "version": 1, "scene": scene.name,
+        "frames": n_frames, "cameras": len(scene.cameras), "images": n_frames * len(scene.cameras),
+        "objects": len(scene.objects), "instance_frames": total,
+        "classes": dict(sorted(classes.items())),
+        "class_relation": {c: dict(sorted(matrix.get(c, {}).items())) for c in sorted(classes)},
+        "relations": dict(sorted(relations.items())),
+        "places": dict(sorted(places.items())),
+        "place_kinds": dict(sorted(place_kinds.items())),
+    }
+
+
+def report_path(document: str | os.PathLike) -> Path:
+    """``DOC.report.json`` next to the document."""
+    path = Path(document)
+    return path.with_name(path.name + ".report.json")
+
+
+def generate_document(setup_path: str | os.PathLike, out_path: str | os.PathLike,
+                      options: GenerateOptions) -> GeneratedSequence:
+    """Read a setup document, generate, check that it composes, write ``DOC`` and
+    ``DOC.report.json``.
+
+    Asset paths of the setup are rewritten relative to the output document's folder.
+
+    Raises:
+        DocumentError: bad setup document or options.
+        AssetError: bad asset catalog.
+        CompositionError: the generated document would not compose (a defect of the generator).
+    """
+    from usdscene.catalog import load_catalog
+    from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
+    from usdscene.files import write_json_atomic
+
+    setup_path, out_path = Path(setup_path), Path(out_path)
+    document, provenance = load_with_provenance(setup_path)
+    setup = read_loaded(document, provenance)
+    base = setup_path.resolve().parent
+    catalog = load_catalog(setup.asset_paths, base_dir=base)
+    out_dir = out_path.resolve().parent
+    moved = tuple(os.path.relpath(p if os.path.isabs(p) else base / p, out_dir).replace(os.sep, "/")
+                  for p in setup.asset_paths)
+    setup = replace(setup, asset_paths=moved)
+    generated = generate_sequence(setup, catalog, options, setup_sha256=provenance.source_sha256)
+    written = write_openlabel(generated.scene)
+    # What composition will read: the written document, read back.
+    check_composes(read_loaded(written, provenance), catalog)
+    write_document(out_path, written)
+    report = dict(generated.report)
+    report["document"] = out_path.name
+    report["document_sha256"] = hashlib.sha256(out_path.read_bytes()).hexdigest()
+    write_json_atomic(report_path(out_path), report)
+    return replace(generated, report=report)
