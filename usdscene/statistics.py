@@ -81,3 +81,33 @@ def draw_chart(stats: dict, width_px: int = 720) -> np.ndarray:
         _bar_panel("visible fraction", bins, list(stats["visibility"]), width_px, (50, 90, 200)),
     ]
     return np.concatenate(panels, axis=0)
+
+
+def draw_balance_chart(report: dict, width_px: int = 720) -> np.ndarray:
+    """(H, width_px, 3) uint8 BGR image: instance-frames per class, per relation, per place kind."""
+    classes = report["classes"]
+    kinds = report["place_kinds"] or report["places"]
+    panels = [
+        _bar_panel(f"instance-frames per class ({report['frames']} frames)", list(classes),
+                   [c["instance_frames"] for c in classes.values()], width_px, (180, 120, 40)),
+        _bar_panel("instance-frames per relation", list(report["relations"]), list(report["relations"].values()),
+                   width_px, (60, 160, 60)),
+        _bar_panel("instance-frames per place kind" if report["place_kinds"] else "instance-frames per place",
+                   list(kinds), list(kinds.values()), width_px, (50, 90, 200)),
+    ]
+    return np.concatenate(panels, axis=0)
+
+
+def write_chart(path, image: np.ndarray):
+    """Write a (H, W, 3) uint8 BGR chart as PNG, atomically; returns the path.
+
+    Raises:
+        OutputError: the image cannot be encoded or the file cannot be written.
+    """
+    from usdscene.errors import OutputError
+    from usdscene.files import write_bytes_atomic
+
+    ok, encoded = cv2.imencode(".png", image)
+    if not ok:
+        raise OutputError("cannot encode the chart", where=str(path))
+    return write_bytes_atomic(path, encoded.tobytes())

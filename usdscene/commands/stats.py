@@ -19,23 +19,6 @@ HELP = "per-class and per-camera label counts and the visibility histogram (tabl
 ORDER = 60
 
 
-def draw_balance_chart(report: dict, width_px: int = 720) -> "np.ndarray":
-    """(H, width_px, 3) uint8 BGR image: instance-frames per class, per relation, per place kind."""
-    import numpy as np
-
-    classes = report["classes"]
-    kinds = report["place_kinds"] or report["places"]
-    panels = [
-        _bar_panel(f"instance-frames per class ({report['frames']} frames)", list(classes),
-                   [c["instance_frames"] for c in classes.values()], width_px, (180, 120, 40)),
-        _bar_panel("instance-frames per relation", list(report["relations"]), list(report["relations"].values()),
-                   width_px, (60, 160, 60)),
-        _bar_panel("instance-frames per place kind" if report["place_kinds"] else "instance-frames per place",
-                   list(kinds), list(kinds.values()), width_px, (50, 90, 200)),
-    ]
-    return np.concatenate(panels, axis=0)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("output", metavar="OUT|DOC",
                         help="output folder with annotations.openlabel.json, or a scene document")
@@ -46,15 +29,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _document_stats(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    import cv2
     from rich.console import Console
     from rich.table import Table
 
     from usdscene.catalog import load_catalog
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.errors import OutputError
-    from usdscene.files import write_bytes_atomic
     from usdscene.sequences import balance_report
+    from usdscene.statistics import draw_balance_chart, write_chart
 
     path = Path(args.output)
     scene = read_openlabel(path)
@@ -76,11 +57,8 @@ def _document_stats(args: argparse.Namespace) -> int:
     for kind, count in report["place_kinds"].items():
         table.add_row(kind, str(count))
     console.print(table)
-    chart = Path(args.chart) if args.chart else path.with_name(path.name + ".stats.png")
-    ok, encoded = cv2.imencode(".png", draw_balance_chart(report))
-    if not ok:
-        raise OutputError("cannot encode the chart", where=str(chart))
-    write_bytes_atomic(chart, encoded.tobytes())
+    chart = write_chart(Path(args.chart) if args.chart else path.with_name(path.name + ".stats.png"),
+                        draw_balance_chart(report))
     console.print(f"chart: {chart}")
     return 0
 
@@ -88,15 +66,13 @@ def _document_stats(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    import cv2
     from rich.console import Console
     from rich.table import Table
 
     from usdscene import layout
     from usdscene.converters.openlabel import load_document
     from usdscene.errors import OutputError
-    from usdscene.files import write_bytes_atomic
-    from usdscene.statistics import HISTOGRAM_BINS, draw_chart, label_statistics
+    from usdscene.statistics import HISTOGRAM_BINS, draw_chart, label_statistics, write_chart
 
     out = Path(args.output)
     if out.is_file():
@@ -126,10 +102,6 @@ def run(args: argparse.Namespace) -> int:
     if stats["visibility_unknown"]:
         table.add_row("unknown", str(stats["visibility_unknown"]))
     console.print(table)
-    chart = Path(args.chart) if args.chart else out / "stats.png"
-    ok, encoded = cv2.imencode(".png", draw_chart(stats))
-    if not ok:
-        raise OutputError("cannot encode the chart", where=str(chart))
-    write_bytes_atomic(chart, encoded.tobytes())
+    chart = write_chart(Path(args.chart) if args.chart else out / "stats.png", draw_chart(stats))
     console.print(f"chart: {chart}")
     return 0
