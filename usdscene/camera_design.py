@@ -28,6 +28,7 @@ import dataclasses
 import json
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -215,7 +216,11 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
 
     t = time.perf_counter()
     chosen = _named_cameras([candidates[i] for i in selection.chosen], keep_names=mounts == "setup")
-    planned = dataclasses.replace(setup, cameras=tuple(chosen))
+    # The plan document lives in PLAN_DIR: its relative asset folders must still find the catalog.
+    asset_paths = tuple(p if Path(p).is_absolute() else
+                        os.path.relpath((document.resolve().parent / p).resolve(), out.resolve())
+                        for p in setup.asset_paths)
+    planned = dataclasses.replace(setup, cameras=tuple(chosen), asset_paths=asset_paths)
     request = {"setup": document.name, "targets": list(targets), "mounts": mounts, "spacing_m": spacing_m,
                "lenses": [lens.name for lens in lenses], "k": k, "dori": dori, "min_visible": min_visible,
                "occluders": occluders, "aims": aims, "target_spacing_m": target_spacing_m,
@@ -230,7 +235,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
     best = np.where(cover[picked], visibility.dori[picked], -1).max(axis=0) if picked else \
         np.full(len(target_list), -1)
     title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
-             f"{int((counts >= selection.demand).sum())}/{len(target_list)} targets covered at >= {dori}, "
+             f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori}, "
              f"{len(selection.uncoverable)} uncoverable by any candidate")
     picture = cov.plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
     write_bytes_atomic(out / PLAN_PICTURE, _png(picture))

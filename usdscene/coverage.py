@@ -843,16 +843,48 @@ def greedy_cover(cover: np.ndarray, demand: np.ndarray, weights: np.ndarray | No
     return sorted(chosen)
 
 
+def _useful_columns(cover: np.ndarray, weights: np.ndarray, *, prune_dominated: bool) -> np.ndarray:
+    """Indices of cameras that cover something, without dominated ones when asked.
+
+    Args:
+        cover: (C, R) bool over the targets with demand.
+        weights: (C,) preference among cameras with equal target sets.
+        prune_dominated: drop a camera whose targets are a strict subset of another's, or
+            equal to a better-weighted (then lower-index) camera's.
+
+    Returns:
+        Ascending int indices.
+    """
+    size = cover.sum(axis=1)
+    useful = np.flatnonzero(size > 0)
+    if not prune_dominated or not len(useful):
+        return useful
+    a = cover[useful].astype(np.float32)
+    inter = a @ a.T  # exact: counts far below 2**24
+    s, w = size[useful], weights[useful]
+    order = np.arange(len(useful))
+    keep = []
+    for i in range(len(useful)):
+        subset_of = inter[i] == s[i]
+        subset_of[i] = False
+        better = (s > s[i]) | ((s == s[i]) & ((w > w[i]) | ((w == w[i]) & (order < i))))
+        if not (subset_of & better).any():
+            keep.append(useful[i])
+    return np.asarray(keep, dtype=np.int64)
+
+
 def select_cameras(cover: np.ndarray, k: int = 1, *, time_limit_s: float = 60.0,
                    weights: np.ndarray | None = None) -> Selection:
     """The smallest camera set giving every target ``min(k, coverable)`` covering cameras.
 
     Integer program ``min Σ x_c  s.t.  Σ_c cover[c, t] x_c ≥ demand_t,  x ∈ {0, 1}`` solved by
-    HiGHS through ``scipy.optimize.milp`` with ``time_limit_s``. Each camera's cost is
-    ``1 + ε·(1 - weight/max weight)`` with ε small enough to never trade a camera for weight, so
-    among equally small sets the best-weighted wins. The greedy set is computed too and
-    returned when the MILP finds nothing better (or fails); the LP relaxation gives the lower
-    bound that the reported gap refers to.
+    HiGHS through ``scipy.optimize.milp`` with ``time_limit_s``. For K = 1 a camera whose
+    targets are a subset of another's is dropped first (among equal sets the one with the
+    larger weight stays), which shrinks the cabin's 2880 candidates to about 400 without
+    changing the optimum; weights are not in the objective (a tie-breaking term makes HiGHS
+    several times slower). The greedy set is computed too and returned when the MILP finds
+    nothing better (or fails); the LP relaxation gives the lower bound that the reported gap
+    refers to.
 
     Args:
         cover: (C, T) bool from :func:`coverage_matrix`.
@@ -879,13 +911,11 @@ def select_cameras(cover: np.ndarray, k: int = 1, *, time_limit_s: float = 60.0,
     rows = np.flatnonzero(demand > 0)
     if not len(rows):
         return Selection((), "greedy", True, 0, 0, demand, uncoverable, short, time.perf_counter() - started)
-    useful = np.flatnonzero(cover[:, rows].any(axis=1))
+    useful = _useful_columns(cover[:, rows], w, prune_dominated=k == 1)
     a = cover[np.ix_(useful, rows)].T.astype(np.float64)
-    span = np.ptp(w[useful]) if len(useful) else 0.0
-    eps = 0.5 / (n_c + 1)
-    cost = 1.0 + eps * ((w[useful].max() - w[useful]) / span if span > 0 else 0.0)
+    cost = np.ones(len(useful))
     lp = linprog(cost, A_ub=-a, b_ub=-demand[rows], bounds=(0, 1), method="highs")
-    bound = int(math.ceil(np.sum(lp.x) - 1e-6)) if lp.status == 0 else 0
+    bound = int(math.ceil(lp.fun - 1e-6)) if lp.status == 0 else 0
     chosen, method, optimal = greedy, "greedy", False
     res = milp(cost, integrality=np.ones(len(useful)), bounds=Bounds(0, 1),
                constraints=LinearConstraint(a, lb=demand[rows], ub=np.inf),
@@ -898,7 +928,7 @@ def select_cameras(cover: np.ndarray, k: int = 1, *, time_limit_s: float = 60.0,
             if optimal:
                 bound = max(bound, len(picked))
             elif getattr(res, "mip_dual_bound", None) is not None and np.isfinite(res.mip_dual_bound):
-                bound = max(bound, int(math.ceil(res.mip_dual_bound / (1.0 + eps) - 1e-6)))
+                bound = max(bound, int(math.ceil(res.mip_dual_bound - 1e-6)))
     else:
         log.warning("MILP found no solution within %.0f s (%s); using the greedy set", time_limit_s, res.message)
     return Selection(tuple(chosen), method, optimal, bound, len(greedy), demand, uncoverable, short,
@@ -930,9 +960,10 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
                  counts: np.ndarray, best_dori: np.ndarray, dori_table: Sequence[DoriClass],
                  occluders: Occluders, *, max_width_px: int = 1600, max_height_px: int = 900,
                  title: str = "") -> np.ndarray:
-    """Top-down plan: the scene shaded by height, each target's footprint filled by how many
-    chosen cameras cover it and dotted by the best DORI class, cameras with their view wedges
-    (where their image border rays first hit the scene).
+    """Top-down plan, one panel per target region (``on``, ``below``, ...; targets of different
+    regions overlap from above): the scene shaded by height, each target's footprint filled by
+    how many chosen cameras cover it and dotted by its best DORI class (darker = finer), and the
+    cameras with the outline of their view (where their image border rays first hit the scene).
 
     Args:
         triangles_m: (T, 3, 3) world triangles of the scene.
@@ -941,9 +972,9 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
         counts: (len(targets),) int covering cameras per target.
         best_dori: (len(targets),) int best DORI index per target (-1 = none).
         dori_table: ascending DORI classes (for the legend).
-        occluders: for the view wedges.
-        max_width_px, max_height_px: picture size limit.
-        title: text in the legend row.
+        occluders: for the view outlines.
+        max_width_px, max_height_px: size limit of one panel.
+        title: text in the legend rows.
 
     Returns:
         (H, W, 3) uint8 BGR image (x of the world to the right, y of the world up).
@@ -955,10 +986,8 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
     allp = np.concatenate(pts)
     lo, hi = allp.min(axis=0) - 0.3, allp.max(axis=0) + 0.3
     scale = min(max_width_px / (hi[0] - lo[0]), max_height_px / (hi[1] - lo[1]))
-    legend_px = 56
     width = int(math.ceil((hi[0] - lo[0]) * scale))
     height = int(math.ceil((hi[1] - lo[1]) * scale))
-    image = np.full((height + legend_px, width, 3), 255, np.uint8)
 
     def to_px(xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
@@ -967,6 +996,7 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
     def shift(xy: np.ndarray) -> np.ndarray:
         return np.round(to_px(xy) * 16).astype(np.int32)  # 4 fractional bits for cv2
 
+    base = np.full((height, width, 3), 255, np.uint8)
     if len(tris):
         # Painter's order by height: what is seen from above is drawn last.
         top = tris[:, :, 2].max(axis=1)
@@ -975,10 +1005,10 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
         for level in range(10):
             sel = tris[levels == level]
             if len(sel):
-                shade = int(225 - 12 * level)
+                shade = int(235 - 10 * level)
                 polys = shift(sel[:, :, :2].reshape(-1, 2)).reshape(-1, 3, 2)
-                cv2.fillPoly(image, list(polys), (shade, shade, shade), lineType=cv2.LINE_8, shift=4)
-    overlay = image.copy()
+                cv2.fillPoly(base, list(polys), (shade, shade, shade), lineType=cv2.LINE_8, shift=4)
+    outlines = []
     for camera in cameras:
         rays = _border_rays(camera.intrinsics)
         if not len(rays):
@@ -987,44 +1017,51 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
         origin = camera.pose.translation_m
         dist = occluders.first_hit(np.tile(origin, (len(world), 1)), world, 30.0)
         dist = np.where(np.isfinite(dist), dist, 5.0)
-        hits = origin + world * dist[:, None]
-        poly = np.concatenate([origin[None, :2], hits[:, :2]]) if camera.pose.rotation[2, 2] > -0.9 \
-            else hits[:, :2]
-        cv2.fillPoly(overlay, [shift(poly)], _WEDGE_COLOUR, lineType=cv2.LINE_AA, shift=4)
-    image = cv2.addWeighted(overlay, 0.18, image, 0.82, 0.0)
-    for t, target in enumerate(targets):
-        hull = cv2.convexHull(to_px(target.points_m[:, :2]).astype(np.float32)).reshape(-1, 2)
-        colour = _COUNT_COLOURS[min(int(counts[t]), 3)]
-        cv2.fillPoly(image, [np.round(hull * 16).astype(np.int32)], colour, lineType=cv2.LINE_AA, shift=4)
-        cv2.polylines(image, [np.round(hull * 16).astype(np.int32)], True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+        outlines.append(shift((origin + world * dist[:, None])[:, :2]))
     n_classes = max(len(dori_table), 1)
-    for t, target in enumerate(targets):
-        c = to_px(target.centre_m[None, :2])[0]
-        d = int(best_dori[t])
-        grey = 255 - int(255 * (d + 1) / n_classes) if d >= 0 else 255
-        cv2.circle(image, (int(round(c[0])), int(round(c[1]))), max(2, int(scale * 0.04)),
-                   (grey, grey, grey), -1, cv2.LINE_AA)
-    for camera in cameras:
-        p = to_px(camera.pose.translation_m[None, :2])[0]
-        forward = camera.pose.rotation[:, 2]
-        centre = (int(round(p[0])), int(round(p[1])))
-        cv2.circle(image, centre, max(3, int(scale * 0.08)), (120, 30, 150), -1, cv2.LINE_AA)
-        if np.hypot(forward[0], forward[1]) > 0.1:
-            tip = to_px((camera.pose.translation_m[:2] + 0.35 * forward[:2] / np.hypot(*forward[:2]))[None])[0]
-            cv2.line(image, centre, (int(round(tip[0])), int(round(tip[1]))), (120, 30, 150), 2, cv2.LINE_AA)
-    y = height + 20
-    x = 8
-    for i, label in enumerate(("0 cameras", "1", "2", ">=3")):
-        cv2.rectangle(image, (x, y - 12), (x + 16, y + 2), _COUNT_COLOURS[i], -1)
-        cv2.putText(image, label, (x + 20, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-        x += 40 + 9 * len(label)
+    regions = list(dict.fromkeys(t.region for t in targets)) or [""]
+    panels = []
+    for region in regions:
+        image = base.copy()
+        cv2.polylines(image, outlines, True, _WEDGE_COLOUR, 1, cv2.LINE_AA, shift=4)
+        for t, target in enumerate(targets):
+            if target.region != region:
+                continue
+            hull = np.round(cv2.convexHull(to_px(target.points_m[:, :2]).astype(np.float32)).reshape(-1, 2) * 16)
+            hull = hull.astype(np.int32)
+            cv2.fillPoly(image, [hull], _COUNT_COLOURS[min(int(counts[t]), 3)], lineType=cv2.LINE_AA, shift=4)
+            cv2.polylines(image, [hull], True, (40, 40, 40), 1, cv2.LINE_AA, shift=4)
+            c = to_px(target.centre_m[None, :2])[0]
+            d = int(best_dori[t])
+            grey = 255 - int(255 * (d + 1) / n_classes) if d >= 0 else 255
+            cv2.circle(image, (int(round(c[0])), int(round(c[1]))), max(2, int(scale * 0.04)),
+                       (grey, grey, grey), -1, cv2.LINE_AA)
+        for camera in cameras:
+            p = to_px(camera.pose.translation_m[None, :2])[0]
+            forward = camera.pose.rotation[:, 2]
+            centre = (int(round(p[0])), int(round(p[1])))
+            cv2.circle(image, centre, max(3, int(scale * 0.07)), (120, 30, 150), -1, cv2.LINE_AA)
+            if np.hypot(forward[0], forward[1]) > 0.1:
+                tip = to_px((camera.pose.translation_m[:2] + 0.35 * forward[:2] / np.hypot(*forward[:2]))[None])[0]
+                cv2.line(image, centre, (int(round(tip[0])), int(round(tip[1]))), (120, 30, 150), 2, cv2.LINE_AA)
+        label = np.full((22, width, 3), 255, np.uint8)
+        cv2.putText(label, f"targets: {region}", (8, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        panels += [label, image]
+    legend = np.full((56, width, 3), 255, np.uint8)
+    y, x = 20, 8
+    for i, text in enumerate(("0 cameras", "1", "2", ">=3")):
+        cv2.rectangle(legend, (x, y - 12), (x + 16, y + 2), _COUNT_COLOURS[i], -1)
+        cv2.putText(legend, text, (x + 20, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        x += 40 + 9 * len(text)
     x += 10
     for i, dori in enumerate(dori_table):
         grey = 255 - int(255 * (i + 1) / n_classes)
-        cv2.circle(image, (x + 6, y - 5), 6, (grey, grey, grey), -1, cv2.LINE_AA)
-        cv2.circle(image, (x + 6, y - 5), 6, (0, 0, 0), 1, cv2.LINE_AA)
-        cv2.putText(image, dori.name, (x + 16, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.circle(legend, (x + 6, y - 5), 6, (grey, grey, grey), -1, cv2.LINE_AA)
+        cv2.circle(legend, (x + 6, y - 5), 6, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(legend, dori.name, (x + 16, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
         x += 26 + 9 * len(dori.name)
+    cv2.putText(legend, "camera (dot, aim) and view outline", (x + 10, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+                _WEDGE_COLOUR, 1, cv2.LINE_AA)
     if title:
-        cv2.putText(image, title, (8, y + 24), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-    return image
+        cv2.putText(legend, title, (8, y + 24), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.concatenate(panels + [legend], axis=0)
