@@ -184,3 +184,37 @@ class StageGeometry:
 def object_triangles(stage: Usd.Stage | str | os.PathLike, frame: int) -> dict[str, np.ndarray]:
     """One-shot form of :meth:`StageGeometry.triangles` (no cache kept between calls)."""
     return StageGeometry(stage).triangles(frame)
+
+
+def environment_triangles(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> np.ndarray:
+    """World triangles of everything under ``/World/Environment`` (the environment asset) at
+    ``frame``; ``guide``/``proxy`` purposes (place regions) and invisible meshes are skipped.
+
+    Returns:
+        (T, 3, 3) float64 triangle vertices in world metres.
+    """
+    if not isinstance(stage, Usd.Stage):
+        opened = Usd.Stage.Open(str(stage))
+        if opened is None:
+            raise CompositionError(f"cannot open USD stage {str(stage)!r}", where=str(stage))
+        stage = opened
+    root = stage.GetPrimAtPath(stage_schema.ENVIRONMENT)
+    if not root:
+        return np.zeros((0, 3, 3))
+    time = Usd.TimeCode(frame)
+    xforms = UsdGeom.XformCache(time)
+    parts = []
+    for info in StageGeometry._meshes(root):
+        prim = stage.GetPrimAtPath(info.path)
+        imageable = UsdGeom.Imageable(prim)
+        if imageable.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+            continue
+        if imageable.ComputePurpose() in (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy):
+            continue
+        local = info.triangles_local
+        if local is None:
+            pts = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(time), dtype=np.float64).reshape(-1, 3)
+            local = pts[info.indices]
+        matrix = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
+        parts.append(local @ matrix[:3, :3] + matrix[3, :3])
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 3))

@@ -1,0 +1,602 @@
+"""``usdscene plan-cameras``: design a camera system on the composed scene, then prove it.
+
+:func:`plan_cameras` reads a setup document, composes the scene that blocks the views
+(the environment plus a passenger in every seat, or the setup's own objects) with
+:func:`usdscene.compose.compose_stage`, reads its triangles, builds targets and candidate
+cameras and hands them to :mod:`usdscene.coverage` for visibility and selection. It writes::
+
+    PLAN_DIR/cameras.openlabel.json   the setup with the chosen cameras (for generate / run)
+    PLAN_DIR/coverage.json            per target: cameras, px/m, DORI, visible fraction;
+                                      per camera: targets; the request and the solver summary
+    PLAN_DIR/coverage.png             top-down plan (coverage count, best DORI, view wedges)
+    PLAN_DIR/occluders/               the composed occluder stage the rays were cast against
+
+:func:`verify_plan` renders the chosen cameras with Cycles at low cost, with every target point
+as a small marker sphere, and compares predicted with rendered visibility::
+
+    PLAN_DIR/verify/images, masks     the renders
+    PLAN_DIR/verify/verification.json per (camera, target): predicted and rendered fractions
+    PLAN_DIR/verify/sheet.png         contact sheet of the chosen views (markers in magenta)
+
+Outputs are deterministic for the same inputs (no timings in the files) as long as the MILP
+finishes inside its time limit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from usdscene import coverage as cov
+from usdscene.errors import DocumentError, OutputError
+from usdscene.model import Camera, Relation, SceneObject, SceneSpec, PlaceRef
+
+log = logging.getLogger(__name__)
+
+OCCLUDER_MODES = ("worst-case", "setup")
+CAMERAS_FILE = "cameras.openlabel.json"
+COVERAGE_FILE = "coverage.json"
+PLAN_PICTURE = "coverage.png"
+OCCLUDER_STAGE_DIR = "occluders"
+VERIFY_DIR = "verify"
+VERIFY_FILE = "verification.json"
+DEFAULT_TARGETS = ("*:on,below,in_front,in",)
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """What :func:`plan_cameras` computed and wrote.
+
+    Attributes:
+        out_dir: the plan folder.
+        scene: the setup with the chosen cameras (what ``cameras.openlabel.json`` holds).
+        chosen: the chosen cameras (as named in ``scene``).
+        candidates: number of candidate cameras scored.
+        targets: the targets.
+        selection: the solver's answer (indices into the candidates).
+        coverage: the ``coverage.json`` content.
+        seconds: step → wall seconds (targets, compose, candidates, visibility, select, write).
+        backend: ray-casting backend (``embree`` or ``trimesh``).
+    """
+
+    out_dir: Path
+    scene: SceneSpec
+    chosen: tuple[Camera, ...]
+    candidates: int
+    targets: tuple[cov.Target, ...]
+    selection: cov.Selection
+    coverage: Mapping
+    seconds: Mapping[str, float] = field(default_factory=dict)
+    backend: str = ""
+
+
+def occluder_scene(setup: SceneSpec, catalog, mode: str) -> SceneSpec:
+    """The scene whose geometry blocks the views.
+
+    ``setup``: the setup document's own objects. ``worst-case``: no setup objects, a passenger
+    (the catalog's first class of kind ``passenger``, default appearance and pose) ``is_on``
+    every place of kind ``seat``.
+
+    Raises:
+        DocumentError: unknown mode, no environment, or worst-case without a passenger class.
+    """
+    if mode not in OCCLUDER_MODES:
+        raise DocumentError(f"unknown occluders {mode!r}; expected one of {', '.join(OCCLUDER_MODES)}",
+                            where="--occluders")
+    if setup.environment is None:
+        raise DocumentError("the setup document names no environment (metadata.usdscene.environment); "
+                            "plan-cameras needs one", where="metadata.usdscene.environment")
+    if mode == "setup":
+        return setup
+    passengers = catalog.classes("passenger")
+    if not passengers:
+        raise DocumentError("--occluders worst-case needs an asset class of kind 'passenger' in the catalog",
+                            where="--occluders")
+    seats = [name for name, place in sorted(catalog.places(setup.environment).items()) if place.kind == "seat"]
+    objects, relations, places = [], [], []
+    for name in seats:
+        uid = f"occluder_{name}"
+        objects.append(SceneObject(uid=uid, name=uid, class_name=passengers[0]))
+        places.append(PlaceRef(uid=f"place_{name}", name=name))
+        relations.append(Relation(uid=f"rel_{uid}", type="is_on", subject_uid=uid, object_uid=f"place_{name}"))
+    return dataclasses.replace(setup, objects=tuple(objects), relations=tuple(relations), places=tuple(places),
+                               frame_end=setup.frame_start)
+
+
+def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
+    """(T, 3, 3) world triangles of the environment and every object of a composed stage."""
+    from usdscene.stage_geometry import StageGeometry, environment_triangles
+
+    geometry = StageGeometry(stage_path)
+    parts = [environment_triangles(geometry.stage, frame)] + list(geometry.triangles(frame).values())
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+
+
+def _read_setup(document: Path):
+    from usdscene.catalog import load_catalog
+    from usdscene.converters.openlabel import read_openlabel
+
+    setup = read_openlabel(document)
+    catalog = load_catalog(setup.asset_paths, base_dir=document.resolve().parent)
+    return setup, catalog
+
+
+def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
+                 targets: Sequence[str] = DEFAULT_TARGETS, mounts: str = "auto", spacing_m: float = 0.8,
+                 lenses_file: str | Path | None = None, lens_names: Sequence[str] | None = None,
+                 k: int = 1, dori: str = "observe", dori_table_file: str | Path | None = None,
+                 occluders: str = "worst-case", min_visible: float = 0.25, aims: int = 4,
+                 target_spacing_m: float = 0.2, time_limit_s: float = 60.0) -> PlanResult:
+    """Plan the smallest camera set that covers the targets, and write the plan folder.
+
+    Args:
+        setup_document: OpenLABEL setup (environment, optional cameras, lights, render).
+        out_dir: plan folder (created).
+        targets: ``PLACE_GLOB:REGION,...`` or ``box:NAME:x0,y0,z0,x1,y1,z1`` specs.
+        mounts: ``auto`` (ceiling and wall positions every ``spacing_m``) or ``setup``
+            (re-score the setup's own cameras; lenses are then the cameras' own).
+        spacing_m: mount grid spacing, metres.
+        lenses_file: user lens catalog extending the shipped one.
+        lens_names: catalog lenses to try (default: all).
+        k: cameras each target needs.
+        dori: required image-detail class name.
+        dori_table_file: DORI table replacing the shipped IEC 62676-4:2015 one.
+        occluders: ``worst-case`` or ``setup`` (:func:`occluder_scene`).
+        min_visible: fraction of a target's points a camera must see to count.
+        aims: target-cluster aims per mount (besides the surface normal).
+        target_spacing_m: spacing of the sample points in each target region.
+        time_limit_s: MILP time limit, seconds.
+
+    Returns:
+        A :class:`PlanResult`.
+
+    Raises:
+        DocumentError: bad document, arguments, lens or DORI file (every problem at once
+            where possible).
+        OutputError: the output document fails the official OpenLABEL schema.
+    """
+    from usdscene.compose import compose_stage
+    from usdscene.files import write_bytes_atomic, write_json_atomic
+
+    seconds: dict[str, float] = {}
+    started = time.perf_counter()
+    document, out = Path(setup_document), Path(out_dir)
+    _check_numbers(k=k, min_visible=min_visible, spacing_m=spacing_m, target_spacing_m=target_spacing_m,
+                   aims=aims, time_limit_s=time_limit_s)
+    if mounts not in ("auto", "setup"):
+        raise DocumentError(f"unknown mounts {mounts!r}; expected 'auto' or 'setup'", where="--mounts")
+    specs = [cov.parse_target_spec(s) for s in targets]
+    table = cov.load_dori(dori_table_file)
+    required = cov.class_index(dori, table, where="--dori")
+    setup, catalog = _read_setup(document)
+    lenses = _pick_lenses(cov.load_lenses(lenses_file), lens_names) if mounts == "auto" else []
+    if mounts == "setup" and not setup.cameras:
+        raise DocumentError("--mounts setup re-scores the setup's cameras, but the document has none",
+                            where=str(document))
+    scene = occluder_scene(setup, catalog, occluders)
+    target_list = cov.targets_from_places(catalog.places(setup.environment), specs, spacing_m=target_spacing_m)
+    seconds["targets"] = time.perf_counter() - started
+
+    t = time.perf_counter()
+    # No cameras in the occluder stage: they do not block anything and the planner adds its own.
+    composed = compose_stage(dataclasses.replace(scene, cameras=()), catalog, out / OCCLUDER_STAGE_DIR)
+    triangles = stage_triangles(composed.root_layer, scene.frame_start)
+    occ = cov.Occluders(triangles)
+    seconds["compose"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    if mounts == "setup":
+        candidates = list(setup.cameras)
+        mount_count = len(candidates)
+    else:
+        lo, hi = occ.bounds_m
+        mount_list = cov.candidate_mounts(occ, lo, hi, spacing_m=spacing_m)
+        candidates = cov.candidate_cameras(mount_list, target_list, lenses, aims=aims)
+        mount_count = len(mount_list)
+    seconds["candidates"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    visibility = cov.evaluate_visibility(candidates, target_list, occ, table)
+    cover = cov.coverage_matrix(visibility, min_visible=min_visible, min_dori=required)
+    seconds["visibility"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    weights = np.where(cover, visibility.px_per_m, 0.0).sum(axis=1)
+    selection = cov.select_cameras(cover, k, time_limit_s=time_limit_s, weights=weights)
+    seconds["select"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    chosen = _named_cameras([candidates[i] for i in selection.chosen], keep_names=mounts == "setup")
+    # The plan document lives in PLAN_DIR: its relative asset folders must still find the catalog.
+    asset_paths = tuple(p if Path(p).is_absolute() else
+                        os.path.relpath((document.resolve().parent / p).resolve(), out.resolve())
+                        for p in setup.asset_paths)
+    planned = dataclasses.replace(setup, cameras=tuple(chosen), asset_paths=asset_paths)
+    request = {"setup": document.name, "targets": list(targets), "mounts": mounts, "spacing_m": spacing_m,
+               "lenses": [lens.name for lens in lenses], "k": k, "dori": dori, "min_visible": min_visible,
+               "occluders": occluders, "aims": aims, "target_spacing_m": target_spacing_m,
+               "dori_table": [{"name": c.name, "px_per_m": c.px_per_m} for c in table]}
+    report = coverage_report(request, target_list, candidates, chosen, selection, visibility, cover, table,
+                             mount_count)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_document(out / CAMERAS_FILE, planned)
+    write_json_atomic(out / COVERAGE_FILE, report)
+    picked = list(selection.chosen)
+    counts = cover[picked].sum(axis=0) if picked else np.zeros(len(target_list), int)
+    best = np.where(cover[picked], visibility.dori[picked], -1).max(axis=0) if picked else \
+        np.full(len(target_list), -1)
+    title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
+             f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori}, "
+             f"{len(selection.uncoverable)} uncoverable by any candidate")
+    picture = cov.plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
+    write_bytes_atomic(out / PLAN_PICTURE, _png(picture))
+    seconds["write"] = time.perf_counter() - t
+    return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
+                      seconds, occ.backend)
+
+
+def _check_numbers(**values: float) -> None:
+    from usdscene.errors import ProblemCollector
+
+    problems = ProblemCollector()
+    limits = {"k": (1, None), "min_visible": (0.0, 1.0), "spacing_m": (0.05, None),
+              "target_spacing_m": (0.01, None), "aims": (0, None), "time_limit_s": (0.1, None)}
+    for name, value in values.items():
+        lo, hi = limits[name]
+        if not math.isfinite(value) or value < lo or (hi is not None and value > hi):
+            span = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+            problems.add(f"--{name.replace('_', '-')}", f"expected a number {span}, got {value!r}")
+    if "min_visible" in values and values["min_visible"] == 0:
+        problems.add("--min-visible", "0 would let a camera that sees nothing count; use a positive fraction")
+    problems.raise_if_any(DocumentError)
+
+
+def _pick_lenses(catalog: Mapping[str, cov.Lens], names: Sequence[str] | None) -> list[cov.Lens]:
+    if not names:
+        return list(catalog.values())
+    unknown = [n for n in names if n not in catalog]
+    if unknown:
+        raise DocumentError(f"unknown lens {unknown[0]!r}; the catalog has {', '.join(catalog)}", where="--lens")
+    return [catalog[n] for n in names]
+
+
+def _named_cameras(cameras: Sequence[Camera], *, keep_names: bool) -> list[Camera]:
+    if keep_names:
+        return list(cameras)
+    out = []
+    for i, cam in enumerate(cameras):
+        custom = dict(cam.custom)
+        out.append(dataclasses.replace(
+            cam, name=f"plan_{i + 1:02d}",
+            description=f"planned by usdscene plan-cameras: {custom.get('mount')} mount, lens {custom.get('lens')}, "
+                        f"candidate {cam.name}",
+            custom={}))
+    return out
+
+
+def _write_document(path: Path, scene: SceneSpec) -> None:
+    from usdscene.converters.openlabel import default_schema_path, schema_problems, write_openlabel
+    from usdscene.files import write_json_atomic
+
+    document = write_openlabel(scene)
+    schema = default_schema_path()
+    if schema is not None:  # never write a document the official schema rejects
+        problems = schema_problems(document, schema)
+        if problems:
+            raise OutputError(problems)
+    write_json_atomic(path, document)
+
+
+def _png(image: np.ndarray) -> bytes:
+    import cv2
+
+    ok, data = cv2.imencode(".png", image)
+    if not ok:
+        raise OutputError("cannot encode the PNG image")
+    return data.tobytes()
+
+
+def _round(value: float, digits: int = 4) -> float:
+    return float(round(float(value), digits))
+
+
+def coverage_report(request: Mapping, targets: Sequence[cov.Target], candidates: Sequence[Camera],
+                    chosen: Sequence[Camera], selection: cov.Selection, visibility: cov.Visibility,
+                    cover: np.ndarray, table: Sequence[cov.DoriClass], mount_count: int) -> dict:
+    """The ``coverage.json`` content: request, summary, per target, per chosen camera.
+
+    Per (camera, target) pair the visible fraction, the median px/m over the visible points
+    and its DORI class; ``covers`` says whether the pair meets the requirement.
+    """
+    picked = list(selection.chosen)
+    names = {c: chosen[i].name for i, c in enumerate(picked)}
+
+    def pair(c: int, t: int) -> dict:
+        d = int(visibility.dori[c, t])
+        return {"camera": names[c], "visible_fraction": _round(visibility.visible[c, t]),
+                "in_image_fraction": _round(visibility.in_image[c, t]),
+                "px_per_m": _round(visibility.px_per_m[c, t], 1),
+                "dori": table[d].name if d >= 0 else None, "covers": bool(cover[c, t])}
+
+    target_rows = []
+    holes = []
+    for t, target in enumerate(targets):
+        seen = [pair(c, t) for c in picked if visibility.visible[c, t] > 0]
+        count = sum(1 for p in seen if p["covers"])
+        best = max((int(visibility.dori[c, t]) for c in picked if cover[c, t]), default=-1)
+        if count < int(request["k"]):
+            holes.append(target.name)
+        target_rows.append({"name": target.name, "place": target.place, "region": target.region,
+                            "covering_cameras": count, "best_dori": table[best].name if best >= 0 else None,
+                            "coverable_by_candidates": int(cover[:, t].sum()),
+                            "cameras": seen,
+                            "points_m": [[_round(v) for v in p] for p in target.points_m.tolist()]})
+    camera_rows = []
+    for i, c in enumerate(picked):
+        cam = chosen[i]
+        camera_rows.append({"name": cam.name, "candidate": candidates[c].name,
+                            "lens": candidates[c].custom.get("lens", cam.model_name) if candidates[c].custom else
+                            cam.model_name,
+                            "position_m": [_round(v) for v in cam.pose.translation_m],
+                            "forward": [_round(v) for v in cam.pose.rotation[:, 2]],
+                            "targets": [targets[t].name for t in np.flatnonzero(cover[c])]})
+    summary = {
+        "cameras": len(picked), "method": selection.method, "optimal": selection.optimal,
+        "lower_bound": selection.lower_bound, "gap": _round(selection.gap), "greedy_cameras": selection.greedy_size,
+        "candidates": len(candidates), "mounts": mount_count, "targets": len(targets),
+        "targets_covered": len(targets) - len(holes), "holes": holes,
+        "uncoverable": [targets[t].name for t in selection.uncoverable],
+        "short_of_k": [targets[t].name for t in selection.short],
+    }
+    return {"format": "usdscene-coverage", "version": 1, "request": dict(request), "summary": summary,
+            "cameras": camera_rows, "targets": target_rows}
+
+
+# --------------------------------------------------------------------------------------------
+# Verification
+
+
+@dataclass(frozen=True)
+class VerifyResult:
+    """Predicted against rendered visibility of a plan.
+
+    Attributes:
+        pairs: (camera, target) pairs compared (target at least partly inside the image).
+        agreeing: pairs whose predicted and rendered visible fractions differ by at most
+            ``tolerance``.
+        tolerance: that tolerance (fraction of the target's points).
+        points: (camera, point) comparisons; ``points_agreeing`` of them agree.
+        points_agreeing: see ``points``.
+        report: the ``verification.json`` content.
+        seconds: wall seconds (compose, render, compare).
+    """
+
+    pairs: int
+    agreeing: int
+    tolerance: float
+    points: int
+    points_agreeing: int
+    report: Mapping
+    seconds: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def agreement(self) -> float:
+        return self.agreeing / self.pairs if self.pairs else 1.0
+
+
+MARKER_UID_PREFIX = "marker_"
+
+
+def write_marker_layer(targets: Sequence[cov.Target], path: Path, *, radius_m: float, first_mask_id: int) -> dict[int, int]:
+    """A USD layer with one object per target under ``/World/Objects``: a small sphere at
+    each of its points (one mesh, one mask id), flat magenta.
+
+    Returns:
+        mask id → target index.
+    """
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+
+    from usdscene import stage_schema as names
+    from usdscene.render.synthetic import uv_sphere
+
+    stage = Usd.Stage.CreateInMemory()
+    pts, counts, idx = uv_sphere(radius_m, 8, 4)
+    material = UsdShade.Material.Define(stage, "/World/Looks/Marker")
+    shader = UsdShade.Shader.Define(stage, "/World/Looks/Marker/Surface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    shader.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(1.0, 0.0, 1.0))
+    material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    ids = {}
+    for t, target in enumerate(targets):
+        uid = f"{MARKER_UID_PREFIX}{t:05d}"
+        mesh = UsdGeom.Mesh.Define(stage, names.object_prim_path("marker", uid))
+        centres = target.points_m
+        all_pts = (pts[None, :, :] + centres[:, None, :]).reshape(-1, 3)
+        offsets = (np.arange(len(centres)) * len(pts))[:, None]
+        mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in all_pts.tolist()]))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray(np.tile(counts, len(centres)).tolist()))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray((idx[None, :] + offsets).ravel().tolist()))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        prim = mesh.GetPrim()
+        prim.SetCustomDataByKey(names.CUSTOM_UID, uid)
+        prim.SetCustomDataByKey(names.CUSTOM_CLASS, "marker")
+        prim.CreateAttribute(names.ATTR_USER_UID, Sdf.ValueTypeNames.String).Set(uid)
+        prim.CreateAttribute(names.ATTR_USER_CLASS, Sdf.ValueTypeNames.String).Set("marker")
+        mask_id = first_mask_id + t
+        prim.CreateAttribute(names.ATTR_MASK_ID, Sdf.ValueTypeNames.Int).Set(mask_id)
+        UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
+        ids[mask_id] = t
+    from usdscene.files import write_text_atomic
+
+    write_text_atomic(path, stage.GetRootLayer().ExportToString())
+    return ids
+
+
+def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples: int = 1,
+                marker_radius_m: float = cov.RAY_MARGIN_M, tolerance: float = 0.15,
+                progress: bool = True) -> VerifyResult:
+    """Render the plan's cameras with its targets as markers and compare with the prediction.
+
+    The occluder scene of the plan is composed again with the chosen cameras, a layer of
+    marker spheres (radius ``marker_radius_m``, one object per target) is added, and every
+    camera is rendered at ``resolution_scale`` of its resolution with ``samples`` samples and
+    no denoising. A target point counts as seen in the render when its marker's mask id is
+    found within a marker radius (at least one pixel) of its projected centre. Predicted
+    visibility is recomputed by ray casting on the same stage.
+
+    Args:
+        plan_dir: folder written by :func:`plan_cameras`.
+        resolution_scale: render size relative to the cameras' resolution.
+        samples: Cycles samples per pixel (masks need one).
+        marker_radius_m: marker sphere radius, metres.
+        tolerance: pairs agree when the fractions differ by at most this.
+        progress: render progress bar on stderr.
+
+    Returns:
+        A :class:`VerifyResult`; ``PLAN_DIR/verify/verification.json`` and ``sheet.png`` written.
+
+    Raises:
+        DocumentError: the folder is not a plan.
+    """
+    import cv2
+
+    from pxr import Sdf
+
+    from usdscene import layout
+    from usdscene.compose import compose_stage
+    from usdscene.files import write_bytes_atomic, write_json_atomic
+    from usdscene.render.driver import render, scale_intrinsics
+
+    plan = Path(plan_dir)
+    seconds: dict[str, float] = {}
+    try:
+        report = json.loads((plan / COVERAGE_FILE).read_text(encoding="utf-8"))
+        request = report["request"]
+        targets = [cov.Target(t["name"], t["place"], t["region"], np.asarray(t["points_m"], dtype=np.float64))
+                   for t in report["targets"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise DocumentError(f"not a plan folder (cannot read {COVERAGE_FILE}: {exc})", where=str(plan)) from None
+    if not 0 < resolution_scale <= 4:
+        raise DocumentError(f"expected a scale in (0, 4], got {resolution_scale!r}", where="--verify-scale")
+    t0 = time.perf_counter()
+    planned, catalog = _read_setup(plan / CAMERAS_FILE)
+    if not planned.cameras:
+        raise DocumentError("the plan has no cameras to verify", where=str(plan / CAMERAS_FILE))
+    scene = occluder_scene(planned, catalog, request["occluders"])
+    verify = plan / VERIFY_DIR
+    composed = compose_stage(scene, catalog, verify / layout.STAGE_DIR)
+    triangles = stage_triangles(composed.root_layer, scene.frame_start)
+    occ = cov.Occluders(triangles)
+    marker_file = composed.stage_dir / "markers.usda"
+    first_id = max(layout.mask_ids(scene).values(), default=0) + 1
+    ids = write_marker_layer(targets, marker_file, radius_m=marker_radius_m, first_mask_id=first_id)
+    root = Sdf.Layer.FindOrOpen(str(composed.root_layer))
+    root.subLayerPaths.append(marker_file.name)
+    root.Save()
+    seconds["compose"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    frame = scene.frame_start
+    render(composed.root_layer, verify, frames=[frame], settings_override={
+        "samples": samples, "denoise": False, "resolution_scale": resolution_scale}, progress=progress)
+    seconds["render"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    table = [cov.DoriClass(c["name"], float(c["px_per_m"])) for c in request["dori_table"]]
+    cameras = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
+               for c in planned.cameras]
+    predicted = cov.evaluate_visibility(cameras, targets, occ, table)
+    target_of_id = np.zeros(first_id + len(targets) + 1, dtype=np.int64) - 1
+    for mask_id, t in ids.items():
+        target_of_id[mask_id] = t
+    rows, pairs, agreeing, points, points_ok = [], 0, 0, 0, 0
+    thumbs = []
+    for c, camera in enumerate(cameras):
+        mask = cv2.imread(str(layout.mask_path(verify, camera.name, frame)), cv2.IMREAD_UNCHANGED)
+        image = cv2.imread(str(layout.image_path(verify, camera.name, frame)), cv2.IMREAD_COLOR)
+        thumbs.append((camera.name, image))
+        for t, target in enumerate(targets):
+            if predicted.in_image[c, t] == 0:
+                continue
+            seen = _rendered_points(camera, target.points_m, mask, first_id + t, marker_radius_m)
+            pred = predicted.point_visible[t][c]
+            rendered_fraction = float(seen.mean())
+            predicted_fraction = float(predicted.visible[c, t])
+            ok = abs(rendered_fraction - predicted_fraction) <= tolerance + 1e-12
+            pairs += 1
+            agreeing += ok
+            points += len(seen)
+            points_ok += int((seen == pred).sum())
+            rows.append({"camera": camera.name, "target": target.name,
+                         "predicted_visible_fraction": _round(predicted_fraction),
+                         "rendered_visible_fraction": _round(rendered_fraction), "agree": bool(ok)})
+    summary = {"pairs": pairs, "agreeing_pairs": agreeing, "agreement": _round(agreeing / pairs if pairs else 1.0),
+               "tolerance": tolerance, "points": points, "agreeing_points": points_ok,
+               "resolution_scale": resolution_scale, "samples": samples, "marker_radius_m": marker_radius_m}
+    out = {"format": "usdscene-verification", "version": 1, "summary": summary, "pairs": rows}
+    write_json_atomic(verify / VERIFY_FILE, out)
+    write_bytes_atomic(verify / "sheet.png", _png(contact_sheet(thumbs)))
+    seconds["compare"] = time.perf_counter() - t0
+    return VerifyResult(pairs, agreeing, tolerance, points, points_ok, out, seconds)
+
+
+def _rendered_points(camera: Camera, points_m: np.ndarray, mask: np.ndarray, mask_id: int,
+                     radius_m: float) -> np.ndarray:
+    """(N,) bool: the marker of each point shows in ``mask`` within its projected radius."""
+    from usdscene.projection import project_points
+
+    uv, ok = project_points(camera, points_m)
+    h, w = mask.shape[:2]
+    density = cov.pixel_density(camera, points_m)
+    out = np.zeros(len(points_m), dtype=bool)
+    for i in np.flatnonzero(ok):
+        r = max(1, int(math.ceil(density[i] * radius_m)))
+        u, v = int(round(uv[i, 0])), int(round(uv[i, 1]))
+        window = mask[max(0, v - r):min(h, v + r + 1), max(0, u - r):min(w, u + r + 1)]
+        out[i] = bool(window.size) and bool((window == mask_id).any())
+    return out
+
+
+def contact_sheet(images: Sequence[tuple[str, np.ndarray | None]], *, columns: int = 6,
+                  thumb_width_px: int = 240) -> np.ndarray:
+    """Thumbnails of named images in a grid with their names.
+
+    Args:
+        images: (name, (H, W, 3) uint8 BGR or None) pairs.
+
+    Returns:
+        (H, W, 3) uint8 BGR sheet.
+    """
+    import cv2
+
+    thumbs = []
+    for name, image in images:
+        if image is None:
+            image = np.zeros((thumb_width_px * 3 // 4, thumb_width_px, 3), np.uint8)
+        h = int(round(image.shape[0] * thumb_width_px / image.shape[1]))
+        thumb = cv2.resize(image, (thumb_width_px, h), interpolation=cv2.INTER_AREA)
+        thumb = cv2.copyMakeBorder(thumb, 0, 18, 0, 0, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+        cv2.putText(thumb, name, (4, h + 13), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+        thumbs.append(thumb)
+    cell_h = max(t.shape[0] for t in thumbs)
+    rows = []
+    for start in range(0, len(thumbs), columns):
+        row = [cv2.copyMakeBorder(t, 0, cell_h - t.shape[0], 0, 4, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+               for t in thumbs[start:start + columns]]
+        while len(row) < columns and start > 0:
+            row.append(np.full_like(row[0], 255))
+        rows.append(np.concatenate(row, axis=1))
+    width = max(r.shape[1] for r in rows)
+    rows = [cv2.copyMakeBorder(r, 0, 4, 0, width - r.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255))
+            for r in rows]
+    return np.concatenate(rows, axis=0)

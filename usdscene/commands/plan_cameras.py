@@ -1,0 +1,86 @@
+"""``usdscene plan-cameras``: how many cameras, where, with which lens; then ``--verify``."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "plan-cameras"
+HELP = ("design a camera system: the smallest set of cameras (position, aim, lens) that sees every "
+        "target at the required image-detail class; --verify PLAN_DIR renders it and compares")
+ORDER = 15
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--setup", metavar="SETUP_DOC",
+                        help="OpenLABEL setup document (environment, lights, render; its cameras with --mounts setup)")
+    parser.add_argument("-o", "--out", metavar="PLAN_DIR", help="plan folder to write")
+    parser.add_argument("--verify", metavar="PLAN_DIR",
+                        help="render the plan in PLAN_DIR with its targets as markers and compare with the prediction")
+    parser.add_argument("--targets", metavar="SPEC", nargs="+", default=None,
+                        help="PLACE_GLOB:REGION,... (e.g. 'seat_*:on,below,in_front') or "
+                             "box:NAME:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in metres (default: every region of every place)")
+    parser.add_argument("--mounts", default="auto", metavar="auto|setup",
+                        help="'auto': ceiling and wall positions of the environment every --spacing metres; "
+                             "'setup': re-score the setup document's own cameras")
+    parser.add_argument("--spacing", type=float, default=0.8, metavar="M", help="mount grid spacing in metres (0.8)")
+    parser.add_argument("--lenses", metavar="FILE", help="lens catalog JSON extending the shipped one")
+    parser.add_argument("--lens", nargs="+", metavar="NAME", help="catalog lenses to try (default: all)")
+    parser.add_argument("--k", type=int, default=1, help="cameras each target needs (1)")
+    parser.add_argument("--dori", default="observe", metavar="CLASS",
+                        help="required image-detail class (monitor, detect, observe, recognise, identify, inspect)")
+    parser.add_argument("--dori-table", metavar="FILE", help="DORI table JSON replacing IEC 62676-4:2015's")
+    parser.add_argument("--occluders", default="worst-case", metavar="worst-case|setup",
+                        help="what blocks the views: a passenger in every seat (worst-case) or the setup's objects")
+    parser.add_argument("--min-visible", type=float, default=0.25, metavar="FRACTION",
+                        help="fraction of a target's points a camera must see (0.25)")
+    parser.add_argument("--aims", type=int, default=4, help="target-cluster aims per mount (4)")
+    parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="MILP time limit in seconds (60)")
+    parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
+                        help="render size of --verify relative to the cameras' resolution (0.5)")
+    parser.add_argument("--verify-samples", type=int, default=1, metavar="N", help="Cycles samples of --verify (1)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    console = Console(highlight=False, soft_wrap=True)
+    if args.verify:
+        if args.setup or args.out:
+            return _usage("--verify PLAN_DIR takes no --setup or -o")
+        from usdscene.camera_design import VERIFY_DIR, verify_plan
+
+        result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples)
+        console.print(f"verified {args.verify}: {result.agreeing}/{result.pairs} (camera, target) pairs agree "
+                      f"({100 * result.agreement:.1f} %, visible fractions within {result.tolerance:g}); "
+                      f"{result.points_agreeing}/{result.points} target points agree")
+        console.print(f"  render {result.seconds['render']:.1f} s; details in {args.verify}/{VERIFY_DIR}/")
+        return 0
+    if not args.setup or not args.out:
+        return _usage("plan-cameras needs --setup SETUP_DOC and -o PLAN_DIR (or --verify PLAN_DIR)")
+    from usdscene.camera_design import DEFAULT_TARGETS, plan_cameras
+
+    result = plan_cameras(args.setup, args.out, targets=args.targets or DEFAULT_TARGETS, mounts=args.mounts,
+                          spacing_m=args.spacing, lenses_file=args.lenses, lens_names=args.lens, k=args.k,
+                          dori=args.dori, dori_table_file=args.dori_table, occluders=args.occluders,
+                          min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit)
+    s = result.coverage["summary"]
+    sel = result.selection
+    console.print(f"planned {s['cameras']} cameras from {s['candidates']} candidates ({s['mounts']} mounts) "
+                  f"for {s['targets']} targets in {sum(result.seconds.values()):.1f} s")
+    console.print(f"  solver:  {sel.method}{' (optimal)' if sel.optimal else ''}, lower bound {sel.lower_bound}, "
+                  f"gap {100 * sel.gap:.1f} %, greedy {sel.greedy_size}")
+    console.print(f"  covered: {s['targets_covered']}/{s['targets']} targets by >= {args.k} camera(s) at >= {args.dori}")
+    if s["holes"]:
+        console.print(f"  holes:   {len(s['holes'])}: {', '.join(s['holes'][:12])}{' ...' if len(s['holes']) > 12 else ''}")
+    console.print("  steps:   " + ", ".join(f"{k} {v:.1f} s" for k, v in result.seconds.items())
+                  + f" (ray casting: {result.backend})")
+    console.print(f"  outputs: {args.out}/cameras.openlabel.json, coverage.json, coverage.png")
+    console.print(f"  next:    usdscene plan-cameras --verify {args.out}")
+    return 0
+
+
+def _usage(message: str) -> int:
+    import sys
+
+    print(f"usdscene plan-cameras: error: {message}", file=sys.stderr)
+    return 2
