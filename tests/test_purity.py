@@ -15,6 +15,8 @@ PURE_MODULES = [
     "usdscene.cli",
     "usdscene.placement",
     "usdscene.sequences",
+    "usdscene.coverage",
+    "usdscene.amodal",
     "usdscene.projection",
     "usdscene.labels",
     "usdscene.validation",

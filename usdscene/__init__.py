@@ -50,6 +50,13 @@ _LAZY = {
     # the whole job
     "run_pipeline": ("usdscene.pipeline", "run_pipeline"),
     "RunSummary": ("usdscene.pipeline", "RunSummary"),
+    # design time: sequence documents and camera systems
+    "generate_document": ("usdscene.sequences", "generate_document"),
+    "generate_sequence": ("usdscene.sequences", "generate_sequence"),
+    "GenerateOptions": ("usdscene.sequences", "GenerateOptions"),
+    "balance_report": ("usdscene.sequences", "balance_report"),
+    "plan_cameras": ("usdscene.camera_design", "plan_cameras"),
+    "verify_plan": ("usdscene.camera_design", "verify_plan"),
 }
 
 __all__ = ["__version__", "AssetError", "CompositionError", "DocumentError", "OutputError",

@@ -545,7 +545,10 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
                "resolution_scale": resolution_scale, "samples": samples, "marker_radius_m": marker_radius_m}
     out = {"format": "usdscene-verification", "version": 1, "summary": summary, "pairs": rows}
     write_json_atomic(verify / VERIFY_FILE, out)
-    write_bytes_atomic(verify / "sheet.png", _png(contact_sheet(thumbs)))
+    from usdscene.contact_sheet import contact_sheet
+
+    tiles = [(name, image if image is not None else np.zeros((180, 240, 3), np.uint8)) for name, image in thumbs]
+    write_bytes_atomic(verify / "sheet.png", _png(contact_sheet(tiles, tile_width=240, columns=6)))
     seconds["compare"] = time.perf_counter() - t0
     return VerifyResult(pairs, agreeing, tolerance, points, points_ok, out, seconds)
 
@@ -565,38 +568,3 @@ def _rendered_points(camera: Camera, points_m: np.ndarray, mask: np.ndarray, mas
         window = mask[max(0, v - r):min(h, v + r + 1), max(0, u - r):min(w, u + r + 1)]
         out[i] = bool(window.size) and bool((window == mask_id).any())
     return out
-
-
-def contact_sheet(images: Sequence[tuple[str, np.ndarray | None]], *, columns: int = 6,
-                  thumb_width_px: int = 240) -> np.ndarray:
-    """Thumbnails of named images in a grid with their names.
-
-    Args:
-        images: (name, (H, W, 3) uint8 BGR or None) pairs.
-
-    Returns:
-        (H, W, 3) uint8 BGR sheet.
-    """
-    import cv2
-
-    thumbs = []
-    for name, image in images:
-        if image is None:
-            image = np.zeros((thumb_width_px * 3 // 4, thumb_width_px, 3), np.uint8)
-        h = int(round(image.shape[0] * thumb_width_px / image.shape[1]))
-        thumb = cv2.resize(image, (thumb_width_px, h), interpolation=cv2.INTER_AREA)
-        thumb = cv2.copyMakeBorder(thumb, 0, 18, 0, 0, cv2.BORDER_CONSTANT, value=(255, 255, 255))
-        cv2.putText(thumb, name, (4, h + 13), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
-        thumbs.append(thumb)
-    cell_h = max(t.shape[0] for t in thumbs)
-    rows = []
-    for start in range(0, len(thumbs), columns):
-        row = [cv2.copyMakeBorder(t, 0, cell_h - t.shape[0], 0, 4, cv2.BORDER_CONSTANT, value=(255, 255, 255))
-               for t in thumbs[start:start + columns]]
-        while len(row) < columns and start > 0:
-            row.append(np.full_like(row[0], 255))
-        rows.append(np.concatenate(row, axis=1))
-    width = max(r.shape[1] for r in rows)
-    rows = [cv2.copyMakeBorder(r, 0, 4, 0, width - r.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255))
-            for r in rows]
-    return np.concatenate(rows, axis=0)
