@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
@@ -191,25 +191,22 @@ def _kernels():
 
     @numba.njit(cache=True, nogil=True)
     def bounding_sphere(points):
-        """Centre (3,) and radius of the bounding box's sphere of (N, 3) points."""
+        """Centre (3,) and radius of the sphere around the bounding box of (P, 3) points."""
         lo = points[0].copy()
         hi = points[0].copy()
-        for i in range(1, points.shape[0]):
+        for j in range(1, points.shape[0]):
             for k in range(3):
-                lo[k] = min(lo[k], points[i, k])
-                hi[k] = max(hi[k], points[i, k])
-        centre = (lo + hi) / 2.0
-        radius = math.sqrt(((hi - lo) ** 2).sum()) / 2.0
-        return centre, radius
+                lo[k] = min(lo[k], points[j, k])
+                hi[k] = max(hi[k], points[j, k])
+        return (lo + hi) / 2.0, math.sqrt(((hi - lo) ** 2).sum()) / 2.0
 
     return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, bounding_sphere=bounding_sphere)
 
 
 def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int | None = None, *,
                       max_edge_px: float = MAX_PROJECTED_EDGE_PX) -> AmodalProjection:
-    """Rasterise an object's world-space triangles through a camera model.
-
-    See the module docstring for what is exact on each lens model.
+    """Rasterise one object's world-space triangles through a camera model (see
+    :func:`amodal_projections`).
 
     Args:
         camera: the camera (intrinsics + pose at ``frame``).
@@ -220,23 +217,50 @@ def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int 
     Returns:
         AmodalProjection of the image size (empty when the object is out of view).
     """
+    return amodal_projections(camera, {"": triangles_world_m}, frame, max_edge_px=max_edge_px)[""]
+
+
+def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarray],
+                       frame: int | None = None, *,
+                       max_edge_px: float = MAX_PROJECTED_EDGE_PX) -> dict[str, AmodalProjection]:
+    """Rasterise every object's world-space triangles through one camera, all objects in one
+    vectorised pass (see the module docstring for what is exact on each lens model).
+
+    Args:
+        camera: the camera (intrinsics + pose at ``frame``).
+        triangles_world_m: object uid → (T, 3, 3) float world coordinates in metres.
+        frame: frame number for per-frame camera poses; None = the static pose.
+        max_edge_px: subdivision threshold for distorting lenses, pixels.
+
+    Returns:
+        uid → AmodalProjection of the image size, for every uid given (empty when the object
+        is out of view).
+    """
     from usdscene.model import LensModel
     from usdscene.projection import project_camera_points
 
     intr = camera.intrinsics
     size = (intr.width_px, intr.height_px)
-    tris = np.asarray(triangles_world_m, dtype=np.float64).reshape(-1, 3, 3)
-    if not len(tris):
-        return AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
+    uids = list(triangles_world_m)
+    empty = AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
+    result = dict.fromkeys(uids, empty)
+    arrays = [np.ascontiguousarray(triangles_world_m[uid], dtype=np.float64).reshape(-1, 3, 3) for uid in uids]
     pose = camera.pose_at(frame) if frame is not None else camera.pose
     m = pose.as_array()
+    # Cull whole objects by their bounding spheres before touching their triangles.
+    in_view = _objects_in_view(intr, m, arrays)
+    visible = np.flatnonzero(in_view)
+    if not visible.size:
+        return result
+    counts = np.array([len(arrays[i]) for i in visible], dtype=np.int64)
+    tris = np.concatenate([arrays[i] for i in visible])
+    owner = np.repeat(visible, counts)
     # world → camera (OpenCV axes): R^T (p - t), written for row vectors.
     cam = ((tris.reshape(-1, 3) - m[:3, 3]) @ m[:3, :3]).reshape(-1, 3, 3)
-    if not _may_be_in_view(intr, cam):
-        return AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
-    cut = False
+    cut = np.zeros(len(uids), dtype=bool)
     if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-        cam, cut = _clip_triangles_near(cam, max(camera.clip_near_m, 1e-6))
+        cam, owner, clipped = _clip_triangles_near(cam, owner, max(camera.clip_near_m, 1e-6))
+        cut[clipped] = True
     cone = _fisheye_cone_rad(intr)
     curved = intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion)
 
@@ -252,30 +276,37 @@ def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int 
 
     uv, ok, inside = project(cam)
     if curved:
-        done_uv, done_ok, done_inside = [], [], []
+        done = []
         for _ in range(_MAX_SUBDIVISIONS):
             edges = np.linalg.norm(uv - np.roll(uv, -1, axis=1), axis=2)
             longest = np.maximum(np.maximum(edges[:, 0], edges[:, 1]), edges[:, 2])
             split = ok[:, 0] & ok[:, 1] & ok[:, 2] & (longest > max_edge_px)
-            done_uv.append(uv[~split])
-            done_ok.append(ok[~split])
-            done_inside.append(inside[~split])
+            done.append((uv[~split], ok[~split], inside[~split], owner[~split]))
             if not split.any():
                 break
-            cam = _subdivide(cam[split])
+            cam, owner = _subdivide(cam[split]), np.tile(owner[split], 4)
             uv, ok, inside = project(cam)
         else:
-            done_uv.append(uv)
-            done_ok.append(ok)
-            done_inside.append(inside)
-        uv, ok, inside = np.concatenate(done_uv), np.concatenate(done_ok), np.concatenate(done_inside)
+            done.append((uv, ok, inside, owner))
+        uv, ok, inside, owner = (np.concatenate(parts) for parts in zip(*done))
     if cone is not None:
         # Pieces entirely beyond the image circle are not imaged: drop them.
+        outside = ~(inside[:, 0] & inside[:, 1] & inside[:, 2])
+        cut[np.unique(owner[outside])] = True
         beyond = ~(inside[:, 0] | inside[:, 1] | inside[:, 2])
-        cut = cut or bool((~inside).any())
-        uv, ok = uv[~beyond], ok[~beyond]
-    result = rasterize_triangles(uv, intr.width_px, intr.height_px, ok)
-    return AmodalProjection(result.crop, result.origin_px, size, result.truncated or cut)
+        uv, ok, owner = uv[~beyond], ok[~beyond], owner[~beyond]
+    if len(owner) > 1 and (owner[1:] < owner[:-1]).any():  # subdivision appended pieces
+        order = np.argsort(owner, kind="stable")
+        uv, ok, owner = np.ascontiguousarray(uv[order]), ok[order], owner[order]
+    bounds = np.searchsorted(owner, np.arange(len(uids) + 1))
+    for index in visible:
+        lo, hi = bounds[index], bounds[index + 1]
+        if lo == hi:
+            result[uids[index]] = replace(empty, truncated=bool(cut[index]))
+            continue
+        projection = rasterize_triangles(uv[lo:hi], intr.width_px, intr.height_px, ok[lo:hi])
+        result[uids[index]] = replace(projection, truncated=projection.truncated or bool(cut[index]))
+    return result
 
 
 def _fisheye_cone_rad(intrinsics: Intrinsics) -> float | None:
@@ -328,18 +359,24 @@ def _view_half_angle_rad(intrinsics: Intrinsics) -> float:
     return cone if cone is not None else math.pi
 
 
-def _may_be_in_view(intrinsics: Intrinsics, triangles_cam: np.ndarray) -> bool:
-    """False when the bounding sphere of (T, 3, 3) camera-frame triangles lies wholly outside
-    the camera's field of view (conservative: True when unsure)."""
+def _objects_in_view(intrinsics: Intrinsics, camera_to_world: np.ndarray,
+                     triangles_world: list[np.ndarray]) -> np.ndarray:
+    """(N,) bool per object: False when the object has no triangle or the bounding sphere of
+    its (T, 3, 3) world triangles lies wholly outside the camera's field of view
+    (conservative: True when unsure). ``camera_to_world`` is the (4, 4) camera pose."""
+    counts = np.array([len(t) for t in triangles_world], dtype=np.int64)
     half_angle = _view_half_angle_rad(intrinsics)
     if half_angle >= math.pi:
-        return True
-    centre, radius = _kernels().bounding_sphere(np.ascontiguousarray(triangles_cam).reshape(-1, 3))
-    distance = math.sqrt(float(centre @ centre))
-    if distance <= radius:
-        return True
-    off_axis = math.atan2(math.hypot(centre[0], centre[1]), centre[2])
-    return off_axis - math.asin(radius / distance) <= half_angle
+        return counts > 0
+    spheres = [_kernels().bounding_sphere(t.reshape(-1, 3)) if len(t) else (np.zeros(3), 0.0)
+               for t in triangles_world]
+    centres = np.array([c for c, _ in spheres]).reshape(-1, 3)
+    radii = np.array([r for _, r in spheres])
+    centres = (centres - camera_to_world[:3, 3]) @ camera_to_world[:3, :3]
+    distance = np.linalg.norm(centres, axis=1)
+    off_axis = np.arctan2(np.hypot(centres[:, 0], centres[:, 1]), centres[:, 2])
+    spread = np.arcsin(np.clip(radii / np.maximum(distance, 1e-300), 0.0, 1.0))
+    return (counts > 0) & ((distance <= radii) | (off_axis - spread <= half_angle))
 
 
 def _subdivide(tris: np.ndarray) -> np.ndarray:
@@ -366,17 +403,23 @@ def _clip_polygon(poly: np.ndarray, axis: int, bound: float, keep_greater: bool)
     return np.asarray(out).reshape(-1, poly.shape[1])
 
 
-def _clip_triangles_near(tris_cam: np.ndarray, near_m: float) -> tuple[np.ndarray, bool]:
-    """Clip (T, 3, 3) camera-frame triangles (OpenCV axes) to z >= near; returns the
-    surviving triangles and whether any was cut."""
+def _clip_triangles_near(tris_cam: np.ndarray, owner: np.ndarray,
+                         near_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Clip (T, 3, 3) camera-frame triangles (OpenCV axes) to z >= near.
+
+    Returns:
+        ``(triangles (T', 3, 3), owner (T',), owners that were cut)``; ``owner`` is the (T,)
+        object index of each triangle, carried to the pieces.
+    """
     inside = tris_cam[:, :, 2] >= near_m
     all_in = inside[:, 0] & inside[:, 1] & inside[:, 2]
     if all_in.all():
-        return tris_cam, False
-    crossing = (inside[:, 0] | inside[:, 1] | inside[:, 2]) & ~all_in
-    pieces = [tris_cam[all_in]]
-    for tri in tris_cam[crossing]:
-        poly = _clip_polygon(tri, 2, near_m, True)
+        return tris_cam, owner, np.zeros(0, dtype=np.int64)
+    crossing = np.flatnonzero((inside[:, 0] | inside[:, 1] | inside[:, 2]) & ~all_in)
+    pieces, piece_owner = [tris_cam[all_in]], [owner[all_in]]
+    for index in crossing:
+        poly = _clip_polygon(tris_cam[index], 2, near_m, True)
         for k in range(1, len(poly) - 1):  # fan triangulation of the convex clipped polygon
             pieces.append(np.stack([poly[0], poly[k], poly[k + 1]])[None])
-    return np.concatenate(pieces) if pieces else np.zeros((0, 3, 3)), bool((~all_in).any())
+            piece_owner.append(owner[index:index + 1])
+    return np.concatenate(pieces), np.concatenate(piece_owner), np.unique(owner[~all_in])

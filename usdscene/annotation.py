@@ -105,7 +105,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
     from usdscene.converters.openlabel_annotations import add_annotations
     from usdscene import layout
     from usdscene.errors import OutputError
-    from usdscene.amodal import amodal_projection
+    from usdscene.amodal import amodal_projections
     from usdscene.labels import DEFAULT_EPSILON_PX, label_image, label_images
 
     out = Path(out_dir)
@@ -175,8 +175,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
                     camera = dataclasses.replace(camera, intrinsics=dataclasses.replace(
                         intr, width_px=width, height_px=height, fx_px=intr.fx_px * sx, fy_px=intr.fy_px * sy,
                         cx_px=(intr.cx_px + 0.5) * sx - 0.5, cy_px=(intr.cy_px + 0.5) * sy - 0.5))
-                amodal_masks = {uid: amodal_projection(camera, tris, frame)
-                                for uid, tris in triangles.items() if len(tris)}
+                amodal_masks = amodal_projections(camera, triangles, frame)
                 # Objects the camera does not see at all carry no label there.
                 amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
             images.append(label_image(mask, ids, amodal_masks, classes=classes, camera=camera_name,
