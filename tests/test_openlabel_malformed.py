@@ -76,6 +76,14 @@ def _pose02(pose):
     return _set("coordinate_systems/cam_02/pose_wrt_parent", pose)
 
 
+def _transform_to_second_root(body):
+    """A per-frame transform from cam_02 to a coordinate system of another tree."""
+    body["coordinate_systems"]["island"] = {"type": "scene_cs", "parent": ""}
+    body["frames"]["1"]["frame_properties"] = {"transforms": {"t": {
+        "src": "cam_02", "dst": "island",
+        "transform_src_to_dst": {"matrix4x4": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]}}}}
+
+
 def _text(text: str):
     return text
 
@@ -172,8 +180,8 @@ CASES = [
      ["openlabel.coordinate_systems.cam_02.pose_wrt_parent", "one pose form"]),
     ("parent_missing", _set("coordinate_systems/cam_02/parent", "vehicle"),
      ["openlabel.coordinate_systems.cam_02.parent", "'vehicle' does not exist"]),
-    ("sensor_cs_without_stream", _add("coordinate_systems", "cam_03", {"type": "sensor_cs", "parent": "world"}),
-     ["openlabel.coordinate_systems.cam_03", "no stream"]),
+    ("transform_between_trees", _transform_to_second_root,
+     ["openlabel.frames.1.frame_properties.transforms.t", "different trees"]),
     ("camera_without_cs", _add("streams", "cam_04", {"type": "camera", "stream_properties": {"intrinsics_pinhole": PINHOLE}}),
      ["openlabel.streams.cam_04", "no coordinate system"]),
     ("transform_unknown_cs", _set("frames/1/frame_properties",

@@ -354,3 +354,31 @@ def test_write_document_is_atomic_and_refuses_nan(tmp_path):
         write_document(target, bad)
     assert target.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.json"]
+
+
+def test_valid_documents_of_others_are_read(openlabel_schema_path):
+    """Valid OpenLABEL that other datasets write: an object with an empty type, object data
+    names outside usdscene's vocabulary (also repeated), a sensor coordinate system without a
+    stream. They read, and the scene writes back schema-valid."""
+    doc = {"openlabel": {
+        "metadata": {"schema_version": "1.0.0"},
+        "coordinate_systems": {"odom": {"type": "scene_cs", "parent": ""},
+                               "lidar": {"type": "sensor_cs", "parent": "odom"}},
+        "objects": {
+            "0": {"name": "thing", "type": ""},
+            "1": {"name": "train", "type": "train", "object_data": {
+                "vec": [{"name": "Position", "val": [1.0, 2.0, 3.0]}],
+                "num": [{"name": "speed", "val": 3.0}, {"name": "speed", "val": 4.0}],
+                "text": [{"name": "note", "val": "a"}, {"name": "note", "val": "b"}]}}}}}
+    assert schema_problems(doc, openlabel_schema_path) == []
+    scene = read_openlabel(doc)
+    assert [(o.uid, o.class_name, o.pose) for o in scene.objects] == [("0", "", None), ("1", "train", None)]
+    assert schema_problems(write_openlabel(scene), openlabel_schema_path) == []
+    # usdscene's own names stay checked: a lower-case near miss is a typo, a repeat is ambiguous
+    doc["openlabel"]["objects"]["1"]["object_data"]["vec"] = [{"name": "position", "val": [1.0, 2.0, 3.0]}]
+    with pytest.raises(DocumentError, match="did you mean 'position_m'"):
+        read_openlabel(doc)
+    doc["openlabel"]["objects"]["1"]["object_data"]["vec"] = [{"name": "position_m", "val": [1.0, 2.0, 3.0]},
+                                                              {"name": "position_m", "val": [1.0, 2.0, 3.0]}]
+    with pytest.raises(DocumentError, match="duplicate object data name 'position_m'"):
+        read_openlabel(doc)
