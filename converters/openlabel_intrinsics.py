@@ -25,6 +25,7 @@ from usdscene.errors import ProblemCollector
 from usdscene.model import Intrinsics, LensModel, RenderSettings
 
 from usdscene.converters.openlabel_values import (
+    IMAGE_SIDE_LIMIT,
     INVALID,
     describe,
     read_int,
@@ -169,8 +170,8 @@ def _size(block: Mapping, where: str, problems: ProblemCollector) -> tuple[int, 
         if key not in block:
             problems.add(f"{where}.{key}", f"missing {key!r}")
             return None
-    w = read_int(block["width_px"], f"{where}.width_px", problems, positive=True)
-    h = read_int(block["height_px"], f"{where}.height_px", problems, positive=True)
+    w = read_int(block["width_px"], f"{where}.width_px", problems, positive=True, maximum=IMAGE_SIDE_LIMIT)
+    h = read_int(block["height_px"], f"{where}.height_px", problems, positive=True, maximum=IMAGE_SIDE_LIMIT)
     return (w, h) if w is not None and h is not None else None
 
 

@@ -180,6 +180,22 @@ CASES = [
      ["openlabel.coordinate_systems.cam_02.pose_wrt_parent", "one pose form"]),
     ("parent_missing", _set("coordinate_systems/cam_02/parent", "vehicle"),
      ["openlabel.coordinate_systems.cam_02.parent", "'vehicle' does not exist"]),
+    # validate is the gate: what Blender, USD and memory cannot take is refused here
+    ("width_px_beyond_blender", _fisheye(width_px=2 ** 40),
+     ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.width_px", "above 65536"]),
+    ("samples_beyond_cycles", _set("metadata/usdscene/render/samples", 10 ** 12),
+     ["openlabel.metadata.usdscene.render.samples", "above 16777216"]),
+    ("frame_end_beyond_blender", _set("metadata/usdscene/frame_range/frame_end", 10 ** 12),
+     ["openlabel.metadata.usdscene.frame_range.frame_end", "above 1048574"]),
+    ("frame_key_beyond_blender", _add("frames", "9" * 40, {}),
+     ["openlabel.frames." + "9" * 40, "above 1048574"]),
+    ("lone_surrogate_in_name", _set("metadata/name", "cabin \ud800"),
+     ["openlabel.metadata.name", "lone UTF-16 surrogate"]),
+    ("integer_of_5000_digits",
+     _text(EXAMPLE.read_text(encoding="utf-8").replace('"seed": 7', '"seed": ' + "9" * 5000, 1)),
+     ["4300 digits"]),
+    ("integer_beyond_float", _set("objects/4/object_data/vec/0/val", [10 ** 400, 0, 0]),
+     ["openlabel.objects.4.object_data.vec[0].val[0]", "finite number"]),
     ("transform_between_trees", _transform_to_second_root,
      ["openlabel.frames.1.frame_properties.transforms.t", "different trees"]),
     ("camera_without_cs", _add("streams", "cam_04", {"type": "camera", "stream_properties": {"intrinsics_pinhole": PINHOLE}}),
@@ -351,6 +367,19 @@ def test_convert_refuses_invalid_input(tmp_path, capsys):
 def test_example_validates_against_the_shipped_catalog(capsys):
     assert main(["validate", str(EXAMPLE)]) == 0
     assert "asset catalog)" in capsys.readouterr().out
+
+
+def test_relation_type_typos_against_the_shipped_catalog(tmp_path, capsys):
+    """A misspelt placement relation would leave its object at the world origin; other
+    vocabularies' relation types pass."""
+    for typo, intended in (("IS_BELOW", "is_below"), ("is below", "is_below"), ("is_inside", "is_in")):
+        path = _write_case(tmp_path, _set("relations/0/type", typo))
+        assert main(["validate", str(path)]) == 1
+        err = capsys.readouterr().err
+        assert f"openlabel.relations.0.type: relation type {typo!r} is not a placement relation " \
+               f"(did you mean {intended!r}?)" in err
+    path = _write_case(tmp_path, _set("relations/0/type", "is_behind"))
+    assert main(["validate", str(path)]) == 0, capsys.readouterr().err
 
 
 def test_unknown_class_against_the_shipped_catalog(tmp_path, capsys):

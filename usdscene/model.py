@@ -361,6 +361,16 @@ class Light:
 # Objects, places, relations
 
 
+# What Blender accepts (the hard limits of its settings, Blender 5.0): a document beyond them
+# would pass validation and then fail, overflow or be clamped when it is composed or rendered.
+MAX_IMAGE_SIDE_PX = 65536  # RenderSettings.resolution_x / resolution_y
+MAX_FRAME = 1048574  # Scene.frame_start / frame_end (Blender's MAXFRAME)
+MAX_SAMPLES = 16777216  # Cycles samples
+MAX_BOUNCES = 1024  # Cycles max_bounces
+MAX_TILE_SIZE_PX = 8192  # Cycles tile_size
+MAX_RENDER_SEED = 2**31 - 1  # Cycles seed
+
+
 class RelationType(str, enum.Enum):
     """Spatial relations that place an object; their object is a place or another object."""
 
