@@ -44,12 +44,6 @@ def read_cameras(doc: DocumentBody, render: RenderSettings) -> list[Camera]:
     R = doc.root
     systems = read_coordinate_systems(doc)
     streams = doc.section("streams")
-    for name in systems.parents:
-        cs = doc.section("coordinate_systems").get(name)
-        cs_type = cs.get("type") if isinstance(cs, dict) else None
-        if cs_type in ("sensor_cs", "sensor") and name not in streams:
-            doc.add(f"{R}.coordinate_systems.{name}",
-                    f"sensor coordinate system {name!r} has no stream of the same name")
     cameras = []
     for name, stream in streams.items():
         where = f"{R}.streams.{name}"

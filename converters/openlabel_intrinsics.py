@@ -25,6 +25,7 @@ from usdscene.errors import ProblemCollector
 from usdscene.model import Intrinsics, LensModel, RenderSettings
 
 from usdscene.converters.openlabel_values import (
+    IMAGE_SIDE_LIMIT,
     INVALID,
     describe,
     read_int,
@@ -49,6 +50,9 @@ FRIENDLY_KEYS = ("model", "model_name", "resolution_px", "sensor_size_mm", "foca
 # Friendly keys that define optics; they may not be combined with calibrated intrinsics.
 FRIENDLY_OPTICS = ("resolution_px", "focal_length_mm", "distortion", "principal_point_px", "ortho_width_m")
 DEFAULT_SENSOR_WIDTH_MM = 36.0  # Blender's default sensor width
+# Lenses with an image circle (``fov_deg``) and ``intrinsics_fisheye`` calibrations.
+FISHEYE_LENSES = (LensModel.OPENCV_FISHEYE, LensModel.KANNALA, LensModel.RADIAL_POLY,
+                  LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
 FOV_TOLERANCE_DEG = 0.5
 
 
@@ -122,7 +126,9 @@ def read_intrinsics(props: Mapping, friendly: Mapping, where: str, render: Rende
         allowed = (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE)
     elif kind == "intrinsics_fisheye":
         result = _fisheye(block, here, problems)
-        allowed = (LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
+        # the two Blender fisheyes are written as opencv_fisheye; VCD's polynomials name themselves
+        allowed = ((LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
+                   if result is None or result[0] is LensModel.OPENCV_FISHEYE else (result[0],))
     else:
         result = _orthographic(block, here, problems)
         allowed = (LensModel.ORTHOGRAPHIC,)
@@ -150,8 +156,7 @@ def read_intrinsics(props: Mapping, friendly: Mapping, where: str, render: Rende
                 return INVALID
             dist = ()
         lens = model
-    if fov is not None and lens not in (LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT,
-                                        LensModel.FISHEYE_EQUISOLID):
+    if fov is not None and lens not in FISHEYE_LENSES:
         problems.add(f"{where_f}.fov_deg", f"with {kind}, fov_deg is the image circle of a fisheye lens; "
                                            f"lens model {lens.value!r} has none")
         return INVALID
@@ -165,8 +170,8 @@ def _size(block: Mapping, where: str, problems: ProblemCollector) -> tuple[int, 
         if key not in block:
             problems.add(f"{where}.{key}", f"missing {key!r}")
             return None
-    w = read_int(block["width_px"], f"{where}.width_px", problems, positive=True)
-    h = read_int(block["height_px"], f"{where}.height_px", problems, positive=True)
+    w = read_int(block["width_px"], f"{where}.width_px", problems, positive=True, maximum=IMAGE_SIDE_LIMIT)
+    h = read_int(block["height_px"], f"{where}.height_px", problems, positive=True, maximum=IMAGE_SIDE_LIMIT)
     return (w, h) if w is not None and h is not None else None
 
 
@@ -267,27 +272,29 @@ def _fisheye(block: Mapping, where: str, problems: ProblemCollector):
         return None
     if size is None or coeffs is None or None in out.values():
         return None
-    fx, fy = out["focal_length_x"], out["focal_length_y"]
-    if model == "radial_poly":
-        # r_px = c1 θ + c2 θ² + c3 θ³ + c4 θ⁴ [+ c5 θ⁵]: a Kannala-Brandt lens only when the
-        # even powers vanish: then f = c1, k1 = c3 / c1, k2 = c5 / c1.
-        if coeffs[0] <= 0 or coeffs[1] != 0 or coeffs[3] != 0:
-            problems.add(f"{where}.{ckey}", f"radial_poly r = c1·θ + c2·θ² + c3·θ³ + c4·θ⁴ can only be read when "
-                                            f"c1 > 0 and the even terms c2, c4 are 0 (then it is an opencv_fisheye "
-                                            f"lens); got {list(coeffs)}")
-            return None
+    fx, fy, cx, cy = out["focal_length_x"], out["focal_length_y"], out["center_x"], out["center_y"]
+    if model in ("kannala", "radial_poly"):
+        # VCD's polynomials r = f·(c1θ + ...) read exactly: f·c1 is the focal length near the
+        # axis and the other coefficients are taken relative to c1 (see LensModel).
         c1 = coeffs[0]
-        k2 = coeffs[4] / c1 if len(coeffs) == 5 else 0.0
-        aspect = fy / fx
-        return LensModel.OPENCV_FISHEYE, size[0], size[1], c1, c1 * aspect, out["center_x"], out["center_y"], \
-            (coeffs[2] / c1, k2, 0.0, 0.0)
+        if c1 <= 0:
+            problems.add(f"{where}.{ckey}[0]", f"the first {model} coefficient is the slope of r(θ)/f at the "
+                                               f"axis and must be positive, got {c1!r}")
+            return None
+        relative = tuple(c / c1 for c in coeffs[1:])
+        if model == "kannala":
+            relative += (0.0,) * (4 - len(relative))
+            lens = LensModel.KANNALA
+        else:
+            lens = LensModel.RADIAL_POLY
+        return lens, size[0], size[1], fx * c1, fy * c1, cx, cy, relative
     if len(coeffs) == 5:
         if coeffs[4] != 0:
             problems.add(f"{where}.{ckey}[4]", f"a fifth lens coefficient ({coeffs[4]}) is not supported by "
-                                               f"the opencv_fisheye model (k1..k4)")
+                                               f"the opencv_fisheye model (k1..k4); VCD's model 'kannala' has five")
             return None
         coeffs = coeffs[:4]
-    return LensModel.OPENCV_FISHEYE, size[0], size[1], fx, fy, out["center_x"], out["center_y"], coeffs
+    return LensModel.OPENCV_FISHEYE, size[0], size[1], fx, fy, cx, cy, coeffs
 
 
 def _orthographic(block: Mapping, where: str, problems: ProblemCollector):
@@ -336,17 +343,23 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
     if "distortion" in friendly:
         if model is LensModel.OPENCV_PINHOLE:
             dist = opencv_distortion(friendly["distortion"], f"{where}.distortion", P)
-        elif model is LensModel.OPENCV_FISHEYE:
+        elif model in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
             dist = read_numbers(friendly["distortion"], f"{where}.distortion", P, lengths=(4,),
                                 what="Kannala-Brandt coefficients k1..k4")
+        elif model is LensModel.RADIAL_POLY:
+            dist = read_numbers(friendly["distortion"], f"{where}.distortion", P, lengths=(3, 4),
+                                what="radial_poly coefficients d1..d3 [d4] of θ(1 + d1θ + d2θ² + ...)")
         else:
             problems.add(f"{where}.distortion", f"lens model {model.value!r} has no distortion coefficients; "
-                                                f"use 'opencv_pinhole' or 'opencv_fisheye'")
+                                                f"use 'opencv_pinhole', 'opencv_fisheye', 'kannala' or "
+                                                f"'radial_poly'")
             return INVALID
         if dist is None:
             return INVALID
-    elif model is LensModel.OPENCV_FISHEYE:
+    elif model in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
         dist = (0.0, 0.0, 0.0, 0.0)
+    elif model is LensModel.RADIAL_POLY:
+        dist = (0.0, 0.0, 0.0)
     if "ortho_width_m" in friendly and model is not LensModel.ORTHOGRAPHIC:
         problems.add(f"{where}.ortho_width_m", f"ortho_width_m is for the orthographic model, not {model.value!r}")
         return INVALID
@@ -389,7 +402,7 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
             fx = focal * w / sensor
             fov = math.degrees(w / fx)
         circle = fov
-    else:  # FISHEYE_EQUISOLID, OPENCV_FISHEYE: r = f·g(θ) on the sensor; fov crops the circle
+    else:  # FISHEYE_EQUISOLID and the radial polynomials: r = f·g(θ) on the sensor; fov crops the circle
         if focal is None:
             problems.add(f"{where}.focal_length_mm", f"a {model.value} lens needs focal_length_mm "
                                                      f"(and sensor_size_mm, default {DEFAULT_SENSOR_WIDTH_MM:g} mm wide)")

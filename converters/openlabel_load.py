@@ -20,13 +20,17 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import Provenance
+from usdscene.model import MAX_FRAME, Provenance
 
 from usdscene.converters.openlabel_values import describe
 
 SCHEMA_VERSION = "1.0.0"
 
 _NON_FINITE_TEXT = re.compile(r"NaN|Infinity|[eE]\+?[0-9]{3,}")
+# JSON can escape half of a UTF-16 surrogate pair alone (\ud800); no encoding can write that
+# string (UTF-8 files, USD names, Blender names), so it is refused where it is found.
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def load_document(source: str | os.PathLike | Mapping) -> dict:
@@ -71,7 +75,7 @@ def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Pro
         except (TypeError, ValueError) as exc:
             raise DocumentError(f"the document is not JSON data: {exc}", where="document") from None
         digest = hashlib.sha256(canonical.encode("utf-8")).hexdigest()
-        scan_non_finite = True
+        scan_non_finite = scan_surrogates = True
     else:
         path = Path(source)
         label = str(path)
@@ -103,9 +107,13 @@ def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Pro
                                 where=f"{label}:{exc.lineno}:{exc.colno}") from None
         except RecursionError:
             raise DocumentError("invalid JSON: nested too deeply", where=label) from None
+        except ValueError:  # an integer literal beyond Python's 4300-digit limit
+            raise DocumentError("an integer of more than 4300 digits (no value usdscene reads can be that "
+                                "large)", where=_huge_integer_where(text, label)) from None
         # Python's json accepts NaN/Infinity (and 1e999 → inf); look for them only when the
         # text could hold one, so that a clean large document is not walked twice.
         scan_non_finite = bool(_NON_FINITE_TEXT.search(text))
+        scan_surrogates = bool(_SURROGATE_ESCAPE.search(text))
         if duplicated:
             targets = {id(obj): keys for obj, keys in duplicated}
             for where, keys in _find_objects(data, "", targets):
@@ -128,6 +136,8 @@ def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Pro
         problems.add(extra[0], f"unexpected key {extra[0]!r} beside {root_key!r} at the root")
     if scan_non_finite:
         _find_non_finite(data, "", problems)
+    if scan_surrogates:
+        _find_lone_surrogates(data, "", problems)
     problems.raise_if_any(DocumentError)
     body = data[root_key]
     if isinstance(body, Mapping) and not isinstance(body, dict):
@@ -151,6 +161,32 @@ def _find_non_finite(value: Any, where: str, problems: ProblemCollector) -> None
     elif isinstance(value, (list, tuple)):
         for index, item in enumerate(value):
             _find_non_finite(item, f"{where}[{index}]", problems)
+
+
+def _find_lone_surrogates(value: Any, where: str, problems: ProblemCollector) -> None:
+    if isinstance(value, str):
+        if _SURROGATE.search(value):
+            problems.add(where or "document", f"the text {value!r} holds a lone UTF-16 surrogate, which no "
+                                              "encoding can write")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            here = f"{where}.{key}" if where else str(key)
+            if isinstance(key, str) and _SURROGATE.search(key):
+                problems.add(here, f"the key {key!r} holds a lone UTF-16 surrogate, which no encoding can write")
+            _find_lone_surrogates(item, here, problems)
+    elif isinstance(value, (list, tuple)):
+        for index, item in enumerate(value):
+            _find_lone_surrogates(item, f"{where}[{index}]", problems)
+
+
+def _huge_integer_where(text: str, label: str) -> str:
+    """``file:line:column`` of the first integer literal of more than 4300 digits."""
+    match = re.search(r"[0-9]{4301,}", text)
+    if match is None:
+        return label
+    line = text.count("\n", 0, match.start()) + 1
+    column = match.start() - (text.rfind("\n", 0, match.start()) + 1) + 1
+    return f"{label}:{line}:{column}"
 
 
 def _find_objects(value: Any, where: str, targets: dict):
@@ -242,8 +278,11 @@ class DocumentBody:
             self._frames = {}
             for key, frame in self.section("frames").items():
                 where = f"{self.root}.frames.{key}"
-                if not isinstance(key, str) or not key.isdigit():
-                    self.add(where, f"frame keys are frame numbers (digits), got {key!r}")
+                if not isinstance(key, str) or not key.isascii() or not key.isdigit():
+                    self.add(where, f"frame keys are frame numbers (digits), got {describe(key)}")
+                    continue
+                if len(key) > len(str(MAX_FRAME)) or int(key) > MAX_FRAME:
+                    self.add(where, f"frame {describe(key)} is above {MAX_FRAME}, Blender's last frame")
                     continue
                 if not isinstance(frame, dict):
                     self.add(where, f"expected a JSON object, got {describe(frame)}")

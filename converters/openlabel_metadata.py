@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from usdscene.model import RenderSettings
+from usdscene.model import MAX_BOUNCES, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
 
 from usdscene.converters.openlabel_load import SCHEMA_VERSION, DocumentBody
 from usdscene.converters.openlabel_values import (
@@ -35,6 +35,10 @@ DENOISERS = ("openimagedenoise", "optix")
 DENOISING_QUALITIES = ("high", "balanced", "fast")
 DENOISING_PREFILTERS = ("accurate", "fast", "none")
 EXPORT_FORMATS = ("coco", "yolo", "rois")
+RENDER_LIMITS = {"samples": (MAX_SAMPLES, "Cycles' most samples"),
+                 "tile_size_px": (MAX_TILE_SIZE_PX, "Cycles' largest tile"),
+                 "max_bounces": (MAX_BOUNCES, "Cycles' most bounces"),
+                 "seed": (MAX_RENDER_SEED, "Cycles' largest seed")}
 
 
 def read_metadata(doc: DocumentBody) -> dict:
@@ -141,9 +145,9 @@ def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSet
                 problems.add(here, f"unknown {key} {parsed!r}; expected one of {', '.join(choices)}")
                 parsed = None
         elif key in ("samples", "tile_size_px"):
-            parsed = read_int(item, here, P, positive=True)
+            parsed = read_int(item, here, P, positive=True, maximum=RENDER_LIMITS[key])
         elif key in ("max_bounces", "seed"):
-            parsed = read_int(item, here, P, non_negative=True)
+            parsed = read_int(item, here, P, non_negative=True, maximum=RENDER_LIMITS[key])
         elif key == "adaptive_threshold":
             parsed = read_number(item, here, P, non_negative=True)
         elif key in ("denoise", "caustics"):

@@ -6,7 +6,9 @@ dynamic object whose type is an asset class, with presence (``frame_intervals``)
 pose (static, and per frame from ``frames[f].objects``) and randomization knobs.
 
 Object data are read by name (:func:`read_object_data`); names outside usdscene's vocabulary
-are somebody else's annotations and pass, except on lights, which are usdscene's own type.
+are somebody else's annotations and pass (repeated or not), except on lights, which are
+usdscene's own type, and lower-case near misses of a known name, which are typos. An object
+with an empty ``type`` is valid OpenLABEL; only a catalog check refuses it.
 """
 
 from __future__ import annotations
@@ -76,7 +78,7 @@ def read_objects(doc: DocumentBody) -> tuple[list[Light], list[PlaceRef], list[S
             doc.add(f"{where}.name", f"expected the object's name (a string), got {describe(name)}")
             name = ""
         otype = obj.get("type")
-        if not isinstance(otype, str) or not otype:
+        if not isinstance(otype, str):  # "" is valid OpenLABEL; only a catalog can refuse it
             doc.add(f"{where}.type", f"expected the object's type (class name), got {describe(otype)}")
             continue
         intervals: tuple[FrameInterval, ...] = ()
@@ -265,17 +267,20 @@ def read_object_data(data: Any, where: str, known: Mapping[str, str], *, strict:
                 if kind in DATA_KINDS and (strict or name is not None):
                     problems.add(f"{here}.name", f"expected a name, got {describe(name)}")
                 continue
+            if name not in known:
+                close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
+                # A near miss of a known name of the same kind, written in usdscene's lower-case
+                # style, is a typo; anything else ("Position") is somebody else's data.
+                typo = close and known[close[0]] == kind and name == name.lower()
+                if kind in DATA_KINDS and (strict or typo):
+                    problems.add(f"{here}.name", f"unknown {kind} {name!r}{suggest(name, known)}; known: "
+                                                 f"{', '.join(known)}")
+                continue
+            # repeated names only matter where usdscene reads them (datasets repeat their own)
             if name in seen:
                 problems.add(f"{here}.name", f"duplicate object data name {name!r} in one element")
                 continue
             seen.add(name)
-            if name not in known:
-                close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
-                # a near miss of a known name of the same kind is a typo, not foreign data
-                if kind in DATA_KINDS and (strict or (close and known[close[0]] == kind)):
-                    problems.add(f"{here}.name", f"unknown {kind} {name!r}{suggest(name, known)}; known: "
-                                                 f"{', '.join(known)}")
-                continue
             if known[name] != kind:
                 problems.add(here, f"{name!r} must be a {known[name]!r} entry, not {kind!r}")
                 continue

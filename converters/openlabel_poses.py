@@ -67,6 +67,20 @@ class CoordinateSystems:
             pose = pose.compose(child)
         return pose
 
+    def ancestors(self, name: str) -> list[str]:
+        """The parent of ``name``, its parent, ... up to the root of its tree."""
+        out = []
+        current = self.parents.get(name, "")
+        while current:
+            out.append(current)
+            current = self.parents.get(current, "")
+        return out
+
+    def root_of(self, name: str) -> str:
+        """The root of the tree that holds ``name`` (``name`` itself for a root)."""
+        chain = self.ancestors(name)
+        return chain[-1] if chain else name
+
     def track(self, name: str) -> tuple[Pose, tuple[tuple[int, Pose], ...]]:
         """The static world pose of ``name`` and its world pose in every frame whose
         transforms move ``name`` or one of its ancestors, in frame order."""
@@ -124,6 +138,7 @@ def read_coordinate_systems(doc: DocumentBody) -> CoordinateSystems:
             seen.add(current)
             current = parents.get(current, "")
     per_frame: dict[int, dict[str, Pose]] = {}
+    indirect: list[tuple[int, str, str, str, Pose]] = []
     for number, frame in doc.frames().items():
         props = frame.get("frame_properties")
         if props is None:
@@ -163,9 +178,38 @@ def read_coordinate_systems(doc: DocumentBody) -> CoordinateSystems:
             elif parents.get(dst) == src:
                 per_frame.setdefault(number, {})[dst] = pose.inverse()
             else:
-                doc.add(here, f"transforms must connect a coordinate system and its parent; "
-                              f"{src!r} and {dst!r} are not parent and child")
-    return CoordinateSystems(parents, static, per_frame)
+                indirect.append((number, here, src, dst, pose))
+    systems = CoordinateSystems(parents, static, per_frame)
+    # After the parent/child transforms of every frame, so that a transform between distant
+    # systems is resolved against the poses of its own frame.
+    for number, here, src, dst, pose in indirect:
+        problem = _resolve_through_graph(systems, number, src, dst, pose)
+        if problem:
+            doc.add(here, problem)
+    return systems
+
+
+def _resolve_through_graph(systems: CoordinateSystems, number: int, src: str, dst: str,
+                           pose: Pose) -> str | None:
+    """Turn a per-frame ``src → dst`` transform between systems that are not parent and child
+    into a pose in parent for one of them, in ``systems.per_frame[number]``.
+
+    The moved system is ``src`` (its pose in its parent becomes the one that puts it at
+    ``world(dst) · M``), unless ``src`` is a root or an ancestor of ``dst``: then ``dst`` moves
+    to ``world(src) · M⁻¹``. Returns why it cannot be resolved, or None.
+    """
+    if src == dst:
+        return f"a transform from coordinate system {src!r} to itself"
+    if systems.root_of(src) != systems.root_of(dst):
+        return (f"coordinate systems {src!r} and {dst!r} are in different trees (roots "
+                f"{systems.root_of(src)!r} and {systems.root_of(dst)!r}); no transform can connect them")
+    overrides = systems.per_frame.setdefault(number, {})
+    moved, anchor, anchor_to_moved = src, dst, pose
+    if not systems.parents[src] or src in systems.ancestors(dst):
+        moved, anchor, anchor_to_moved = dst, src, pose.inverse()
+    parent_world = systems.world_pose(systems.parents[moved], overrides)
+    overrides[moved] = parent_world.inverse().compose(systems.world_pose(anchor, overrides).compose(anchor_to_moved))
+    return None
 
 
 def read_friendly_pose(friendly: Mapping, where: str, problems: ProblemCollector):

@@ -22,7 +22,9 @@ and relations that involve actions, events or contexts (their uids are still che
 
 from __future__ import annotations
 
+import difflib
 import os
+import re
 from typing import TYPE_CHECKING, Mapping
 
 from usdscene.errors import DocumentError
@@ -137,11 +139,33 @@ def _check_catalog(doc: DocumentBody, catalog: Catalog, scene: dict) -> None:
             doc.add(where, f"place {place.name!r} is not in environment {environment!r}"
                            f"{suggest(place.name, env_places)}")
     classes = {o.uid: o.class_name for o in scene["objects"]}
+    placed = {rel.subject_uid for rel in scene["relations"] if rel.type in PLACEMENT_RELATIONS}
+    unposed = {o.uid for o in scene["objects"] if o.pose is None and not o.frame_poses} - placed
     for rel in scene["relations"]:
         if rel.type not in PLACEMENT_RELATIONS:
+            if rel.subject_uid in unposed:
+                _check_relation_type(doc, catalog, rel, classes[rel.subject_uid])
             continue
         cls = classes.get(rel.subject_uid)
         if cls in catalog and catalog[cls].relations and rel.type not in catalog[cls].relations:
             doc.add(f"{R}.relations.{rel.uid}.type",
                     f"class {cls!r} does not support {rel.type!r}; it supports "
                     f"{', '.join(catalog[cls].relations)}")
+
+
+def _check_relation_type(doc: DocumentBody, catalog: Catalog, rel, cls: str) -> None:
+    """A relation type that only misspells a placement relation (``IS_BELOW``, ``is below``,
+    ``is_inside``) would leave its unposed subject at the world origin: name the intended one.
+
+    Relation types of other vocabularies pass: only a near miss of one of the types the
+    subject's catalog class supports (all placement relations when it lists none) is refused.
+    """
+    supported = (catalog[cls].relations if cls in catalog else ()) or tuple(sorted(PLACEMENT_RELATIONS))
+    normalised = re.sub(r"[\s-]+", "_", rel.type.strip().lower())
+    close = difflib.get_close_matches(normalised, supported, n=1, cutoff=0.7)
+    if normalised in supported or (close and normalised.startswith(close[0])):
+        intended = normalised if normalised in supported else close[0]
+        doc.add(f"{doc.root}.relations.{rel.uid}.type",
+                f"relation type {rel.type!r} is not a placement relation (did you mean {intended!r}?); "
+                f"object {rel.subject_uid!r} has no pose and would stay at the world origin. "
+                f"Class {cls!r} supports: {', '.join(supported)}")

@@ -18,12 +18,23 @@ import math
 from typing import Any, Iterable, Sequence
 
 from usdscene.errors import ProblemCollector
-from usdscene.model import FrameInterval, Pose, euler_zyx_to_rotation, quaternion_to_rotation
+from usdscene.model import (
+    MAX_FRAME,
+    MAX_IMAGE_SIDE_PX,
+    FrameInterval,
+    Pose,
+    euler_zyx_to_rotation,
+    quaternion_to_rotation,
+)
 
 # Returned by readers of optional parts (a pose, a calibration) whose value was present but
 # invalid, as opposed to None for absent: the problem is already recorded, and the caller must
 # not fall back to a default as it would for an absent part.
 INVALID = object()
+
+# ``read_int(maximum=...)`` limits shared by several readers.
+FRAME_LIMIT = (MAX_FRAME, "Blender's last frame")
+IMAGE_SIDE_LIMIT = (MAX_IMAGE_SIDE_PX, "Blender's largest image side in pixels")
 
 # Orthonormality tolerance of rotation blocks read from documents (absolute, per entry of
 # R·Rᵀ - I). Loose enough for matrices printed with 7 significant digits.
@@ -32,6 +43,8 @@ ROTATION_TOLERANCE = 1e-5
 
 def describe(value: Any, limit: int = 60) -> str:
     """Short ``repr`` of a JSON value for messages."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return _short_int(value)
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
@@ -52,7 +65,7 @@ def read_number(value: Any, where: str, problems: ProblemCollector, *, positive:
     if not is_number(value):
         problems.add(where, f"expected {what}, got {describe(value)}")
         return None
-    number = float(value)
+    number = _as_float(value)
     if not math.isfinite(number):
         problems.add(where, f"expected a finite number, got {describe(value)}")
         return None
@@ -65,11 +78,26 @@ def read_number(value: Any, where: str, problems: ProblemCollector, *, positive:
     return number
 
 
+def _as_float(value: int | float) -> float:
+    """``float(value)``; inf for an integer beyond the float range (10³⁰⁸), which JSON allows."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
 def read_int(value: Any, where: str, problems: ProblemCollector, *, positive: bool = False,
-             non_negative: bool = False) -> int | None:
-    """A JSON integer (``3``; ``3.0`` is refused: sizes and frames are counts)."""
+             non_negative: bool = False, maximum: tuple[int, str] | None = None) -> int | None:
+    """A JSON integer (``3``; ``3.0`` is refused: sizes and frames are counts).
+
+    Args:
+        maximum: ``(largest value, why)``, e.g. ``(65536, "Blender's largest image side")``.
+    """
     if not isinstance(value, int) or isinstance(value, bool):
         problems.add(where, f"expected an integer, got {describe(value)}")
+        return None
+    if maximum is not None and value > maximum[0]:
+        problems.add(where, f"{_short_int(value)} is above {maximum[0]}, {maximum[1]}")
         return None
     if positive and value <= 0:
         problems.add(where, f"expected a positive integer, got {describe(value)}")
@@ -78,6 +106,14 @@ def read_int(value: Any, where: str, problems: ProblemCollector, *, positive: bo
         problems.add(where, f"expected an integer >= 0, got {describe(value)}")
         return None
     return int(value)
+
+
+def _short_int(value: int) -> str:
+    """An integer for messages; a huge one is described, not printed (Python refuses to turn
+    integers of more than 4300 digits into text)."""
+    if abs(value) < 10 ** 60:
+        return str(value)
+    return f"an integer of about {int(value.bit_length() * math.log10(2))} digits"
 
 
 def read_bool(value: Any, where: str, problems: ProblemCollector) -> bool | None:
@@ -109,13 +145,13 @@ def read_numbers(value: Any, where: str, problems: ProblemCollector, *,
         return None
     # fast path (documents hold 10⁵ of these): plain finite ints/floats, no bools
     if all(type(item) is float or type(item) is int for item in value):
-        numbers = tuple(map(float, value))
+        numbers = tuple(map(_as_float, value))
         if all(map(math.isfinite, numbers)):
             return numbers
     out = []
     ok = True
     for index, item in enumerate(value):
-        if not is_number(item) or not math.isfinite(float(item)):
+        if not is_number(item) or not math.isfinite(_as_float(item)):
             problems.add(f"{where}[{index}]", f"expected a finite number, got {describe(item)}")
             ok = False
         else:
@@ -128,8 +164,8 @@ def read_resolution(value: Any, where: str, problems: ProblemCollector) -> tuple
     if not isinstance(value, list) or len(value) != 2:
         problems.add(where, f"expected [width, height] in pixels, got {describe(value)}")
         return None
-    w = read_int(value[0], f"{where}[0]", problems, positive=True)
-    h = read_int(value[1], f"{where}[1]", problems, positive=True)
+    w = read_int(value[0], f"{where}[0]", problems, positive=True, maximum=IMAGE_SIDE_LIMIT)
+    h = read_int(value[1], f"{where}[1]", problems, positive=True, maximum=IMAGE_SIDE_LIMIT)
     return (w, h) if w is not None and h is not None else None
 
 
@@ -153,8 +189,8 @@ def read_interval(item: Any, where: str, problems: ProblemCollector) -> FrameInt
         if key not in item:
             problems.add(f"{where}.{key}", f"frame interval lacks {key!r}")
             return None
-    start = read_int(item["frame_start"], f"{where}.frame_start", problems, non_negative=True)
-    end = read_int(item["frame_end"], f"{where}.frame_end", problems, non_negative=True)
+    start = read_int(item["frame_start"], f"{where}.frame_start", problems, non_negative=True, maximum=FRAME_LIMIT)
+    end = read_int(item["frame_end"], f"{where}.frame_end", problems, non_negative=True, maximum=FRAME_LIMIT)
     if start is None or end is None:
         return None
     if start > end:

@@ -26,13 +26,12 @@ from typing import Any, Iterable
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
 
-from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
+from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS, FISHEYE_LENSES
 from usdscene.converters.openlabel_load import SCHEMA_VERSION
 from usdscene.converters.openlabel_objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
 
 log = logging.getLogger(__name__)
 
-FISHEYE_LENSES = (LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
 
 
 def _matrix(pose: Pose) -> list[float]:
@@ -281,10 +280,19 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
                               0.0, 0.0, 1.0, 0.0],
             "distortion_coeffs": dist}
     elif k.lens in FISHEYE_LENSES:
-        if k.lens is LensModel.OPENCV_FISHEYE:
+        fisheye_model = "opencv_fisheye"
+        if k.lens in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
             coeffs = [float(v) for v in k.distortion]
             if len(coeffs) != 4:
-                problems.add(f"{where}.distortion", f"opencv_fisheye has 4 coefficients k1..k4, got {len(coeffs)}")
+                problems.add(f"{where}.distortion", f"{k.lens.value} has 4 coefficients k1..k4, got {len(coeffs)}")
+            if k.lens is LensModel.KANNALA:
+                # VCD's own form r = f (k1θ + k2θ³ + ...) with k1 = 1 is the normalised lens as it is
+                fisheye_model, coeffs = "kannala", [1.0, *coeffs]
+        elif k.lens is LensModel.RADIAL_POLY:
+            coeffs = [float(v) for v in k.distortion]
+            if len(coeffs) not in (3, 4):
+                problems.add(f"{where}.distortion", f"radial_poly has 3 or 4 coefficients d1..d4, got {len(coeffs)}")
+            fisheye_model, coeffs = "radial_poly", [1.0, *coeffs]
         elif k.lens is LensModel.FISHEYE_EQUISOLID:
             coeffs = list(EQUISOLID_KB_COEFFS)
         else:
@@ -292,7 +300,7 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
         props["intrinsics_fisheye"] = {
             **size, "focal_length_x": float(k.fx_px), "focal_length_y": float(k.fy_px),
             "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px), "lens_coeffs": coeffs,
-            "model": "opencv_fisheye"}
+            "model": fisheye_model}
         if k.fov_deg is not None:
             friendly["fov_deg"] = float(k.fov_deg)
     else:

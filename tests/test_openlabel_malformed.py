@@ -76,6 +76,14 @@ def _pose02(pose):
     return _set("coordinate_systems/cam_02/pose_wrt_parent", pose)
 
 
+def _transform_to_second_root(body):
+    """A per-frame transform from cam_02 to a coordinate system of another tree."""
+    body["coordinate_systems"]["island"] = {"type": "scene_cs", "parent": ""}
+    body["frames"]["1"]["frame_properties"] = {"transforms": {"t": {
+        "src": "cam_02", "dst": "island",
+        "transform_src_to_dst": {"matrix4x4": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]}}}}
+
+
 def _text(text: str):
     return text
 
@@ -153,8 +161,10 @@ CASES = [
      ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.lens_coeffs"]),
     ("both_dialects", _fisheye(center_x=31.5),
      ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.center_x_px", "not both"]),
-    ("radial_poly_even_terms", _fisheye(model="radial_poly", lens_coeffs=[20.0, 1.0, 0.1, 0.0]),
-     ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.lens_coeffs", "even terms"]),
+    ("radial_poly_flat_at_the_axis", _fisheye(model="radial_poly", lens_coeffs=[0.0, 1.0, 0.1, 0.0]),
+     ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.lens_coeffs[0]", "must be positive"]),
+    ("kannala_negative_first", _fisheye(model="kannala", lens_coeffs=[-1.0, 0.0, 0.0, 0.0, 0.0]),
+     ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.lens_coeffs[0]", "-1.0"]),
     ("matrix_3x3_as_4x4", _pose02({"matrix4x4": [1, 0, 0, 0, 1, 0, 0, 0, 1]}),
      ["openlabel.coordinate_systems.cam_02.pose_wrt_parent.matrix4x4", "3x3"]),
     ("matrix_scaled", _pose02({"matrix4x4": [2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1]}),
@@ -170,8 +180,24 @@ CASES = [
      ["openlabel.coordinate_systems.cam_02.pose_wrt_parent", "one pose form"]),
     ("parent_missing", _set("coordinate_systems/cam_02/parent", "vehicle"),
      ["openlabel.coordinate_systems.cam_02.parent", "'vehicle' does not exist"]),
-    ("sensor_cs_without_stream", _add("coordinate_systems", "cam_03", {"type": "sensor_cs", "parent": "world"}),
-     ["openlabel.coordinate_systems.cam_03", "no stream"]),
+    # validate is the gate: what Blender, USD and memory cannot take is refused here
+    ("width_px_beyond_blender", _fisheye(width_px=2 ** 40),
+     ["openlabel.streams.cam_02.stream_properties.intrinsics_fisheye.width_px", "above 65536"]),
+    ("samples_beyond_cycles", _set("metadata/usdscene/render/samples", 10 ** 12),
+     ["openlabel.metadata.usdscene.render.samples", "above 16777216"]),
+    ("frame_end_beyond_blender", _set("metadata/usdscene/frame_range/frame_end", 10 ** 12),
+     ["openlabel.metadata.usdscene.frame_range.frame_end", "above 1048574"]),
+    ("frame_key_beyond_blender", _add("frames", "9" * 40, {}),
+     ["openlabel.frames." + "9" * 40, "above 1048574"]),
+    ("lone_surrogate_in_name", _set("metadata/name", "cabin \ud800"),
+     ["openlabel.metadata.name", "lone UTF-16 surrogate"]),
+    ("integer_of_5000_digits",
+     _text(EXAMPLE.read_text(encoding="utf-8").replace('"seed": 7', '"seed": ' + "9" * 5000, 1)),
+     ["4300 digits"]),
+    ("integer_beyond_float", _set("objects/4/object_data/vec/0/val", [10 ** 400, 0, 0]),
+     ["openlabel.objects.4.object_data.vec[0].val[0]", "finite number"]),
+    ("transform_between_trees", _transform_to_second_root,
+     ["openlabel.frames.1.frame_properties.transforms.t", "different trees"]),
     ("camera_without_cs", _add("streams", "cam_04", {"type": "camera", "stream_properties": {"intrinsics_pinhole": PINHOLE}}),
      ["openlabel.streams.cam_04", "no coordinate system"]),
     ("transform_unknown_cs", _set("frames/1/frame_properties",
@@ -341,6 +367,19 @@ def test_convert_refuses_invalid_input(tmp_path, capsys):
 def test_example_validates_against_the_shipped_catalog(capsys):
     assert main(["validate", str(EXAMPLE)]) == 0
     assert "asset catalog)" in capsys.readouterr().out
+
+
+def test_relation_type_typos_against_the_shipped_catalog(tmp_path, capsys):
+    """A misspelt placement relation would leave its object at the world origin; other
+    vocabularies' relation types pass."""
+    for typo, intended in (("IS_BELOW", "is_below"), ("is below", "is_below"), ("is_inside", "is_in")):
+        path = _write_case(tmp_path, _set("relations/0/type", typo))
+        assert main(["validate", str(path)]) == 1
+        err = capsys.readouterr().err
+        assert f"openlabel.relations.0.type: relation type {typo!r} is not a placement relation " \
+               f"(did you mean {intended!r}?)" in err
+    path = _write_case(tmp_path, _set("relations/0/type", "is_behind"))
+    assert main(["validate", str(path)]) == 0, capsys.readouterr().err
 
 
 def test_unknown_class_against_the_shipped_catalog(tmp_path, capsys):

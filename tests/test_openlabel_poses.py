@@ -113,6 +113,36 @@ def test_per_frame_transform_either_direction(axis, theta, t):
     assert np.allclose(poses[4].as_array(), m, atol=1e-9)
 
 
+@settings(max_examples=30, deadline=None)
+@given(axis=unit_axis, theta=angle, t=st.tuples(finite, finite, finite), mount=st.tuples(finite, finite, finite))
+def test_per_frame_transform_through_the_graph(axis, theta, t, mount):
+    """A transform between systems that are not parent and child (camera → world across a
+    vehicle, world → camera) places the camera as if the chain had been written out."""
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = rodrigues(axis, theta), t
+    rig = np.eye(4)
+    rig[:3, 3] = mount
+    doc = _doc({"vehicle": {"matrix4x4": np.eye(4).reshape(16).tolist()}})
+    body = doc["openlabel"]
+    body["coordinate_systems"]["c"] = {"type": "sensor_cs", "parent": "vehicle",
+                                       "pose_wrt_parent": {"matrix4x4": rig.reshape(16).tolist()}}
+    body["streams"]["c"] = body["streams"]["vehicle"]
+    body["coordinate_systems"]["lidar"] = {"type": "sensor_cs", "parent": "vehicle"}  # a sensor with no stream
+    body["frames"] = {
+        "3": {"frame_properties": {"transforms": {"t": {"src": "c", "dst": "root",
+                                                        "transform_src_to_dst": {"matrix4x4": m.reshape(16).tolist()}}}}},
+        "4": {"frame_properties": {"transforms": {"t": {"src": "root", "dst": "c",
+                                                        "transform_src_to_dst": {"matrix4x4": np.linalg.inv(m).reshape(16).tolist()}}}}},
+    }
+    scene = read_openlabel(doc)
+    camera = scene.camera("c")
+    assert np.allclose(camera.pose.as_array(), rig, atol=1e-12)  # the static chain is unchanged
+    poses = dict(camera.frame_poses)
+    assert np.allclose(poses[3].as_array(), m, atol=1e-9)
+    assert np.allclose(poses[4].as_array(), m, atol=1e-9)
+    assert scene.camera("vehicle").frame_poses == ()  # the camera moved, not the vehicle
+
+
 @settings(max_examples=40, deadline=None)
 @given(yaw=st.floats(-180, 180), pitch=st.floats(-80, 80), position=st.tuples(finite, finite, finite))
 def test_friendly_target_equals_orientation(yaw, pitch, position):

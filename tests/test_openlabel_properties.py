@@ -52,9 +52,12 @@ def intrinsics(draw):
     fov = None
     if lens is LensModel.OPENCV_PINHOLE:
         distortion = tuple(draw(st.lists(nonzero, min_size=8, max_size=8)))[: draw(st.sampled_from([4, 5, 8]))]
-    elif lens is LensModel.OPENCV_FISHEYE:
+    elif lens in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
         distortion = tuple(draw(st.lists(nonzero, min_size=4, max_size=4)))
-    if lens in (LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
+    elif lens is LensModel.RADIAL_POLY:
+        distortion = tuple(draw(st.lists(nonzero, min_size=3, max_size=4)))
+    if lens in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA, LensModel.RADIAL_POLY,
+                LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
         fov = draw(st.none() | st.floats(min_value=10.0, max_value=360.0))
     return Intrinsics(lens=lens, width_px=draw(st.integers(1, 8000)), height_px=draw(st.integers(1, 8000)),
                       fx_px=draw(positive), fy_px=draw(positive), cx_px=draw(coord), cy_px=draw(coord),

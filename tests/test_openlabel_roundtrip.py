@@ -68,6 +68,8 @@ def full_scene() -> SceneSpec:
         Camera("brown8", _intrinsics(LensModel.OPENCV_PINHOLE, distortion=(0.1, -0.02, 0.0, 0.0, 0.003, 0.01, 0.0, 0.0))),
         Camera("brown4", _intrinsics(LensModel.OPENCV_PINHOLE, distortion=(0.1, -0.02, 0.0, 0.001))),
         Camera("kb", _intrinsics(LensModel.OPENCV_FISHEYE, distortion=(-0.01, 0.002, 0.0, 0.0001), fov_deg=190.0)),
+        Camera("kannala", _intrinsics(LensModel.KANNALA, distortion=(-0.01, 0.002, 0.0, 0.0001))),
+        Camera("radial", _intrinsics(LensModel.RADIAL_POLY, distortion=(0.05, -0.03, 0.001), fov_deg=200.0)),
         Camera("world", _intrinsics(LensModel.PERSPECTIVE)),  # a camera named like the root
     )
     lights = (
@@ -219,10 +221,66 @@ def test_calibrated_fisheye_readings():
                              "streams": {"c": {"type": "camera", "stream_properties": {"intrinsics_fisheye": block}}}}}
         return read_openlabel(doc).camera("c").intrinsics
 
-    radial = fisheye(model="radial_poly", lens_coeffs=[210.0, 0.0, -4.2, 0.0])
-    assert (radial.lens, radial.fx_px, radial.distortion) == (LensModel.OPENCV_FISHEYE, 210.0, (-0.02, 0.0, 0.0, 0.0))
-    kannala = fisheye(model="kannala", lens_coeffs_1xN=[0.1, 0.01, 0.0, 0.0, 0.0])
-    assert kannala.distortion == (0.1, 0.01, 0.0, 0.0)
+    # VCD kannala: r = f·(k1θ + k2θ³ + k3θ⁵ + k4θ⁷ + k5θ⁹), all five read (not OpenCV's k1 = 1)
+    k = [0.9, -0.05, 0.004, -0.0002, 0.00001]
+    kannala = fisheye(model="kannala", lens_coeffs_1xN=k)
+    assert kannala.lens is LensModel.KANNALA and kannala.fx_px == pytest.approx(200.0 * 0.9)
+    theta = np.radians([0.0, 10.0, 35.0, 60.0, 85.0])
+    textbook = 200.0 * sum(c * theta ** (2 * i + 1) for i, c in enumerate(k))
+    np.testing.assert_allclose(_radius(kannala, theta), textbook, rtol=0, atol=1e-9)
+    # at 60° off the axis, by hand: 200·(0.9·1.047198 - 0.05·1.148381 + 0.004·1.259218
+    # - 0.0002·1.380754 + 0.00001·1.514) = 177.967 px (the old OpenCV reading of the same numbers: 404.6 px)
+    assert _radius(kannala, np.radians([60.0]))[0] == pytest.approx(177.967, abs=1e-3)
+    # four coefficients: the θ⁹ term is absent
+    four = fisheye(model="kannala", lens_coeffs=k[:4])
+    np.testing.assert_allclose(_radius(four, theta), textbook - 200.0 * k[4] * theta ** 9, rtol=0, atol=1e-9)
+
+    # radial_poly: r = f·(c1θ + c2θ² + c3θ³ + c4θ⁴), even powers included; f from focal_length_x
+    c = [20.0, 1.0, -0.5, 0.05]
+    radial = fisheye(model="radial_poly", lens_coeffs=c, focal_length_x=2.0, focal_length_y=2.0)
+    assert (radial.lens, radial.fx_px) == (LensModel.RADIAL_POLY, 40.0)
+    textbook = 2.0 * sum(ci * theta ** (i + 1) for i, ci in enumerate(c))
+    np.testing.assert_allclose(_radius(radial, theta), textbook, rtol=0, atol=1e-9)
+
+
+def _radius(intr: Intrinsics, theta: np.ndarray) -> np.ndarray:
+    """Image radius (px) along +x of rays ``theta`` (rad) off the axis, by usdscene.projection."""
+    from usdscene.projection import project_camera_points
+
+    rays = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], axis=1)
+    uv, valid = project_camera_points(intr, rays)
+    assert valid.all()
+    return uv[:, 0] - intr.cx_px
+
+
+def test_vcd_polynomial_lenses_are_written_back_in_their_own_model(openlabel_schema_path):
+    """kannala and radial_poly come back as themselves, and every sample ray lands on the same
+    pixel (1e-9 px) after write → read."""
+    from usdscene.projection import pixel_rays, project_camera_points
+
+    def doc(model, coeffs):
+        block = {"width_px": 640, "height_px": 480, "focal_length_x": 190.0, "focal_length_y": 195.0,
+                 "center_x": 321.5, "center_y": 238.25, "lens_coeffs": coeffs, "model": model}
+        return {"openlabel": {"metadata": {"schema_version": "1.0.0"},
+                              "streams": {"c": {"type": "camera", "stream_properties": {"intrinsics_fisheye": block}}},
+                              "coordinate_systems": {"c": {"type": "sensor_cs", "parent": ""}}}}
+
+    for model, coeffs in (("kannala", [1.1, -0.04, 0.003, -0.0001, 0.00002]),
+                          ("radial_poly", [0.95, 0.02, -0.03, 0.002, 0.0001])):
+        first = read_openlabel(doc(model, coeffs))
+        written = write_openlabel(first)
+        assert schema_problems(written, openlabel_schema_path) == []
+        block = written["openlabel"]["streams"]["c"]["stream_properties"]["intrinsics_fisheye"]
+        assert block["model"] == model and len(block["lens_coeffs"]) == 5
+        again = read_openlabel(written)
+        a, b = first.camera("c").intrinsics, again.camera("c").intrinsics
+        assert b.lens is a.lens
+        vs, us = np.mgrid[0:480:37, 0:640:41]
+        rays, valid = pixel_rays(a, np.stack([us.ravel(), vs.ravel()], 1).astype(float))
+        uv_a, ok_a = project_camera_points(a, rays[valid])
+        uv_b, ok_b = project_camera_points(b, rays[valid])
+        assert ok_a.all() and ok_b.all() and valid.sum() > 100
+        np.testing.assert_allclose(uv_b, uv_a, rtol=0, atol=1e-9)
 
 
 # ---- VCD, catalog, files -----------------------------------------------------------------
@@ -296,3 +354,31 @@ def test_write_document_is_atomic_and_refuses_nan(tmp_path):
         write_document(target, bad)
     assert target.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.json"]
+
+
+def test_valid_documents_of_others_are_read(openlabel_schema_path):
+    """Valid OpenLABEL that other datasets write: an object with an empty type, object data
+    names outside usdscene's vocabulary (also repeated), a sensor coordinate system without a
+    stream. They read, and the scene writes back schema-valid."""
+    doc = {"openlabel": {
+        "metadata": {"schema_version": "1.0.0"},
+        "coordinate_systems": {"odom": {"type": "scene_cs", "parent": ""},
+                               "lidar": {"type": "sensor_cs", "parent": "odom"}},
+        "objects": {
+            "0": {"name": "thing", "type": ""},
+            "1": {"name": "train", "type": "train", "object_data": {
+                "vec": [{"name": "Position", "val": [1.0, 2.0, 3.0]}],
+                "num": [{"name": "speed", "val": 3.0}, {"name": "speed", "val": 4.0}],
+                "text": [{"name": "note", "val": "a"}, {"name": "note", "val": "b"}]}}}}}
+    assert schema_problems(doc, openlabel_schema_path) == []
+    scene = read_openlabel(doc)
+    assert [(o.uid, o.class_name, o.pose) for o in scene.objects] == [("0", "", None), ("1", "train", None)]
+    assert schema_problems(write_openlabel(scene), openlabel_schema_path) == []
+    # usdscene's own names stay checked: a lower-case near miss is a typo, a repeat is ambiguous
+    doc["openlabel"]["objects"]["1"]["object_data"]["vec"] = [{"name": "position", "val": [1.0, 2.0, 3.0]}]
+    with pytest.raises(DocumentError, match="did you mean 'position_m'"):
+        read_openlabel(doc)
+    doc["openlabel"]["objects"]["1"]["object_data"]["vec"] = [{"name": "position_m", "val": [1.0, 2.0, 3.0]},
+                                                              {"name": "position_m", "val": [1.0, 2.0, 3.0]}]
+    with pytest.raises(DocumentError, match="duplicate object data name 'position_m'"):
+        read_openlabel(doc)

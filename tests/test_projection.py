@@ -58,10 +58,11 @@ def test_opencv_pinhole_matches_cv2(distortion):
 
 
 @pytest.mark.parametrize("lens,coeffs", [(LensModel.OPENCV_FISHEYE, (0.05, -0.01, 0.002, -0.0003)),
+                                         (LensModel.KANNALA, (0.05, -0.01, 0.002, -0.0003)),
                                          (LensModel.FISHEYE_EQUIDISTANT, (0.0,) * 4),
                                          (LensModel.FISHEYE_EQUISOLID, EQUISOLID_KB)])
 def test_fisheyes_match_cv2_fisheye(lens, coeffs):
-    distortion = coeffs if lens is LensModel.OPENCV_FISHEYE else ()
+    distortion = coeffs if lens in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA) else ()
     intr = _intr(lens, distortion=distortion, fov_deg=170.0)
     cam = _camera(intr)
     world, _ = _points_in_front(cam, max_angle_deg=80)
@@ -73,6 +74,24 @@ def test_fisheyes_match_cv2_fisheye(lens, coeffs):
     # The equisolid series is truncated at θ⁹: exact to well under a pixel up to 80°.
     tol = 1e-9 if lens is not LensModel.FISHEYE_EQUISOLID else 0.05
     np.testing.assert_allclose(uv, ref.reshape(-1, 2), atol=tol)
+
+
+def test_radial_poly_by_hand():
+    """r = f·θ(1 + d1θ + d2θ² + d3θ³ + d4θ⁴), every power of θ, written out term by term."""
+    d = (0.04, -0.02, 0.002, -0.0001)
+    intr = _intr(LensModel.RADIAL_POLY, distortion=d, fx_px=45.0, fy_px=47.0, fov_deg=200.0)
+    rng = np.random.default_rng(3)
+    theta = rng.uniform(0.0, math.radians(99.0), 300)
+    phi = rng.uniform(-math.pi, math.pi, 300)
+    rays = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], 1) * 2.5
+    uv, valid = project_camera_points(intr, rays)
+    theta_d = theta + d[0] * theta ** 2 + d[1] * theta ** 3 + d[2] * theta ** 4 + d[3] * theta ** 5
+    expected = np.stack([45.0 * theta_d * np.cos(phi) + 81.3, 47.0 * theta_d * np.sin(phi) + 58.1], 1)
+    assert valid.all()
+    np.testing.assert_allclose(uv, expected, rtol=0, atol=1e-9)
+    # beyond the image circle (100°) no ray is valid
+    behind = np.array([[math.sin(math.radians(101.0)), 0.0, math.cos(math.radians(101.0))]])
+    assert not project_camera_points(intr, behind)[1][0]
 
 
 def test_perspective_and_orthographic_by_hand():
@@ -111,6 +130,9 @@ def test_frame_pose_is_used():
     _intr(LensModel.OPENCV_PINHOLE, distortion=(0.15, 0.01, 0.0, 0.0)),
     _intr(LensModel.OPENCV_FISHEYE, distortion=(0.05, -0.01, 0.002, -0.0003), fx_px=40.0, fy_px=40.0),
     _intr(LensModel.OPENCV_FISHEYE, distortion=(0.02, 0.0, 0.0, 0.0)),
+    _intr(LensModel.KANNALA, distortion=(-0.03, 0.004, 0.0, 0.0), fx_px=45.0, fy_px=46.0),
+    _intr(LensModel.RADIAL_POLY, distortion=(0.04, -0.02, 0.002), fx_px=45.0, fy_px=45.0, fov_deg=200.0),
+    _intr(LensModel.RADIAL_POLY, distortion=(0.1, 0.0, 0.0), fx_px=200.0, fy_px=200.0),
     _intr(LensModel.FISHEYE_EQUISOLID, fx_px=50.0, fy_px=50.0, fov_deg=180.0),
 ])
 def test_rays_round_trip_and_remap_lands_on_the_same_ray(intr):

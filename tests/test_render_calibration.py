@@ -37,6 +37,11 @@ CAMERAS = {
                         distortion=(-0.22, 0.05, 0.001, -0.0015, -0.004)),
     "kannala": Intrinsics(LensModel.OPENCV_FISHEYE, W, H, 64.0, 64.0, 118.2, 90.6,
                           distortion=(0.03, -0.01, 0.002, -0.0005)),
+    # VCD's polynomials, normalised (see LensModel): remapped like the OpenCV models.
+    "vcd_kannala": Intrinsics(LensModel.KANNALA, W, H, 62.0, 62.0, 121.4, 87.9,
+                              distortion=(-0.02, 0.003, -0.0002, 0.00001)),
+    "radial_poly": Intrinsics(LensModel.RADIAL_POLY, W, H, 60.0, 60.0, 117.3, 91.8,
+                              distortion=(0.03, -0.02, 0.002), fov_deg=180.0),
     # Not natively renderable: remapped from a centred / square-pixel render.
     "equidistant_offset": Intrinsics(LensModel.FISHEYE_EQUIDISTANT, W, H, 58.0, 58.0, 131.2, 83.7,
                                      fov_deg=170.0),
@@ -78,7 +83,7 @@ def rendered(tmp_path_factory):
 
 def _opencv_projection(intr: Intrinsics, centres: np.ndarray) -> np.ndarray:
     """Independent projection of the written calibration through OpenCV (or by hand for the
-    orthographic camera, which OpenCV lacks)."""
+    orthographic camera and the radial_poly lens, which OpenCV lacks)."""
     w2c = POSE.inverse().as_array()
     rvec, _ = cv2.Rodrigues(w2c[:3, :3])
     tvec = w2c[:3, 3].copy()
@@ -86,11 +91,18 @@ def _opencv_projection(intr: Intrinsics, centres: np.ndarray) -> np.ndarray:
     if intr.lens is LensModel.ORTHOGRAPHIC:
         cam = centres @ w2c[:3, :3].T + tvec
         return np.stack([intr.fx_px * cam[:, 0] + intr.cx_px, intr.fy_px * cam[:, 1] + intr.cy_px], 1)
+    if intr.lens is LensModel.RADIAL_POLY:
+        cam = centres @ w2c[:3, :3].T + tvec
+        rho = np.hypot(cam[:, 0], cam[:, 1])
+        theta = np.arctan2(rho, cam[:, 2])
+        theta_d = theta + sum(d * theta ** (i + 2) for i, d in enumerate(intr.distortion))
+        scale = theta_d / np.where(rho > 0, rho, 1.0)  # a ray on the axis lands on the centre
+        return np.stack([intr.fx_px * scale * cam[:, 0] + intr.cx_px, intr.fy_px * scale * cam[:, 1] + intr.cy_px], 1)
     if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
         dist = np.array(intr.distortion or (0.0,) * 4)
         return cv2.projectPoints(centres, rvec, tvec, k, dist)[0].reshape(-1, 2)
     kb = {LensModel.FISHEYE_EQUIDISTANT: (0.0,) * 4, LensModel.FISHEYE_EQUISOLID: EQUISOLID_KB,
-          LensModel.OPENCV_FISHEYE: intr.distortion}[intr.lens]
+          LensModel.OPENCV_FISHEYE: intr.distortion, LensModel.KANNALA: intr.distortion}[intr.lens]
     return cv2.fisheye.projectPoints(centres.reshape(-1, 1, 3), rvec, tvec, k, np.array(kb))[0].reshape(-1, 2)
 
 

@@ -223,6 +223,12 @@ class LensModel(str, enum.Enum):
     FISHEYE_EQUISOLID = "fisheye_equisolid"    # r = 2 f sin(θ/2)
     OPENCV_PINHOLE = "opencv_pinhole"          # pinhole + Brown-Conrady k1 k2 p1 p2 [k3 [k4 k5 k6]]
     OPENCV_FISHEYE = "opencv_fisheye"          # Kannala-Brandt: r = f θ (1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸)
+    # VCD's kannala, r = f_vcd (k1θ + k2θ³ + k3θ⁵ + k4θ⁷ + k5θ⁹), normalised: f = f_vcd k1 and
+    # d_i = k_(i+1) / k1, so r = f θ (1 + d1θ² + d2θ⁴ + d3θ⁶ + d4θ⁸) (OpenCV's formula, any θ)
+    KANNALA = "kannala"
+    # VCD's radial_poly, r = f_vcd (c1θ + c2θ² + c3θ³ + c4θ⁴ [+ c5θ⁵]), normalised: f = f_vcd c1
+    # and d_i = c_(i+1) / c1, so r = f θ (1 + d1θ + d2θ² + d3θ³ [+ d4θ⁴])
+    RADIAL_POLY = "radial_poly"
 
 
 @dataclass(frozen=True)
@@ -239,7 +245,9 @@ class Intrinsics:
         fx_px, fy_px: focal lengths in pixels (for ORTHOGRAPHIC: pixels per metre).
         cx_px, cy_px: principal point in pixels.
         distortion: OpenCV coefficients: (k1, k2, p1, p2[, k3[, k4, k5, k6]]) for
-            OPENCV_PINHOLE, (k1, k2, k3, k4) for OPENCV_FISHEYE, empty otherwise.
+            OPENCV_PINHOLE, (k1, k2, k3, k4) for OPENCV_FISHEYE; the normalised (d1, d2, d3,
+            d4) for KANNALA and (d1, d2, d3[, d4]) for RADIAL_POLY (see :class:`LensModel`);
+            empty otherwise.
         fov_deg: for fisheye lenses, the full field of view of the image circle (degrees);
             rays beyond ``fov_deg / 2`` off the axis are black. None = unlimited.
         sensor_width_mm: physical sensor width, used to express focal lengths in millimetres
@@ -351,6 +359,16 @@ class Light:
 
 # --------------------------------------------------------------------------------------------
 # Objects, places, relations
+
+
+# What Blender accepts (the hard limits of its settings, Blender 5.0): a document beyond them
+# would pass validation and then fail, overflow or be clamped when it is composed or rendered.
+MAX_IMAGE_SIDE_PX = 65536  # RenderSettings.resolution_x / resolution_y
+MAX_FRAME = 1048574  # Scene.frame_start / frame_end (Blender's MAXFRAME)
+MAX_SAMPLES = 16777216  # Cycles samples
+MAX_BOUNCES = 1024  # Cycles max_bounces
+MAX_TILE_SIZE_PX = 8192  # Cycles tile_size
+MAX_RENDER_SEED = 2**31 - 1  # Cycles seed
 
 
 class RelationType(str, enum.Enum):

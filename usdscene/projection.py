@@ -20,8 +20,13 @@ Models, with ``(x, y, z)`` a point in the camera frame, ``ρ = √(x² + y²)`` 
 * ``opencv_fisheye``: Kannala-Brandt ``θd = θ(1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸)``, exactly
   ``cv2.fisheye.projectPoints`` for ``z > 0``; valid when ``θ ≤ fov/2`` (``fov_deg`` unset:
   ``z > 0``) and ``θd`` still grows with ``θ``.
+* ``kannala``: the same ``θd`` with the normalised coefficients d1..d4 of VCD's kannala lens.
+* ``radial_poly``: ``θd = θ(1 + d1θ + d2θ² + d3θ³ [+ d4θ⁴])``, any powers of ``θ``.
 
-Without a ``fov_deg``, fisheye models accept every direction up to 180° off the axis.
+The radial models map ``θ`` to ``r = f·θd``; a ray is valid only where ``θd`` still grows
+with ``θ`` (so any monotonic part of ``r(θ)`` is rendered, through :func:`remap_grids`).
+Without a ``fov_deg``, fisheye models accept every direction up to 180° off the axis
+(``opencv_fisheye``: 90°, where ``cv2.fisheye`` ends).
 """
 
 from __future__ import annotations
@@ -100,8 +105,8 @@ def project_camera_points(intrinsics: Intrinsics,
                 radius, growing = theta, np.ones_like(theta, dtype=bool)
             elif lens is LensModel.FISHEYE_EQUISOLID:
                 radius, growing = 2.0 * np.sin(theta / 2.0), theta < math.pi
-            else:  # OPENCV_FISHEYE
-                radius, growing = _kannala_brandt(theta, intrinsics.distortion)
+            else:  # OPENCV_FISHEYE, KANNALA, RADIAL_POLY
+                radius, growing = _radial_theta_d(theta, lens, intrinsics.distortion)
             valid = growing & (theta <= _half_fov_rad(intrinsics, lens)) & (rho + np.abs(z) > 0)
             safe_rho = np.where(rho > 0, rho, 1.0)
             xn = np.where(rho > 0, radius * x / safe_rho, 0.0)
@@ -141,12 +146,40 @@ def _brown_conrady(xn: np.ndarray, yn: np.ndarray, coeffs: tuple[float, ...]):
     return xd, yd, growing & (den > 0)
 
 
-def _kannala_brandt(theta: np.ndarray, coeffs: tuple[float, ...]):
-    """θd of Kannala-Brandt and whether it still grows with θ."""
+# Lens models whose image radius is a polynomial r = f·θd(θ) (see _radial_polynomial).
+RADIAL_POLYNOMIAL_LENSES = frozenset({LensModel.OPENCV_FISHEYE, LensModel.KANNALA, LensModel.RADIAL_POLY})
+
+
+def _radial_polynomial(theta: np.ndarray, lens: LensModel, coeffs: tuple[float, ...]):
+    """``(θd, dθd/dθ)`` of a radial polynomial lens: Kannala-Brandt ``θ(1 + k1θ² + ... + k4θ⁸)``
+    for opencv_fisheye and kannala, ``θ(1 + d1θ + d2θ² + ...)`` for radial_poly.
+
+    Args:
+        theta: angles off the optical axis, radians, any shape.
+        lens: one of :data:`RADIAL_POLYNOMIAL_LENSES`.
+        coeffs: the lens's ``distortion``.
+
+    Returns:
+        θd and its derivative, arrays shaped like ``theta``.
+    """
+    if lens is LensModel.RADIAL_POLY:
+        # Horner from the highest power: q = d1θ + d2θ² + ..., q' = 2d1 + 3d2θ + ...
+        q = np.zeros_like(theta)
+        q_slope = np.zeros_like(theta)
+        for power, d in reversed(list(enumerate(coeffs, start=2))):
+            q = theta * (q + d)
+            q_slope = theta * q_slope + power * d
+        return theta * (1 + q), 1 + theta * q_slope
     k1, k2, k3, k4 = _distortion(coeffs, 4)
     t2 = theta * theta
     theta_d = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
     slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+    return theta_d, slope
+
+
+def _radial_theta_d(theta: np.ndarray, lens: LensModel, coeffs: tuple[float, ...]):
+    """θd of a radial polynomial lens and whether it still grows with θ."""
+    theta_d, slope = _radial_polynomial(theta, lens, coeffs)
     return theta_d, slope > 0
 
 
@@ -186,7 +219,7 @@ def pixel_rays(intrinsics: Intrinsics, uv: np.ndarray,
         valid &= radius <= 2.0
         theta = 2.0 * np.arcsin(np.clip(radius / 2.0, 0.0, 1.0))
     else:
-        theta, ok = _invert_kannala_brandt(radius, intrinsics.distortion, iterations)
+        theta, ok = _invert_radial_polynomial(radius, lens, intrinsics.distortion, iterations)
         valid &= ok
     valid &= theta <= _half_fov_rad(intrinsics, lens)
     safe = np.where(radius > 0, radius, 1.0)
@@ -214,16 +247,13 @@ def _undistort_brown_conrady(xd, yd, intrinsics: Intrinsics, iterations: int):
     return xn, yn, valid
 
 
-def _invert_kannala_brandt(theta_d, coeffs, iterations: int):
-    k1, k2, k3, k4 = _distortion(coeffs, 4)
+def _invert_radial_polynomial(theta_d, lens: LensModel, coeffs, iterations: int):
     theta = theta_d.copy()
-    for _ in range(iterations):  # Newton on θ(1 + k1θ² + ...) - θd = 0
-        value, _ = _kannala_brandt(theta, coeffs)
-        t2 = theta * theta
-        slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+    for _ in range(iterations):  # Newton on θd(θ) - θd = 0
+        value, slope = _radial_polynomial(theta, lens, coeffs)
         theta = theta - (value - theta_d) / np.where(np.abs(slope) > 1e-12, slope, 1e-12)
         theta = np.clip(theta, 0.0, math.pi)
-    value, growing = _kannala_brandt(theta, coeffs)
+    value, growing = _radial_theta_d(theta, lens, coeffs)
     ok = np.isfinite(theta) & (np.abs(value - theta_d) < 1e-9) & growing
     return theta, ok
 
@@ -243,12 +273,13 @@ def native_renderable(intrinsics: Intrinsics) -> bool:
 def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 3.0) -> Intrinsics:
     """The native lens to render before remapping to a camera Blender cannot render directly.
 
-    That is every ``opencv_pinhole`` / ``opencv_fisheye`` camera, and native lenses with
+    That is every ``opencv_pinhole`` / ``opencv_fisheye`` / ``kannala`` / ``radial_poly`` camera,
+    and native lenses with
     non-square pixels or (fisheyes) an off-centre principal point. The render has square
     pixels with the larger focal length of the output (so no region loses pixel density
     near the axis), a centred principal point, and is just large enough to contain the ray of
     every output pixel, plus a two-pixel margin for bilinear interpolation. It is a
-    perspective view for pinhole models and for ``opencv_fisheye`` up to 60° off the axis,
+    perspective view for pinhole models and for radial polynomial lenses up to 60° off the axis,
     otherwise a fisheye (equisolid for an equisolid output, equidistant for the others).
 
     Args:
@@ -276,7 +307,7 @@ def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 
     theta_max = float(np.max(np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])))
     f = max(intrinsics.fx_px, intrinsics.fy_px)
     pinhole_like = lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE) or (
-        lens is LensModel.OPENCV_FISHEYE and theta_max < math.radians(60.0))
+        lens in RADIAL_POLYNOMIAL_LENSES and theta_max < math.radians(60.0))
     if pinhole_like:
         tx = np.abs(rays[:, 0] / rays[:, 2])
         ty = np.abs(rays[:, 1] / rays[:, 2])
