@@ -22,7 +22,7 @@ import math
 from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
-from usdscene.model import Intrinsics, LensModel, RenderSettings
+from usdscene.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
 
 from usdscene.converters.openlabel_values import (
     IMAGE_SIDE_LIMIT,
@@ -50,9 +50,6 @@ FRIENDLY_KEYS = ("model", "model_name", "resolution_px", "sensor_size_mm", "foca
 # Friendly keys that define optics; they may not be combined with calibrated intrinsics.
 FRIENDLY_OPTICS = ("resolution_px", "focal_length_mm", "distortion", "principal_point_px", "ortho_width_m")
 DEFAULT_SENSOR_WIDTH_MM = 36.0  # Blender's default sensor width
-# Lenses with an image circle (``fov_deg``) and ``intrinsics_fisheye`` calibrations.
-FISHEYE_LENSES = (LensModel.OPENCV_FISHEYE, LensModel.KANNALA, LensModel.RADIAL_POLY,
-                  LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
 FOV_TOLERANCE_DEG = 0.5
 
 

@@ -24,9 +24,9 @@ import os
 from typing import Any, Iterable
 
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
+from usdscene.model import FISHEYE_LENSES, FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
 
-from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS, FISHEYE_LENSES
+from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
 from usdscene.converters.openlabel_load import SCHEMA_VERSION
 from usdscene.converters.openlabel_objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
 

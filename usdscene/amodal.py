@@ -311,11 +311,9 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
 
 def _fisheye_cone_rad(intrinsics: Intrinsics) -> float | None:
     """Half field of view of a fisheye lens with a declared ``fov_deg`` (radians), else None."""
-    from usdscene.model import LensModel
+    from usdscene.model import FISHEYE_LENSES
 
-    fisheye = intrinsics.lens in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID,
-                                  LensModel.OPENCV_FISHEYE)
-    if not fisheye or intrinsics.fov_deg is None:
+    if intrinsics.lens not in FISHEYE_LENSES or intrinsics.fov_deg is None:
         return None
     return math.radians(intrinsics.fov_deg) / 2.0
 

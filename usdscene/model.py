@@ -279,6 +279,12 @@ class Intrinsics:
         return np.array([[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px], [0.0, 0.0, 1.0]])
 
 
+# Lenses that map the angle off the axis to an image radius; they have an image circle
+# (``Intrinsics.fov_deg``) and are written as ``intrinsics_fisheye`` calibrations.
+FISHEYE_LENSES = frozenset({LensModel.OPENCV_FISHEYE, LensModel.KANNALA, LensModel.RADIAL_POLY,
+                            LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID})
+
+
 @dataclass(frozen=True)
 class Camera:
     """A camera stream with its calibration.
