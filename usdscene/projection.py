@@ -302,6 +302,16 @@ def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 
     w, h = intrinsics.width_px, intrinsics.height_px
     rays, valid = pixel_rays(intrinsics, _border_pixels(w, h))
     rays = rays[valid]
+    if not valid.all() and intrinsics.fov_deg is not None:
+        # Border pixels beyond the image circle: where the circle lies inside the image, its
+        # rim is the edge of what the render must contain.
+        theta = math.radians(intrinsics.fov_deg) / 2.0
+        phi = np.linspace(0.0, 2.0 * math.pi, 720, endpoint=False)
+        rim = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi),
+                        np.full_like(phi, np.cos(theta))], axis=1)
+        uv, imaged = project_camera_points(intrinsics, rim)
+        inside = imaged & (uv[:, 0] >= -0.5) & (uv[:, 0] <= w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] <= h - 0.5)
+        rays = np.concatenate([rays, rim[inside]])
     if rays.size == 0:
         rays = np.array([[0.0, 0.0, 1.0]])
     theta_max = float(np.max(np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])))
