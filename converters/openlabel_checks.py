@@ -56,6 +56,10 @@ def default_schema_path() -> Path | None:
 
 @functools.lru_cache(maxsize=4)
 def _validator(path: str):
+    """``(fast, full)``: a compiled check that raises on the first violation (fastjsonschema,
+    ~50x faster on large documents; None when it cannot compile the schema) and the
+    jsonschema validator that lists every violation with its path."""
+    import fastjsonschema
     import jsonschema
 
     try:
@@ -65,7 +69,11 @@ def _validator(path: str):
     except json.JSONDecodeError as exc:
         raise DocumentError(f"the OpenLABEL schema is not valid JSON (line {exc.lineno}, column {exc.colno})",
                             where=path) from None
-    return jsonschema.Draft7Validator(schema)
+    try:
+        fast = fastjsonschema.compile(schema)
+    except fastjsonschema.JsonSchemaDefinitionException:
+        fast = None
+    return fast, jsonschema.Draft7Validator(schema)
 
 
 def _json_path(parts: deque) -> str:
@@ -97,11 +105,19 @@ def schema_problems(document: Mapping, schema_path: str | os.PathLike | None = N
     if path is None:
         raise DocumentError(f"no OpenLABEL schema given (pass a path, set ${SCHEMA_ENV} or install "
                             "uai-openlabel)", where="schema")
-    validator = _validator(str(path.resolve()))
+    fast, validator = _validator(str(path.resolve()))
     try:
         data = json.loads(json.dumps(document, allow_nan=False))
     except (TypeError, ValueError) as exc:
         raise DocumentError(f"the document is not JSON data: {exc}", where="document") from None
+    if fast is not None:
+        import fastjsonschema
+
+        try:
+            fast(data)
+            return []
+        except fastjsonschema.JsonSchemaValueException:
+            pass  # list every violation with jsonschema (it decides; the fast check only screens)
     problems = []
     for error in validator.iter_errors(data):
         message = error.message

@@ -412,3 +412,31 @@ def test_vcd_convert_and_vcd_problem_paths(tmp_path, capsys, openlabel_schema_pa
     bad.write_text(json.dumps(_vcd([1, 0, 0, 0, 1, 0, 0, 0, 1])))
     assert main(["validate", "--no-catalog", str(bad)]) == 1
     assert "vcd.coordinate_systems.cam.pose_wrt_parent.matrix4x4: a 3x3 matrix" in capsys.readouterr().err
+
+
+def test_fast_schema_screen_agrees_with_the_full_validator(openlabel_schema_path):
+    """The compiled screen decides validity exactly as jsonschema does: it passes every
+    document without violations and fails every document with one (the listing itself always
+    comes from jsonschema)."""
+    import fastjsonschema
+
+    from usdscene.converters.openlabel_checks import _validator
+
+    fast, full = _validator(str(openlabel_schema_path.resolve()))
+    assert fast is not None
+    documents = [edit(_set("objects/3/colour", "red")), edit(_set("metadata/schema_version", 1)),
+                 edit(_set("frame_intervals/0/frame_start", "0")), edit(_set("objects/3/type", 7)),
+                 edit(lambda body: None)]
+    documents += [edit(change) for _, change, _ in CASES if getattr(change, "__name__", "") == "change"]
+    verdicts = set()
+    for document in documents:
+        data = json.loads(json.dumps(document))
+        try:
+            fast(data)
+            screened_valid = True
+        except fastjsonschema.JsonSchemaValueException:
+            screened_valid = False
+        fully_valid = not any(True for _ in full.iter_errors(data))
+        assert screened_valid == fully_valid, document
+        verdicts.add(fully_valid)
+    assert verdicts == {True, False}
