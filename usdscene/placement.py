@@ -50,6 +50,7 @@ moving support would make it interpenetrate something.
 from __future__ import annotations
 
 import collections
+import functools
 import logging
 import math
 from dataclasses import dataclass
@@ -174,29 +175,62 @@ def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
     Returns:
         (K,) bool: True where the boxes interpenetrate by more than ``tolerance_m``.
     """
-    k = centres.shape[0]
-    if k == 0:
-        return np.zeros(0, dtype=bool)
-    # Bounding spheres first: most boxes of a frame are far apart, and the full test is costly.
-    near = (np.linalg.norm(centres - centre, axis=1)
-            < np.linalg.norm(half) + np.linalg.norm(halves, axis=1) - tolerance_m)
-    if not near.all():
-        out = np.zeros(k, dtype=bool)
-        if near.any():
-            out[near] = boxes_overlap(centre, axes, half, centres[near], axes_k[near], halves[near], tolerance_m)
-        return out
-    a = np.broadcast_to(axes.T, (k, 3, 3))             # rows = axes of the box
-    b = np.transpose(axes_k, (0, 2, 1))                 # rows = axes of the others
-    cross = np.cross(a[:, :, None, :], b[:, None, :, :]).reshape(k, 9, 3)
-    cand = np.concatenate([a, b, cross], axis=1)        # (K, 15, 3)
-    norm = np.linalg.norm(cand, axis=2)
-    valid = norm > 1e-9
-    cand = cand / np.where(valid, norm, 1.0)[:, :, None]
-    r_a = np.abs(np.einsum("kij,knj->kni", a, cand)) @ half               # (K, 15)
-    r_b = np.einsum("kni,ki->kn", np.abs(np.einsum("kij,knj->kni", b, cand)), halves)
-    dist = np.abs(np.einsum("knj,kj->kn", cand, centres - centre))
-    separated = valid & (dist >= r_a + r_b - tolerance_m)
-    return ~separated.any(axis=1)
+    centres = np.ascontiguousarray(centres, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(centres.shape[0], dtype=np.bool_)
+    if centres.shape[0]:
+        _overlap_kernel()(np.asarray(centre, dtype=np.float64), np.ascontiguousarray(axes, dtype=np.float64),
+                          np.asarray(half, dtype=np.float64), centres,
+                          np.ascontiguousarray(axes_k, dtype=np.float64).reshape(-1, 3, 3),
+                          np.ascontiguousarray(halves, dtype=np.float64).reshape(-1, 3), float(tolerance_m), out)
+    return out
+
+
+@functools.cache
+def _overlap_kernel():
+    """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk)."""
+    import numba
+
+    @numba.njit(cache=True, nogil=True)
+    def overlap(centre, axes, half, centres, axes_k, halves, tolerance, out):
+        radius = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
+        candidates = np.empty((15, 3))
+        for k in range(centres.shape[0]):
+            d = centres[k] - centre
+            # Bounding spheres first: most boxes of a frame are far apart.
+            other = math.sqrt(halves[k, 0] ** 2 + halves[k, 1] ** 2 + halves[k, 2] ** 2)
+            if math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2) >= radius + other - tolerance:
+                continue
+            # Candidate separating axes: the 3 + 3 box axes and their 9 cross products.
+            for i in range(3):
+                for j in range(3):
+                    candidates[i, j] = axes[j, i]
+                    candidates[3 + i, j] = axes_k[k, j, i]
+            n = 6
+            for i in range(3):
+                for j in range(3):
+                    ax, ay, az = axes[0, i], axes[1, i], axes[2, i]
+                    bx, by, bz = axes_k[k, 0, j], axes_k[k, 1, j], axes_k[k, 2, j]
+                    candidates[n, 0] = ay * bz - az * by
+                    candidates[n, 1] = az * bx - ax * bz
+                    candidates[n, 2] = ax * by - ay * bx
+                    n += 1
+            separated = False
+            for c in range(15):
+                norm = math.sqrt(candidates[c, 0] ** 2 + candidates[c, 1] ** 2 + candidates[c, 2] ** 2)
+                if norm <= 1e-9:
+                    continue
+                nx, ny, nz = candidates[c, 0] / norm, candidates[c, 1] / norm, candidates[c, 2] / norm
+                r_a = 0.0
+                r_b = 0.0
+                for i in range(3):
+                    r_a += abs(axes[0, i] * nx + axes[1, i] * ny + axes[2, i] * nz) * half[i]
+                    r_b += abs(axes_k[k, 0, i] * nx + axes_k[k, 1, i] * ny + axes_k[k, 2, i] * nz) * halves[k, i]
+                if abs(nx * d[0] + ny * d[1] + nz * d[2]) >= r_a + r_b - tolerance:
+                    separated = True
+                    break
+            out[k] = not separated
+
+    return overlap
 
 
 # --------------------------------------------------------------------------------------------
@@ -594,6 +628,7 @@ class _FrameBoxes:
         self.areas: list[float] = []
         self.seated: list[bool] = []
         self.blockers: collections.Counter[str] = collections.Counter()  # who was in the way
+        self._arrays: tuple[np.ndarray, ...] | None = None  # the lists above as arrays
 
     def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
         centre, axes, half = object_box(info.entry, world)
@@ -614,13 +649,18 @@ class _FrameBoxes:
         if not self.uids:
             return False
         centre, axes, half = object_box(info.entry, world)
-        hits = boxes_overlap(centre, axes, half, np.asarray(self.centres), np.asarray(self.axes),
-                             np.asarray(self.halves))
+        if self._arrays is None or len(self._arrays[0]) != len(self.uids):  # boxes added since
+            self._arrays = (np.asarray(self.centres), np.asarray(self.axes), np.asarray(self.halves),
+                            np.asarray(self.seated))
+        centres, axes_k, halves, seated = self._arrays
+        hits = boxes_overlap(centre, axes, half, centres, axes_k, halves)
+        if not hits.any():
+            return False
         if exclude is not None:
             hits &= np.asarray([u != exclude for u in self.uids])
-        if _seated(info.entry) or any(self.seated):
+        if _seated(info.entry) or seated.any():
             same_support = np.asarray([lab == label for lab in self.labels])
-            coarse = np.asarray(self.seated) | _seated(info.entry)
+            coarse = seated | _seated(info.entry)
             hits &= ~coarse | same_support
         if hits.any():
             self.blockers.update(u for u, hit in zip(self.uids, hits) if hit)
