@@ -117,7 +117,7 @@ class Session:
             for ob in members:
                 ob.pass_index = mask_id
         missing = sorted(set(wanted) - set(self.objects))
-        _emit({"event": "imported", "seconds": time.perf_counter() - started,
+        _emit({"event": "imported", "seconds": time.perf_counter() - started, "pid": os.getpid(),
                "objects": len(bpy.data.objects), "missing_uids": missing[:20],
                "missing_count": len(missing)})
 
