@@ -155,7 +155,8 @@ class LocalExecutor:
         thread), each tagged with ``node``."""
         assert self._scratch is not None, "use LocalExecutor as a context manager"
         job_path = self._scratch / f"job-{next(self._numbers)}.json"
-        job = dict(job, out_dir=str(Path(out_dir).resolve()), scratch_dir=str(self._scratch))
+        job = dict(job, out_dir=str(Path(out_dir).resolve()), scratch_dir=str(self._scratch),
+                   parent_pid=os.getpid())
         job_path.write_text(json.dumps(job))
         started = time.perf_counter()
         on_event({"event": "started", "node": self.node, "pid": os.getpid(), "started_s": started})
