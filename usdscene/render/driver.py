@@ -328,7 +328,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                                 totals["retries"] += 1
                             queue.retry(shard, left)
                         else:
-                            tries = f" ({shard.attempt + 1} attempts)" if outcome.retryable else ""
+                            n = shard.attempt + 1
+                            tries = f" (gave up after {n} attempt{'s' if n > 1 else ''})" if outcome.retryable else ""
                             queue.fail(f"{shard.describe()}: {outcome.message}{tries}")
                         bar.set_busy(queue.in_flight)
 
@@ -339,6 +340,9 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                     thread.join()
                 errors = queue.errors
         finally:
+            if totals["retries"]:
+                # A killed worker may have died inside an atomic write; no worker runs now.
+                _remove_stale_temporaries(out_dir, camera_list)
             manifest.timings = {"wall_s": round(time.perf_counter() - started, 3),
                                 "render_s": round(totals["render_s"], 3)}
             manifest.save()
