@@ -318,7 +318,9 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                         if outcome.ok and left:
                             outcome = ShardExit(False, False, f"the worker ended with {len(left)} "
                                                               "images not rendered")
-                        if outcome.ok:
+                        if outcome.ok or not left:
+                            if not outcome.ok:  # it died after its last image had arrived
+                                log.info("%s: %s after its last image", shard.describe(), outcome.message)
                             queue.finish()
                         elif outcome.retryable and shard.attempt < queue.retries and left:
                             log.warning("%s: %s; rendering its %d unfinished images again "
