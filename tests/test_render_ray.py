@@ -109,6 +109,12 @@ def test_cli_ray_executor_resumes_and_reports_nodes(cluster, local_run, tmp_path
     assert code == 1
     assert "no node of the Ray cluster has 4 CPUs" in capsys.readouterr().err
 
+    # An address nobody listens on fails at once with the address named (Ray would retry).
+    code = main(["render", str(out / "stage" / "scene.usda"), "-o", str(tmp_path / "other"), "--frames", "0",
+                 "--executor", "ray", "--ray-address", "127.0.0.1:1", "--no-progress"])
+    assert code == 1
+    assert "cannot reach Ray at '127.0.0.1:1'" in capsys.readouterr().err
+
 
 def test_stage_bundle_mirrors_layers_and_assets(local_run, tmp_path):
     from pxr import Usd

@@ -172,7 +172,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         progress: show a ``rich`` progress bar on stderr.
         workers: shards run side by side: local worker processes (default 1; CPU threads are
             split between them), or for Ray an upper bound on tasks in flight (default: what
-            the cluster holds).
+            the cluster holds). Used only when ``executor`` is a name; an executor object
+            carries its own.
         on_event: called with every progress event of the workers (dicts), in the parent.
         executor: ``"local"``, ``"ray"`` (a local Ray runtime) or an executor object from
             :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
@@ -309,9 +310,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
 
                         try:
                             outcome = executor.run_shard(job_for(shard.pairs), out_dir, on_shard_event)
-                        except RenderError:
-                            raise
-                        except Exception as exc:  # an executor bug must end the run, not hang it
+                        except Exception as exc:  # must end the run with a message, not hang the slots
                             log.exception("executor %s failed", executor.name)
                             outcome = ShardExit(False, False, f"{type(exc).__name__}: {exc}")
                         left = [p for p in shard.pairs if p not in done]

@@ -133,12 +133,32 @@ def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
         shutil.rmtree(scratch, ignore_errors=True)
 
 
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast on a ``HOST:PORT`` (or ``ray://HOST:PORT``) nobody listens on: Ray itself
+    keeps retrying for minutes.
+
+    Raises:
+        RenderError: the address does not accept a TCP connection within ``timeout_s``.
+    """
+    import socket
+
+    host_port = address.split("://", 1)[-1]
+    host, _, port = host_port.rpartition(":")
+    if not host or not port.isdigit():
+        return  # "auto" and the like: Ray resolves them
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise RenderError([Problem("ray_address", f"cannot reach Ray at {address!r}: {exc}")]) from None
+
+
 class RayExecutor:
     """Shards as Ray tasks (a context manager: connects to, or starts, a Ray runtime).
 
     Args:
         address: Ray cluster address (``auto``, ``HOST:6379``, ``ray://HOST:10001``); None
-            starts a local Ray runtime with this machine's CPUs, shut down on exit.
+            means ``$RAY_ADDRESS`` when set, else a local Ray runtime with this machine's
+            CPUs, shut down on exit.
         max_slots: at most this many tasks in flight (default: the cluster's CPUs divided by
             ``task_cpus``, or its GPUs for GPU renders).
         task_cpus: CPUs each task reserves; its worker renders with that many threads.
@@ -169,13 +189,16 @@ class RayExecutor:
             raise RenderError([Problem("executor", "the 'ray' executor needs Ray: pip install 'usdscene[ray]'")]) from None
         self._ray = ray
         if not ray.is_initialized():
+            if self.address:
+                _check_reachable(self.address)
             try:
-                if self.address is None:
+                if self.address is None and not os.environ.get("RAY_ADDRESS"):
                     ray.init(num_cpus=os.cpu_count() or 1, include_dashboard=False, log_to_driver=False)
-                else:
+                else:  # Ray's rule: no address given means the cluster in $RAY_ADDRESS
                     ray.init(address=self.address, log_to_driver=False)
             except (ConnectionError, RuntimeError, ValueError) as exc:
-                raise RenderError([Problem("ray_address", f"cannot connect to Ray at {self.address!r}: {exc}")]) from None
+                where = self.address or os.environ.get("RAY_ADDRESS")
+                raise RenderError([Problem("ray_address", f"cannot connect to Ray at {where!r}: {exc}")]) from None
             self._owns_runtime = True
         self._remote = ray.remote(render_shard_task)
         return self
