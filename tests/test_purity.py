@@ -29,6 +29,9 @@ PURE_MODULES = [
     "usdscene.converters.openlabel_annotations",
     "usdscene.converters.coco",
     "usdscene.converters.yolo",
+    "usdscene.render.executors",
+    "usdscene.render.scratch",
+    "usdscene.render.ray_executor",
 ]
 
 

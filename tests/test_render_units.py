@@ -11,7 +11,7 @@ from usdscene import layout
 from usdscene.errors import RenderError
 from usdscene.model import Camera, Intrinsics, LensModel, Pose, RenderSettings
 from usdscene.projection import project_camera_points
-from usdscene.render.driver import _shards, resolve_settings, scale_intrinsics
+from usdscene.render.driver import _chunks, resolve_settings, scale_intrinsics, shard_size
 from usdscene.render.manifest import Manifest, fingerprint
 
 
@@ -39,10 +39,23 @@ def test_scale_intrinsics_keeps_the_pixel_convention():
 
 def test_shards_are_blocks_of_consecutive_frames():
     pairs = [(f, c) for f in range(7) for c in ("a", "b")]
-    shards = _shards(pairs, 3)
-    assert [sorted({f for f, _ in s}) for s in shards] == [[0, 1], [2, 3], [4, 5, 6]]
-    assert sum(len(s) for s in shards) == len(pairs)
-    assert len(_shards(pairs[:2], 4)) == 1
+    shards = _chunks(pairs, shard_size(len(pairs), 3))
+    assert [sorted({f for f, _ in s}) for s in shards] == [[0, 1], [2, 3], [4, 5], [6]]
+    assert [p for s in shards for p in s] == pairs
+    assert len(_chunks(pairs[:2], shard_size(2, 4))) == 2  # one camera of one frame per slot
+
+
+def test_shard_size_follows_slots_budget_and_measured_time():
+    # An equal share per slot, never more than the per-process budget.
+    assert shard_size(1000, 4) == 250
+    assert shard_size(1000, 8) == 125
+    assert shard_size(3, 8) == 1
+    assert shard_size(1000, 2, max_pairs=40) == 40
+    # With a time target: about target / seconds-per-image images, the assumed figure first.
+    assert shard_size(1000, 1, target_shard_s=180.0) == 12
+    assert shard_size(1000, 1, target_shard_s=180.0, seconds_per_image=0.5) == 250
+    assert shard_size(1000, 1, target_shard_s=180.0, seconds_per_image=3.0) == 60
+    assert shard_size(1000, 1, target_shard_s=1.0, seconds_per_image=30.0) == 1
 
 
 def test_manifest_needs_entry_files_and_same_fingerprint(tmp_path):

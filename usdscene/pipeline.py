@@ -90,7 +90,8 @@ def stage_for_input(path: str | Path, out_dir: str | Path) -> Path:
 def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[int] | None = None,
                  cameras: Sequence[str] | None = None, exports: Sequence[str] | None = None,
                  samples: int | None = None, workers: int = 1, progress: bool = True,
-                 on_step: Callable[[str], None] | None = None) -> RunSummary:
+                 on_step: Callable[[str], None] | None = None,
+                 render_options: Mapping[str, object] | None = None) -> RunSummary:
     """Run the whole job for one scene document.
 
     Args:
@@ -139,7 +140,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     t = step("render")
     override = {"samples": samples} if samples is not None else None
     report = render(composed.root_layer, out, frames=frames, cameras=cameras, settings_override=override,
-                    progress=progress, workers=workers)
+                    progress=progress, workers=workers, **(render_options or {}))
     seconds["render"] = time.perf_counter() - t
 
     t = step("annotate")

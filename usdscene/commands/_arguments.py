@@ -1,5 +1,5 @@
-"""Command-line arguments shared by several sub-commands (not a sub-command itself: the
-leading underscore keeps it out of the command discovery)."""
+"""Command-line arguments and output lines shared by several sub-commands (not a sub-command
+itself: the leading underscore keeps it out of the command discovery)."""
 
 from __future__ import annotations
 
@@ -45,3 +45,53 @@ def parse_frames(text: str | None) -> list[int] | None:
             raise ValueError(f"--frames {text!r}: end {end} is before start {start}")
         return list(range(start, end + 1))
     return [int(v) for v in text.split(",") if v.strip()]
+
+
+def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--executor``, ``--ray-address``, ``--task-cpus``, ``--retries`` (shared with ``usdscene run``)."""
+    parser.add_argument("--executor", choices=("local", "ray"), default="local",
+                        help="where shards run: local worker processes (default) or Ray tasks "
+                             "(pip install 'usdscene[ray]')")
+    parser.add_argument("--ray-address", metavar="ADDRESS",
+                        help="Ray cluster to use (auto, HOST:6379 or ray://HOST:10001); default: start a "
+                             "local Ray runtime")
+    parser.add_argument("--task-cpus", type=int, default=1, metavar="N",
+                        help="CPUs per Ray task = Cycles threads of its worker (default 1)")
+    parser.add_argument("--retries", type=int, default=3, metavar="N",
+                        help="times a shard whose worker died (signal, OOM killer, lost node) is run "
+                             "again for its unfinished images (default 3)")
+
+
+def executor_for(args: argparse.Namespace):
+    """The executor the arguments ask for (not yet entered).
+
+    Raises:
+        RenderError: a bad combination or value, naming the option.
+    """
+    from usdscene.errors import Problem, RenderError
+    from usdscene.render.executors import make_executor
+
+    problems = []
+    if args.workers is not None and args.workers < 1:
+        problems.append(Problem("--workers", f"{args.workers} is not a positive number of workers"))
+    if args.retries < 0:
+        problems.append(Problem("--retries", f"{args.retries} must be 0 or more"))
+    if args.task_cpus < 1:
+        problems.append(Problem("--task-cpus", f"{args.task_cpus} is not a positive number of CPUs"))
+    if args.executor != "ray" and args.ray_address is not None:
+        problems.append(Problem("--ray-address", f"{args.ray_address!r} needs --executor ray"))
+    if problems:
+        raise RenderError(problems)
+    return make_executor(args.executor, workers=args.workers, ray_address=args.ray_address,
+                         task_cpus=args.task_cpus)
+
+
+def node_summary_lines(report) -> list[str]:
+    """One line per node of a :class:`~usdscene.render.driver.RenderReport`: images, shards,
+    mean render seconds per image."""
+    lines = []
+    for node, row in sorted(report.nodes.items()):
+        per_image = row["render_s"] / row["images"] if row["images"] else 0.0
+        lines.append(f"  {node}: {int(row['images'])} images in {int(row['shards'])} shards, "
+                     f"{per_image:.2f} s/image render")
+    return lines

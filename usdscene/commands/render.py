@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from usdscene.commands._arguments import add_executor_arguments
+
 NAME = "render"
 HELP = ("render every camera of every frame with Blender Cycles: RGB images and exact uint16 "
         "instance masks from one render; re-running resumes")
@@ -19,15 +21,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="closed frame range A:B, a single frame N, or a list N,M,... (default: all)")
     parser.add_argument("--cameras", nargs="+", metavar="NAME", help="cameras to render (default: all)")
     parser.add_argument("--samples", type=int, metavar="N", help="path-tracing samples per pixel")
-    parser.add_argument("--workers", type=int, default=1, metavar="N",
-                        help="worker processes side by side, each on a block of frames (default 1)")
+    parser.add_argument("--workers", type=int, metavar="N",
+                        help="worker processes side by side, each on a block of frames (default 1; with "
+                             "--executor ray: at most N tasks in flight, default what the cluster holds)")
+    add_executor_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene.commands._arguments import parse_frames
+    from usdscene.commands._arguments import executor_for, node_summary_lines, parse_frames
     from usdscene.errors import Problem, RenderError
     from usdscene.pipeline import stage_for_input
     from usdscene.render.driver import render
@@ -40,10 +44,15 @@ def run(args: argparse.Namespace) -> int:
         raise RenderError(f"input {args.input!r} does not exist", where=args.input)
     stage = stage_for_input(args.input, args.output)
     override = {"samples": args.samples} if args.samples is not None else None
+    executor = executor_for(args)
     report = render(stage, Path(args.output), frames=frames, cameras=args.cameras,
                     settings_override=override, progress=not args.no_progress and sys.stderr.isatty(),
-                    workers=args.workers)
+                    workers=args.workers, executor=executor, retries=args.retries)
     rate = report.pairs_rendered / report.wall_s if report.wall_s > 0 else 0.0
+    retried = f", {report.retries} shards retried" if report.retries else ""
     print(f"{report.pairs_rendered} images rendered, {report.pairs_skipped} already done, "
-          f"{report.wall_s:.1f} s ({rate:.2f} images/s) → {args.output}")
+          f"{report.wall_s:.1f} s ({rate:.2f} images/s){retried} → {args.output}")
+    if report.nodes:
+        print(f"per node ({report.executor} executor):")
+        print("\n".join(node_summary_lines(report)))
     return 0

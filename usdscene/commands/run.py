@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from usdscene.commands._arguments import add_executor_arguments
+
 from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "run"
@@ -23,15 +25,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="dataset formats to export: coco, yolo, rois (default: the document's "
                              "metadata.usdscene.exports; give the flag alone for none)")
     parser.add_argument("--samples", type=int, metavar="N", help="override the samples per pixel")
-    parser.add_argument("--workers", type=int, default=1, metavar="N",
-                        help="render worker processes side by side (default 1)")
+    parser.add_argument("--workers", type=int, metavar="N",
+                        help="render worker processes side by side (default 1; with --executor ray: at "
+                             "most N tasks in flight, default what the cluster holds)")
+    add_executor_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene.commands._arguments import parse_frames
+    from usdscene.commands._arguments import executor_for, parse_frames
     from usdscene.errors import DocumentError, Problem
     from usdscene.pipeline import run_pipeline, summary_text
 
@@ -48,8 +52,10 @@ def run(args: argparse.Namespace) -> int:
     def show_step(name: str) -> None:
         print(f"usdscene: {name} ...", file=sys.stderr, flush=True)
 
+    executor = executor_for(args)
     summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras,
-                           exports=args.export, samples=args.samples, workers=args.workers,
-                           progress=progress, on_step=show_step)
+                           exports=args.export, samples=args.samples, workers=args.workers or 1,
+                           progress=progress, on_step=show_step,
+                           render_options={"executor": executor, "retries": args.retries})
     print(summary_text(summary))
     return 0

@@ -1,9 +1,12 @@
-"""The parent side of rendering: plan shards, run worker processes, track progress, resume.
+"""The parent side of rendering: plan shards, hand them to an executor, retry, track progress,
+resume.
 
 The driver never imports ``bpy``. It reads the stage with pxr (:mod:`stage_reader`), decides
 which (frame, camera) pairs are missing (:mod:`manifest`), cuts them into shards of
-consecutive frames, writes one JSON job per shard and runs ``python -m usdscene.render.worker
-JOB`` for each, reading the worker's progress lines from its stdout.
+consecutive frames as slots free up, and has an executor (:mod:`executors`: local worker
+processes, or Ray tasks on a cluster) run ``python -m usdscene.render.worker JOB`` for each.
+Every finished image is recorded in the manifest as it arrives; a shard whose worker died is
+run again for its unfinished images.
 """
 
 from __future__ import annotations
@@ -11,11 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import os
 import shutil
-import subprocess
-import sys
-import tempfile
 import threading
 import time
 from collections import deque
@@ -28,6 +27,7 @@ from usdscene.errors import Problem, RenderError
 from usdscene.files import write_json_atomic
 from usdscene.model import RenderSettings
 from usdscene.projection import undistorted_render_intrinsics
+from usdscene.render.executors import ShardExit
 from usdscene.render.job import intrinsics_to_json
 from usdscene.render.manifest import Manifest, fingerprint
 
@@ -42,6 +42,11 @@ EXTRA_SETTINGS = {"resolution_scale": 1.0}
 # benchmarks/README.md); recycling bounds it for runs of any length, at the cost of one more
 # start-up and import (1-2 s) per this many renders.
 MAX_RENDERS_PER_WORKER = 250
+# Extra attempts for a shard whose worker died (signal, lost node) before it gave up.
+DEFAULT_RETRIES = 3
+# Seconds per image assumed for sizing shards until the first images are measured: one
+# 640x480 cabin image at the default settings on 2 CPU cores takes 13-15 s.
+ASSUMED_SECONDS_PER_IMAGE = 15.0
 
 
 @dataclass(frozen=True)
@@ -62,6 +67,10 @@ class RenderReport:
             import, USD import, scene setup), seconds.
         render_cpu_s: CPU seconds (all threads) spent inside the render calls.
         worker_cpu_s: CPU seconds (all threads) of the worker processes, start to end.
+        executor: the executor's name (``local``, ``ray``).
+        retries: shards run again after their worker died.
+        nodes: per node (host name, or Ray node address and id): ``images`` rendered,
+            ``render_s`` seconds of render calls, ``shards`` started, in this call.
     """
 
     out_dir: Path
@@ -75,6 +84,9 @@ class RenderReport:
     startup_s: float
     render_cpu_s: float = 0.0
     worker_cpu_s: float = 0.0
+    executor: str = "local"
+    retries: int = 0
+    nodes: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
 
 
 def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[str, Any] | None) -> dict:
@@ -141,13 +153,15 @@ def scale_intrinsics(intr, scale: float):
 def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = None,
            cameras: Sequence[str] | None = None,
            settings_override: RenderSettings | Mapping[str, Any] | None = None,
-           progress: bool = True, workers: int = 1,
-           on_event: Callable[[dict], None] | None = None) -> RenderReport:
+           progress: bool = True, workers: int | None = None,
+           on_event: Callable[[dict], None] | None = None,
+           executor: str | Any = "local", retries: int = DEFAULT_RETRIES) -> RenderReport:
     """Render every requested camera of every requested frame of a composed stage.
 
     Writes ``out/images/<camera>/<frame:06d>.png`` (8-bit sRGB), ``out/masks/<camera>/
     <frame:06d>.png`` (uint16 ids, 0 = background), ``out/masks/ids.json`` and
-    ``out/manifest.json``; pairs a previous run finished are skipped.
+    ``out/manifest.json``; pairs a previous run finished are skipped, whichever executor ran
+    it. The pixels do not depend on the executor, the number of workers or the shard order.
 
     Args:
         stage_path: root layer of the composed stage (``out/stage/scene.usda``).
@@ -156,9 +170,15 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         cameras: camera names (default: every camera under ``/World/Cameras``).
         settings_override: RenderSettings or a mapping of fields that win over the stage's.
         progress: show a ``rich`` progress bar on stderr.
-        workers: worker processes run side by side, each on a block of frames (each imports
-            only the objects its frames show); CPU threads are split between them.
+        workers: shards run side by side: local worker processes (default 1; CPU threads are
+            split between them), or for Ray an upper bound on tasks in flight (default: what
+            the cluster holds). Used only when ``executor`` is a name; an executor object
+            carries its own.
         on_event: called with every progress event of the workers (dicts), in the parent.
+        executor: ``"local"``, ``"ray"`` (a local Ray runtime) or an executor object from
+            :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
+        retries: how many times a shard whose worker died (a signal such as the OOM killer's
+            SIGKILL, a lost node) is run again for its unfinished images, on any slot.
 
     Returns:
         A :class:`RenderReport`.
@@ -167,6 +187,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         RenderError: bad selection or settings, or a worker failed (finished pairs are kept
             and a re-run resumes).
     """
+    from usdscene.render.executors import make_executor
+    from usdscene.render.scratch import remove_stale_scratch
     from usdscene.render.stage_reader import read_stage_plan
 
     started = time.perf_counter()
@@ -174,6 +196,10 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     plan = read_stage_plan(stage_path)
     settings = resolve_settings(plan.settings, settings_override)
     problems: list[Problem] = []
+    if int(retries) < 0:
+        problems.append(Problem("retries", f"retries {retries!r} must be >= 0"))
+    if workers is not None and int(workers) < 1:
+        problems.append(Problem("workers", f"workers {workers!r} must be at least 1"))
     frame_list = list(plan.frames) if frames is None else [int(f) for f in frames]
     for f in frame_list:
         if f not in plan.frames:
@@ -188,6 +214,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         problems.append(Problem(str(stage_path), "the stage has no camera under /World/Cameras"))
     if problems:
         raise RenderError(problems)
+    if isinstance(executor, str):
+        executor = make_executor(executor, workers=workers)
 
     cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
     print_settings = {k: v for k, v in settings.items() if k != "device"}
@@ -198,6 +226,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     }))
     manifest.versions = {"usdscene": __version__}
     _remove_stale_temporaries(out_dir, camera_list)
+    remove_stale_scratch()
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
     total = len(frame_list) * len(camera_list)
     skipped = total - len(todo)
@@ -205,78 +234,131 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         str(o.mask_id): {"uid": o.uid, "class": o.class_name, "prim": o.prim_path} for o in plan.objects})
 
     totals = {"render_s": 0.0, "post_s": 0.0, "import_s": 0.0, "startup_s": 0.0, "rendered": 0,
-              "render_cpu_s": 0.0, "worker_cpu_s": 0.0}
+              "render_cpu_s": 0.0, "worker_cpu_s": 0.0, "retries": 0}
+    nodes: dict[str, dict[str, float]] = {}
     if todo:
-        shards = _shards(todo, max(1, int(workers)))
-        threads = max(1, (os.cpu_count() or 1) // len(shards)) if len(shards) > 1 else None
-        # Each shard runs as a sequence of worker processes of bounded length (one per chunk).
-        chunked = [_chunks(pairs, MAX_RENDERS_PER_WORKER) for pairs in shards]
-        scratch = Path(tempfile.mkdtemp(prefix="usdscene-render-", dir=_scratch_root()))
         lock = threading.Lock()
         bar = _Progress(total, skipped, enabled=progress)
+
+        def handle(event: dict) -> None:
+            with lock:
+                node = nodes.setdefault(str(event.get("node", "local")),
+                                        {"images": 0, "render_s": 0.0, "shards": 0})
+                if event.get("event") == "done":
+                    manifest.mark_done(int(event["frame"]), event["camera"],
+                                       {k: event[k] for k in ("render_s", "post_s") if k in event})
+                    manifest.save()
+                    totals["render_s"] += event["render_s"]
+                    totals["post_s"] += event["post_s"]
+                    totals["render_cpu_s"] += event.get("render_cpu_s", 0.0)
+                    totals["rendered"] += 1
+                    node["images"] += 1
+                    node["render_s"] += event["render_s"]
+                    bar.advance()
+                elif event.get("event") == "started":
+                    node["shards"] += 1
+                elif event.get("event") == "imported":
+                    totals["import_s"] += event["seconds"]
+                    if event.get("missing_count"):
+                        log.warning("%d objects of the stage were not found after the USD import, "
+                                    "e.g. %s", event["missing_count"], event["missing_uids"])
+                elif event.get("event") == "finished":
+                    totals["worker_cpu_s"] += event.get("process_cpu_s", 0.0)
+                elif event.get("event") == "warning":
+                    log.warning("%s", event.get("message"))
+                if on_event is not None:
+                    on_event(event)
+
         try:
-            jobs: list[list[Path]] = [[] for _ in chunked]
-            for index, (lane, pairs) in enumerate((lane, pairs) for lane, chunks in enumerate(chunked)
-                                                  for pairs in chunks):
-                shard_frames = sorted({f for f, _ in pairs})
-                frame_set = set(shard_frames)
-                objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                            "visible_frames": [f for f in o.visible_frames if f in frame_set]}
-                           for o in plan.objects if frame_set.intersection(o.visible_frames)]
-                mask = list(plan.shared_prims) + [o["prim"] for o in objects]
-                job = {
-                    "stage": str(plan.stage_path),
-                    "out_dir": str(out_dir.resolve()),
-                    "scratch_dir": str(scratch),
-                    # An empty mask would import everything: name a path that cannot exist.
-                    "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",
-                    "settings": settings,
-                    "threads": threads,
-                    "objects": objects,
-                    "cameras": {c: cam_json[c] for c in sorted({c for _, c in pairs})},
-                    "pairs": [[f, c] for f, c in pairs],
-                }
-                job_path = scratch / f"job-{index}.json"
-                job_path.write_text(json.dumps(job))
-                jobs[lane].append(job_path)
+            with executor, bar:
+                executor.prepare(plan.stage_path, settings)
+                slots = executor.slots
+                queue = _ShardQueue(todo, slots, executor.target_shard_s,
+                                    _seconds_per_image(manifest), retries=int(retries))
 
-            def handle(event: dict) -> None:
-                with lock:
-                    if event.get("event") == "done":
-                        manifest.mark_done(int(event["frame"]), event["camera"],
-                                           {k: event[k] for k in ("render_s", "post_s") if k in event})
-                        manifest.save()
-                        totals["render_s"] += event["render_s"]
-                        totals["post_s"] += event["post_s"]
-                        totals["render_cpu_s"] += event.get("render_cpu_s", 0.0)
-                        totals["rendered"] += 1
-                        bar.advance()
-                    elif event.get("event") == "imported":
-                        totals["import_s"] += event["seconds"]
-                        if event.get("missing_count"):
-                            log.warning("%d objects of the stage were not found after the USD import, "
-                                        "e.g. %s", event["missing_count"], event["missing_uids"])
-                    elif event.get("event") == "finished":
-                        totals["worker_cpu_s"] += event.get("process_cpu_s", 0.0)
-                    elif event.get("event") == "warning":
-                        log.warning("%s", event.get("message"))
-                    if on_event is not None:
-                        on_event(event)
+                def job_for(pairs: list[tuple[int, str]]) -> dict:
+                    frame_set = {f for f, _ in pairs}
+                    objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
+                                "visible_frames": [f for f in o.visible_frames if f in frame_set]}
+                               for o in plan.objects if frame_set.intersection(o.visible_frames)]
+                    mask = list(plan.shared_prims) + [o["prim"] for o in objects]
+                    return {
+                        "stage": str(plan.stage_path),
+                        # An empty mask would import everything: name a path that cannot exist.
+                        "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",
+                        "settings": settings,
+                        "threads": executor.threads_per_worker,
+                        "objects": objects,
+                        "cameras": {c: cam_json[c] for c in sorted({c for _, c in pairs})},
+                        "pairs": [[f, c] for f, c in pairs],
+                    }
 
-            with bar:
-                errors = _run_workers(jobs, scratch, handle, totals)
+                def run_slot() -> None:
+                    while (shard := queue.take()) is not None:
+                        bar.set_busy(queue.in_flight)
+                        done: set[tuple[int, str]] = set()
+                        t0 = time.perf_counter()
+
+                        def on_shard_event(event: dict) -> None:
+                            if event.get("event") == "done":
+                                if not done:
+                                    totals["startup_s"] += (time.perf_counter() - t0 - event["render_s"]
+                                                            - event["post_s"])
+                                done.add((int(event["frame"]), event["camera"]))
+                                queue.measure(event["render_s"] + event["post_s"])
+                            handle(event)
+
+                        try:
+                            outcome = executor.run_shard(job_for(shard.pairs), out_dir, on_shard_event)
+                        except Exception as exc:  # must end the run with a message, not hang the slots
+                            log.exception("executor %s failed", executor.name)
+                            outcome = ShardExit(False, False, f"{type(exc).__name__}: {exc}")
+                        left = [p for p in shard.pairs if p not in done]
+                        if outcome.ok and left:
+                            outcome = ShardExit(False, False, f"the worker ended with {len(left)} "
+                                                              "images not rendered")
+                        if outcome.ok or not left:
+                            if not outcome.ok:  # it died after its last image had arrived
+                                log.info("%s: %s after its last image", shard.describe(), outcome.message)
+                            queue.finish()
+                        elif outcome.retryable and shard.attempt < queue.retries and left:
+                            log.warning("%s: %s; rendering its %d unfinished images again "
+                                        "(retry %d of %d)", shard.describe(), outcome.message, len(left),
+                                        shard.attempt + 1, queue.retries)
+                            with lock:
+                                totals["retries"] += 1
+                            queue.retry(shard, left)
+                        else:
+                            n = shard.attempt + 1
+                            tries = f" (gave up after {n} attempt{'s' if n > 1 else ''})" if outcome.retryable else ""
+                            queue.fail(f"{shard.describe()}: {outcome.message}{tries}")
+                        bar.set_busy(queue.in_flight)
+
+                threads = [threading.Thread(target=run_slot, daemon=True) for _ in range(slots)]
+                for thread in threads:
+                    thread.start()
+                for thread in threads:
+                    thread.join()
+                errors = queue.errors
         finally:
+            if totals["retries"]:
+                # A killed worker may have died inside an atomic write; no worker runs now.
+                _remove_stale_temporaries(out_dir, camera_list)
             manifest.timings = {"wall_s": round(time.perf_counter() - started, 3),
                                 "render_s": round(totals["render_s"], 3)}
             manifest.save()
-            shutil.rmtree(scratch, ignore_errors=True)
         if errors:
             raise RenderError([Problem(str(stage_path), e) for e in errors])
     else:
         manifest.save()
     return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
                         totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"],
-                        totals["render_cpu_s"], totals["worker_cpu_s"])
+                        totals["render_cpu_s"], totals["worker_cpu_s"], executor_name(executor),
+                        int(totals["retries"]), nodes)
+
+
+def executor_name(executor: str | Any) -> str:
+    return executor if isinstance(executor, str) else str(getattr(executor, "name", type(executor).__name__))
 
 
 def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict:
@@ -306,20 +388,27 @@ def run_job(job: dict, what: str) -> list[dict]:
     """Run one worker on ``job`` (any mode) and return its events.
 
     Raises:
-        RenderError: the worker failed (its message, or the tail of its log).
+        RenderError: the worker failed (its message, the signal that killed it, or the tail
+            of its log).
     """
-    scratch = Path(tempfile.mkdtemp(prefix="usdscene-job-", dir=_scratch_root()))
+    from usdscene.render.executors import describe_exit, iter_worker_events
+    from usdscene.render.scratch import make_scratch
+
+    scratch = make_scratch("job")
     events: list[dict] = []
     try:
         job = dict(job, scratch_dir=str(scratch))
         job_path = scratch / "job-0.json"
         job_path.write_text(json.dumps(job))
-        errors = _run_workers([[job_path]], scratch, events.append,
-                              {"startup_s": 0.0})
+        for event in iter_worker_events(job_path, scratch / "job-0.log"):
+            if event["event"] == "exit":
+                outcome = describe_exit(event["code"], event["error"], event["log_tail"])
+            else:
+                events.append(event)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
-    if errors:
-        raise RenderError([Problem(what, e) for e in errors])
+    if not outcome.ok:
+        raise RenderError([Problem(what, outcome.message)])
     return events
 
 
@@ -331,10 +420,6 @@ def _remove_stale_temporaries(out_dir: Path, cameras: Sequence[str]) -> None:
             if folder.is_dir():
                 for tmp in folder.glob(".*.tmp"):
                     tmp.unlink(missing_ok=True)
-
-
-def _scratch_root() -> str | None:
-    return "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
 
 
 def _stage_digest(stage_path: Path) -> str:
@@ -349,89 +434,134 @@ def _stage_digest(stage_path: Path) -> str:
     return digest.hexdigest()
 
 
-def _shards(pairs: list[tuple[int, str]], count: int) -> list[list[tuple[int, str]]]:
-    """Split pairs (in frame order) into at most ``count`` blocks of consecutive frames."""
-    frames = sorted({f for f, _ in pairs})
-    count = min(count, len(frames))
-    blocks = [frames[i * len(frames) // count:(i + 1) * len(frames) // count] for i in range(count)]
-    return [[p for p in pairs if p[0] in set(block)] for block in blocks if block]
+def _seconds_per_image(manifest: Manifest) -> float | None:
+    """Mean render + post seconds per image of the pairs the manifest lists, or None."""
+    times = [float(t.get("render_s", 0.0)) + float(t.get("post_s", 0.0))
+             for frames in manifest.done.values() for t in frames.values()]
+    return sum(times) / len(times) if times else None
+
+
+def shard_size(remaining: int, slots: int, *, seconds_per_image: float | None = None,
+               target_shard_s: float | None = None, max_pairs: int | None = None) -> int:
+    """How many (frame, camera) pairs the next shard gets.
+
+    Guided self-scheduling: at most an equal share of what remains per slot (large shards
+    first, smaller towards the end so that slots finish together), at most ``max_pairs``
+    (default :data:`MAX_RENDERS_PER_WORKER`, the per-process budget) and, for executors with a
+    time target, about ``target_shard_s`` of work at the measured (or assumed) seconds per
+    image.
+    """
+    size = min(MAX_RENDERS_PER_WORKER if max_pairs is None else max_pairs, -(-remaining // max(1, slots)))
+    if target_shard_s:
+        per_image = seconds_per_image or ASSUMED_SECONDS_PER_IMAGE
+        size = min(size, int(target_shard_s / per_image))
+    return max(1, size)
+
+
+def _take_prefix(pairs: Sequence[tuple[int, str]], start: int, limit: int) -> int:
+    """End index of the next shard of ``pairs[start:]`` (in frame order): whole frames while
+    they fit in ``limit`` pairs (so a shard imports only its frames), else part of one frame."""
+    end = start
+    while end < len(pairs):
+        frame_end = end
+        while frame_end < len(pairs) and pairs[frame_end][0] == pairs[end][0]:
+            frame_end += 1
+        if frame_end - start > limit:
+            return end if end > start else start + limit
+        end = frame_end
+    return end
 
 
 def _chunks(pairs: list[tuple[int, str]], limit: int) -> list[list[tuple[int, str]]]:
     """Cut pairs (in frame order) into runs of at most ``limit`` pairs, at frame boundaries
-    where a frame has fewer than ``limit`` cameras (so a chunk imports only its frames)."""
-    chunks: list[list[tuple[int, str]]] = []
-    current: list[tuple[int, str]] = []
-    by_frame: dict[int, list[tuple[int, str]]] = {}
-    for pair in pairs:
-        by_frame.setdefault(pair[0], []).append(pair)
-    for frame_pairs in by_frame.values():
-        if current and len(current) + len(frame_pairs) > limit:
-            chunks.append(current)
-            current = []
-        for pair in frame_pairs:
-            if len(current) == limit:
-                chunks.append(current)
-                current = []
-            current.append(pair)
-    if current:
-        chunks.append(current)
+    where a frame has fewer than ``limit`` cameras."""
+    chunks, start = [], 0
+    while start < len(pairs):
+        end = _take_prefix(pairs, start, limit)
+        chunks.append(list(pairs[start:end]))
+        start = end
     return chunks
 
 
-def _run_workers(lanes: list[list[Path]], scratch: Path, handle, totals) -> list[str]:
-    """Run the lanes side by side, the jobs of a lane one after the other (one worker process
-    per job); return error messages. A lane stops at its first failed job."""
-    errors: list[str] = []
-    threads = []
+@dataclass
+class _Shard:
+    number: int
+    pairs: list[tuple[int, str]]
+    attempt: int = 0
 
-    def run_lane(lane: list[Path]) -> None:
-        for job_path in lane:
-            if not run(job_path):
-                return
+    def describe(self) -> str:
+        frames = sorted({f for f, _ in self.pairs})
+        span = f"frame {frames[0]}" if len(frames) == 1 else f"frames {frames[0]}..{frames[-1]}"
+        return f"shard {self.number} ({span}, {len(self.pairs)} images)"
 
-    def run(job_path: Path) -> bool:
-        log_path = scratch / (job_path.stem + ".log")
-        t0 = time.perf_counter()
-        first = True
-        with open(log_path, "w") as log_file:
-            proc = subprocess.Popen([sys.executable, "-m", "usdscene.render.worker", str(job_path)],
-                                    stdout=subprocess.PIPE, stderr=log_file, text=True, bufsize=1)
-            tail: deque[str] = deque(maxlen=20)
-            failed = None
-            try:
-                for line in proc.stdout:
-                    if not line.startswith("@usdscene "):
-                        tail.append(line.rstrip())
-                        log_file.write(line)
-                        continue
-                    event = json.loads(line[len("@usdscene "):])
-                    if event.get("event") == "done" and first:
-                        first = False
-                        totals["startup_s"] += time.perf_counter() - t0 - event["render_s"] - event["post_s"]
-                    if event.get("event") == "error":
-                        failed = event.get("message")
-                    handle(event)
-            finally:
-                code = proc.wait()
-        if code != 0:
-            log_file_tail = log_path.read_text(errors="replace").splitlines()[-10:]
-            detail = failed or "; ".join(log_file_tail[-5:]) or f"exit code {code}"
-            errors.append(f"render worker ({job_path.name}) failed: {detail}")
-            return False
-        return True
 
-    for lane in lanes:
-        thread = threading.Thread(target=run_lane, args=(lane,), daemon=True)
-        thread.start()
-        threads.append(thread)
-    for thread in threads:
-        thread.join()
-    return errors
+class _ShardQueue:
+    """The pairs still to render, handed out to slot threads as shards, with retries.
+
+    ``take`` blocks while nothing is pending but a shard in flight may still come back for a
+    retry; it returns None when everything is handed out and settled, or after a failure.
+    """
+
+    def __init__(self, todo: list[tuple[int, str]], slots: int, target_shard_s: float | None,
+                 seconds_per_image: float | None, retries: int) -> None:
+        self.todo, self.next_index = todo, 0
+        self.slots, self.target_shard_s, self.retries = slots, target_shard_s, retries
+        self._measured = [seconds_per_image, 1] if seconds_per_image else [0.0, 0]
+        self.again: deque[_Shard] = deque()
+        self.in_flight = 0
+        self.errors: list[str] = []
+        self._numbers = 0
+        self._cond = threading.Condition()
+
+    def measure(self, seconds: float) -> None:
+        with self._cond:
+            self._measured[0] += seconds
+            self._measured[1] += 1
+
+    def take(self) -> _Shard | None:
+        with self._cond:
+            while True:
+                if self.errors:
+                    return None
+                if self.again:
+                    shard = self.again.popleft()
+                    break
+                if self.next_index < len(self.todo):
+                    per_image = self._measured[0] / self._measured[1] if self._measured[1] else None
+                    size = shard_size(len(self.todo) - self.next_index, self.slots, seconds_per_image=per_image,
+                                      target_shard_s=self.target_shard_s)
+                    end = _take_prefix(self.todo, self.next_index, size)
+                    self._numbers += 1
+                    shard = _Shard(self._numbers, self.todo[self.next_index:end])
+                    self.next_index = end
+                    break
+                if self.in_flight == 0:
+                    return None
+                self._cond.wait()
+            self.in_flight += 1
+            return shard
+
+    def _settle(self) -> None:
+        self.in_flight -= 1
+        self._cond.notify_all()
+
+    def finish(self) -> None:
+        with self._cond:
+            self._settle()
+
+    def retry(self, shard: _Shard, left: list[tuple[int, str]]) -> None:
+        with self._cond:
+            self.again.append(_Shard(shard.number, left, shard.attempt + 1))
+            self._settle()
+
+    def fail(self, message: str) -> None:
+        with self._cond:
+            self.errors.append(message)
+            self._settle()
 
 
 class _Progress:
-    """A rich progress bar over frames × cameras (images/s and ETA), or nothing."""
+    """A rich progress bar over frames × cameras (images/s, ETA, busy workers), or nothing."""
 
     def __init__(self, total: int, done: int, enabled: bool) -> None:
         self.enabled = enabled
@@ -450,14 +580,19 @@ class _Progress:
 
             self._progress = Progress(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(),
                                       _Rate(""), TimeElapsedColumn(), TextColumn("ETA"),
-                                      TimeRemainingColumn(), transient=False)
+                                      TimeRemainingColumn(), TextColumn("{task.fields[busy]} busy"),
+                                      transient=False)
             self._progress.__enter__()
-            self._task = self._progress.add_task("render", total=self.total, completed=self.done)
+            self._task = self._progress.add_task("render", total=self.total, completed=self.done, busy=0)
         return self
 
     def advance(self) -> None:
         if self._progress is not None:
             self._progress.advance(self._task)
+
+    def set_busy(self, workers: int) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, busy=workers)
 
     def __exit__(self, *exc) -> None:
         if self._progress is not None:

@@ -99,6 +99,25 @@ def read_stage_plan(stage_path: str | Path) -> StagePlan:
     return StagePlan(path, start, end, tuple(cameras), tuple(objects), settings, tuple(shared))
 
 
+def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
+    """Every file a render of the stage reads: its layers, the layers they reference or
+    sublayer (assets) and other assets they name (textures), found by following composition.
+
+    Returns:
+        ``(files, unresolved)``: absolute paths of existing files, root layer first, and the
+        asset paths that could not be resolved (as written in the layers).
+    """
+    from pxr import UsdUtils
+
+    layers, assets, unresolved = UsdUtils.ComputeAllDependencies(str(Path(stage_path).resolve()))
+    files: list[Path] = []
+    for item in [layer.realPath for layer in layers] + [str(a) for a in assets]:
+        path = Path(item).resolve()
+        if item and path.is_file() and path not in files:
+            files.append(path)
+    return files, [str(u) for u in unresolved]
+
+
 def _read_settings(stage, problems: list[Problem]) -> RenderSettings:
     settings = RenderSettings()
     prim = stage.GetPrimAtPath(names.RENDER_SETTINGS)

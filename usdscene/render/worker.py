@@ -117,7 +117,7 @@ class Session:
             for ob in members:
                 ob.pass_index = mask_id
         missing = sorted(set(wanted) - set(self.objects))
-        _emit({"event": "imported", "seconds": time.perf_counter() - started,
+        _emit({"event": "imported", "seconds": time.perf_counter() - started, "pid": os.getpid(),
                "objects": len(bpy.data.objects), "missing_uids": missing[:20],
                "missing_count": len(missing)})
 
@@ -567,12 +567,29 @@ def render_pairs(session: Session, pairs) -> bool:
     return True
 
 
+def _die_with_parent(parent_pid: int | None) -> None:
+    """Linux: have the kernel SIGKILL this worker when the process that started it dies, so a
+    killed driver or Ray task leaves no renderer running. Elsewhere nothing happens."""
+    if not parent_pid or not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != int(parent_pid):  # the parent died before prctl took effect
+        os._exit(1)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
         sys.stderr.write("usage: python -m usdscene.render.worker JOB.json\n")
         return 2
     job = json.loads(Path(argv[0]).read_text())
+    _die_with_parent(job.get("parent_pid"))
     for o in job.get("objects", ()):
         o["_visible"] = set(o["visible_frames"])
     mode = job.get("mode", "render")
