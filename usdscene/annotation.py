@@ -76,9 +76,178 @@ def _source_document(stage_path):
     return Path(source)
 
 
+class ImageLabeller:
+    """Labels the images of one output folder, one (frame, camera) at a time.
+
+    Each image's labels are kept in ``OUT/labels/<camera>/<frame:06d>.json`` with a key made
+    of the mask's sha256, the labelling settings, the id map, the stage layers and the
+    usdscene version, so they are computed once: while the image is rendered (``usdscene
+    run`` labels each image as it arrives) or afterwards (``usdscene annotate``), and again
+    only when the key changes. Labels read back are equal to labels computed anew.
+
+    Not thread-safe: call from one thread at a time.
+
+    Raises (constructor):
+        OutputError: no or unreadable id map (``OUT/masks/ids.json``).
+    """
+
+    def __init__(self, out_dir: str | os.PathLike, *, epsilon_px: float | None = None,
+                 min_visible_fraction: float = 0.0, amodal: bool = True) -> None:
+        import hashlib
+        import json
+
+        from usdscene import __version__, layout
+        from usdscene.errors import OutputError
+        from usdscene.labels import DEFAULT_EPSILON_PX
+
+        self.out = Path(out_dir)
+        self.epsilon_px = DEFAULT_EPSILON_PX if epsilon_px is None else float(epsilon_px)
+        self.min_visible_fraction = float(min_visible_fraction)
+        id_file = self.out / layout.ID_MAP_FILE
+        try:
+            id_bytes = id_file.read_bytes()
+            id_map = json.loads(id_bytes)
+            self.ids = {int(k): str(v["uid"]) for k, v in id_map.items()}
+            self.classes = {str(v["uid"]): str(v.get("class", "")) for v in id_map.values()}
+        except FileNotFoundError:
+            raise OutputError("no mask id map; render the output first", where=str(id_file)) from None
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise OutputError(f"unreadable mask id map: {exc}", where=str(id_file)) from None
+        self.cameras: dict = {}
+        self.geometry = None
+        stage_path = layout.stage_root(self.out)
+        stage_hash = hashlib.sha256()
+        if amodal:
+            from usdscene.render.stage_reader import read_stage_plan
+            from usdscene.stage_geometry import StageGeometry
+
+            # The cameras exactly as rendered (per-frame poses from the stage).
+            self.cameras = {c.name: c for c in read_stage_plan(stage_path).cameras}
+            self.geometry = StageGeometry(stage_path)
+            for layer in sorted(stage_path.parent.glob("*.usd*")):
+                stage_hash.update(layer.name.encode() + b"\0" + layer.read_bytes())
+        self._key = {"usdscene": __version__, "epsilon_px": self.epsilon_px,
+                     "min_visible_fraction": self.min_visible_fraction, "amodal": bool(amodal),
+                     "ids_sha256": hashlib.sha256(id_bytes).hexdigest(),
+                     "stage_sha256": stage_hash.hexdigest() if amodal else None}
+        self._triangles: tuple[int, dict] | None = None  # (frame, uid → triangles) of the last frame
+
+    def labels(self, frame: int, camera: str):
+        """The labels of one rendered image: kept ones when their key matches, else computed
+        and kept.
+
+        Returns:
+            :class:`usdscene.labels.ImageLabels`.
+
+        Raises:
+            OutputError: the mask is missing or not a single-channel 16-bit image.
+        """
+        import hashlib
+        import json
+
+        from usdscene import layout
+        from usdscene.errors import OutputError
+        from usdscene.files import write_json_atomic
+        from usdscene.labels import image_labels_from_json, image_labels_to_json
+
+        mask_file = layout.mask_path(self.out, camera, frame)
+        try:
+            mask_bytes = mask_file.read_bytes()
+        except OSError as exc:
+            raise OutputError(f"cannot read the mask: {exc.strerror or exc}", where=str(mask_file)) from None
+        key = dict(self._key, mask_sha256=hashlib.sha256(mask_bytes).hexdigest())
+        kept_file = layout.labels_path(self.out, camera, frame)
+        try:
+            kept = json.loads(kept_file.read_text(encoding="utf-8"))
+            if kept.get("key") == key:
+                return image_labels_from_json(kept["labels"])
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            pass  # missing or unreadable: label anew
+        payload = image_labels_to_json(self._compute(mask_bytes, mask_file, frame, camera))
+        write_json_atomic(kept_file, {"key": key, "labels": payload})
+        # What a later run reads back, so that fresh and kept labels give identical documents.
+        return image_labels_from_json(payload)
+
+    def _compute(self, mask_bytes: bytes, mask_file: Path, frame: int, camera_name: str):
+        import dataclasses
+
+        import cv2
+        import numpy as np
+
+        from usdscene.amodal import amodal_projections
+        from usdscene.errors import OutputError
+        from usdscene.labels import label_image
+
+        mask = cv2.imdecode(np.frombuffer(mask_bytes, np.uint8), cv2.IMREAD_UNCHANGED)
+        if mask is None or mask.ndim != 2 or mask.dtype.kind != "u":
+            raise OutputError("not a single-channel 16-bit instance mask", where=str(mask_file))
+        amodal_masks = None
+        camera = self.cameras.get(camera_name)
+        if self.geometry is not None and camera is not None:
+            if self._triangles is None or self._triangles[0] != frame:
+                self._triangles = (frame, self.geometry.triangles(frame, set(self.ids.values())))
+            height, width = mask.shape
+            intr = camera.intrinsics
+            if (intr.width_px, intr.height_px) != (width, height):  # rendered at a resolution scale
+                sx, sy = width / intr.width_px, height / intr.height_px
+                camera = dataclasses.replace(camera, intrinsics=dataclasses.replace(
+                    intr, width_px=width, height_px=height, fx_px=intr.fx_px * sx, fy_px=intr.fy_px * sy,
+                    cx_px=(intr.cx_px + 0.5) * sx - 0.5, cy_px=(intr.cy_px + 0.5) * sy - 0.5))
+            amodal_masks = amodal_projections(camera, self._triangles[1], frame)
+            # Objects the camera does not see at all carry no label there.
+            amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
+        return label_image(mask, self.ids, amodal_masks, classes=self.classes, camera=camera_name,
+                           frame=frame, epsilon_px=self.epsilon_px,
+                           min_visible_fraction=self.min_visible_fraction)
+
+
+class LabelsWhileRendering:
+    """A render event handler (``render(..., on_event=...)``) that labels each image as soon as
+    the renderer reports it written, so that labelling overlaps rendering and an interrupted
+    run keeps the labels of every finished image.
+
+    A failure is logged and labelling stops; :func:`annotate_output` afterwards labels what is
+    missing and reports the problem properly.
+
+    Attributes:
+        images: images labelled.
+        seconds: wall seconds spent labelling.
+    """
+
+    def __init__(self, out_dir: str | os.PathLike, **labeller_options) -> None:
+        self.out = Path(out_dir)
+        self.options = labeller_options
+        self.images = 0
+        self.seconds = 0.0
+        self._labeller: ImageLabeller | None = None
+        self._failed = False
+
+    def __call__(self, event: dict) -> None:
+        import logging
+        import time
+
+        from usdscene.errors import UsdSceneError
+
+        if event.get("event") != "done" or self._failed:
+            return
+        started = time.perf_counter()
+        try:
+            if self._labeller is None:  # the id map exists once rendering has started
+                self._labeller = ImageLabeller(self.out, **self.options)
+            self._labeller.labels(int(event["frame"]), str(event["camera"]))
+            self.images += 1
+        except (UsdSceneError, OSError) as exc:
+            self._failed = True
+            logging.getLogger(__name__).warning("labelling while rendering stopped (%s); the images "
+                                                "are labelled after rendering", exc)
+        finally:
+            self.seconds += time.perf_counter() - started
+
+
 def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = None,
                     min_visible_fraction: float = 0.0, amodal: bool = True, progress: bool = False):
-    """Label every mask of a rendered output folder.
+    """Label every mask of a rendered output folder (images labelled before, e.g. while they
+    were rendered, are read back, see :class:`ImageLabeller`).
 
     Args:
         out_dir: output folder (``stage/``, ``masks/``, ``masks/ids.json``).
@@ -96,34 +265,20 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         OutputError: no masks, unreadable mask or id map.
         DocumentError: the document does not match the render (unknown camera or object).
     """
-    import dataclasses
-    import json
-
-    import cv2
-
+    from usdscene import layout
     from usdscene.converters.openlabel import load_document, read_openlabel, write_openlabel
     from usdscene.converters.openlabel_annotations import add_annotations
-    from usdscene import layout
     from usdscene.errors import OutputError
-    from usdscene.amodal import amodal_projections
-    from usdscene.labels import DEFAULT_EPSILON_PX, label_image, label_images
+    from usdscene.labels import label_images
 
     out = Path(out_dir)
-    epsilon = DEFAULT_EPSILON_PX if epsilon_px is None else float(epsilon_px)
     stage_path = layout.stage_root(out)
-    id_file = out / layout.ID_MAP_FILE
-    try:
-        id_map = json.loads(id_file.read_text(encoding="utf-8"))
-        ids = {int(k): str(v["uid"]) for k, v in id_map.items()}
-        classes = {str(v["uid"]): str(v.get("class", "")) for v in id_map.values()}
-    except FileNotFoundError:
-        raise OutputError("no mask id map; render the output first", where=str(id_file)) from None
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise OutputError(f"unreadable mask id map: {exc}", where=str(id_file)) from None
     masks_dir = out / layout.MASKS_DIR
     pairs = sorted((int(p.stem), p.parent.name) for p in masks_dir.glob("*/*.png") if p.stem.isdigit())
     if not pairs:
         raise OutputError("no masks found; render the output first", where=str(masks_dir))
+    labeller = ImageLabeller(out, epsilon_px=epsilon_px, min_visible_fraction=min_visible_fraction,
+                             amodal=amodal)
 
     if document_path is None and stage_path.is_file():
         document_path = _source_document(stage_path)
@@ -138,16 +293,6 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         scene = scene_from_stage(stage_path)
         document = write_openlabel(scene)
 
-    cameras = {}
-    geometry = None
-    if amodal:
-        from usdscene.render.stage_reader import read_stage_plan
-        from usdscene.stage_geometry import StageGeometry
-
-        # The cameras exactly as rendered (per-frame poses from the stage).
-        cameras = {c.name: c for c in read_stage_plan(stage_path).cameras}
-        geometry = StageGeometry(stage_path)
-
     bar = None
     if progress:
         from rich.progress import Progress
@@ -156,35 +301,14 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         bar.start()
         task = bar.add_task("annotating", total=len(pairs))
     images = []
-    triangles_frame, triangles = None, {}
     try:
         for frame, camera_name in pairs:
-            path = layout.mask_path(out, camera_name, frame)
-            mask = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-            if mask is None or mask.ndim != 2 or mask.dtype.kind != "u":
-                raise OutputError("not a single-channel 16-bit instance mask", where=str(path))
-            amodal_masks = None
-            camera = cameras.get(camera_name)
-            if geometry is not None and camera is not None:
-                if triangles_frame != frame:
-                    triangles_frame, triangles = frame, geometry.triangles(frame, set(ids.values()))
-                height, width = mask.shape
-                intr = camera.intrinsics
-                if (intr.width_px, intr.height_px) != (width, height):  # rendered at a resolution scale
-                    sx, sy = width / intr.width_px, height / intr.height_px
-                    camera = dataclasses.replace(camera, intrinsics=dataclasses.replace(
-                        intr, width_px=width, height_px=height, fx_px=intr.fx_px * sx, fy_px=intr.fy_px * sy,
-                        cx_px=(intr.cx_px + 0.5) * sx - 0.5, cy_px=(intr.cy_px + 0.5) * sy - 0.5))
-                amodal_masks = amodal_projections(camera, triangles, frame)
-                # Objects the camera does not see at all carry no label there.
-                amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
-            images.append(label_image(mask, ids, amodal_masks, classes=classes, camera=camera_name,
-                                      frame=frame, epsilon_px=epsilon,
-                                      min_visible_fraction=min_visible_fraction))
+            images.append(labeller.labels(frame, camera_name))
             if bar is not None:
                 bar.advance(task)
     finally:
         if bar is not None:
             bar.stop()
-    annotations = label_images(images, epsilon_px=epsilon, min_visible_fraction=min_visible_fraction)
+    annotations = label_images(images, epsilon_px=labeller.epsilon_px,
+                               min_visible_fraction=labeller.min_visible_fraction)
     return add_annotations(document, scene, annotations, out), annotations

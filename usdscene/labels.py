@@ -428,3 +428,51 @@ def label_images(items: Iterable[ImageLabels], *, epsilon_px: float = DEFAULT_EP
     images = sorted(items, key=lambda image: (image.frame, image.camera))
     return Annotations(images=tuple(images), epsilon_px=float(epsilon_px),
                        min_visible_fraction=float(min_visible_fraction))
+
+
+# --------------------------------------------------------------------------------------------
+# Labels of one image ↔ JSON (the per-image label files of an output folder)
+
+
+def image_labels_to_json(image: ImageLabels) -> dict:
+    """A JSON-ready dict of one image's labels; :func:`image_labels_from_json` reads it back
+    equal (floats written as Python writes them round-trip exactly)."""
+    def box(b: PixelBox | None):
+        return None if b is None else [int(b.x_min), int(b.y_min), int(b.x_max), int(b.y_max)]
+
+    def optional(value, kind):
+        return None if value is None else kind(value)
+
+    return {"camera": image.camera, "frame": int(image.frame), "width_px": int(image.width_px),
+            "height_px": int(image.height_px), "objects": [
+                {"uid": o.uid, "class": o.class_name, "mask_id": int(o.mask_id), "box": box(o.box),
+                 "pixel_count": int(o.pixel_count),
+                 "contours": [{"points_px": c.flat(), "is_hole": bool(c.is_hole), "parent": int(c.parent)}
+                              for c in o.contours],
+                 "amodal_box": box(o.amodal_box), "amodal_pixel_count": optional(o.amodal_pixel_count, int),
+                 "truncated": bool(o.truncated), "visible_fraction": optional(o.visible_fraction, float)}
+                for o in image.objects]}
+
+
+def image_labels_from_json(data: Mapping) -> ImageLabels:
+    """Inverse of :func:`image_labels_to_json`.
+
+    Raises:
+        KeyError, TypeError, ValueError: not such a dict.
+    """
+    def box(value):
+        return None if value is None else PixelBox(*(int(v) for v in value))
+
+    objects = tuple(
+        ObjectLabel(uid=str(o["uid"]), class_name=str(o["class"]), mask_id=int(o["mask_id"]),
+                    box=box(o["box"]), pixel_count=int(o["pixel_count"]),
+                    contours=tuple(Contour(np.asarray(c["points_px"], dtype=np.float64).reshape(-1, 2),
+                                           bool(c["is_hole"]), int(c["parent"])) for c in o["contours"]),
+                    amodal_box=box(o["amodal_box"]),
+                    amodal_pixel_count=None if o["amodal_pixel_count"] is None else int(o["amodal_pixel_count"]),
+                    truncated=bool(o["truncated"]),
+                    visible_fraction=None if o["visible_fraction"] is None else float(o["visible_fraction"]))
+        for o in data["objects"])
+    return ImageLabels(camera=str(data["camera"]), frame=int(data["frame"]), width_px=int(data["width_px"]),
+                       height_px=int(data["height_px"]), objects=objects)
+

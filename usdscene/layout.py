@@ -6,6 +6,7 @@
     out/images/<camera>/<frame:06d>.png 8-bit RGB
     out/masks/<camera>/<frame:06d>.png  16-bit instance ids, 0 = background
     out/masks/ids.json                  {"<mask id>": {"uid", "class", "name"}}
+    out/labels/<camera>/<frame:06d>.json labels of one image, kept so they are computed once
     out/annotations.openlabel.json      input + per-frame, per-camera labels and image uris
     out/exports/<format>/...            coco, yolo, rois
     out/manifest.json                   finished (frame, camera) pairs, versions, timings
@@ -23,6 +24,7 @@ STAGE_DIR = "stage"
 IMAGES_DIR = "images"
 MASKS_DIR = "masks"
 EXPORTS_DIR = "exports"
+LABELS_DIR = "labels"
 ID_MAP_FILE = "masks/ids.json"
 MANIFEST_FILE = "manifest.json"
 ANNOTATIONS_FILE = "annotations.openlabel.json"
@@ -41,6 +43,11 @@ def image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
 
 def mask_path(out_dir: str | Path, camera: str, frame: int) -> Path:
     return Path(out_dir) / MASKS_DIR / camera / frame_file(frame)
+
+
+def labels_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    """Labels of one image (see :class:`usdscene.annotation.ImageLabeller`)."""
+    return Path(out_dir) / LABELS_DIR / camera / f"{frame:06d}.json"
 
 
 def stage_root(out_dir: str | Path) -> Path:

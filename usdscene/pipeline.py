@@ -13,9 +13,12 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 from usdscene import layout
+
+if TYPE_CHECKING:
+    from usdscene.render.driver import RenderReport
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +38,10 @@ class RunSummary:
         seconds: step name → wall seconds.
         render_seconds_per_image: wall seconds of the render step per rendered image.
         exports: format → folder written.
+        render: the render step's report (executor, retries, per-node figures); None when
+            nothing was rendered.
+        images_labelled_while_rendering: images whose labels were computed while the next ones
+            rendered (the rest are labelled in the annotate step).
     """
 
     out_dir: Path
@@ -47,6 +54,8 @@ class RunSummary:
     seconds: Mapping[str, float] = field(default_factory=dict)
     render_seconds_per_image: float = 0.0
     exports: Mapping[str, Path] = field(default_factory=dict)
+    render: RenderReport | None = None
+    images_labelled_while_rendering: int = 0
 
 
 def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int | None = None):
@@ -109,7 +118,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
             composition or render (nothing half-written).
     """
-    from usdscene.annotation import write_annotations
+    from usdscene.annotation import LabelsWhileRendering, write_annotations
     from usdscene.catalog import load_catalog
     from usdscene.compose import compose_stage
     from usdscene.export import export_formats
@@ -139,8 +148,10 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
 
     t = step("render")
     override = {"samples": samples} if samples is not None else None
+    # Each image is labelled as soon as it is written, while the workers render the next ones.
+    labelling = LabelsWhileRendering(out)
     report = render(composed.root_layer, out, frames=frames, cameras=cameras, settings_override=override,
-                    progress=progress, workers=workers, **(render_options or {}))
+                    progress=progress, workers=workers, on_event=labelling, **(render_options or {}))
     seconds["render"] = time.perf_counter() - t
 
     t = step("annotate")
@@ -165,7 +176,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         labels_per_class=dict(sorted(per_class.items())), hidden_labels=hidden,
         seconds=seconds,
         render_seconds_per_image=seconds["render"] / report.pairs_rendered if report.pairs_rendered else 0.0,
-        exports=written)
+        exports=written, render=report, images_labelled_while_rendering=labelling.images)
 
 
 def summary_text(summary: RunSummary) -> str:
@@ -179,10 +190,18 @@ def summary_text(summary: RunSummary) -> str:
         + (f"; {summary.render_seconds_per_image:.2f} s per image" if summary.images_written else ""),
         f"  labels:  {sum(summary.labels_per_class.values())} visible "
         f"({', '.join(f'{k} {v}' for k, v in summary.labels_per_class.items()) or 'none'}), "
-        f"{summary.hidden_labels} fully occluded (amodal only)",
+        f"{summary.hidden_labels} fully occluded (amodal only)"
+        + (f"; {summary.images_labelled_while_rendering} images labelled while rendering"
+           if summary.images_labelled_while_rendering else ""),
         f"  outputs: {out / layout.IMAGES_DIR}/, {out / layout.MASKS_DIR}/, {out / layout.ANNOTATIONS_FILE}, "
         f"{out / layout.STAGE_DIR}/",
     ]
+    report = summary.render
+    if report is not None and (report.executor != "local" or report.retries or len(report.nodes) > 1):
+        from usdscene.render.driver import node_summary_lines
+
+        lines.append(f"  render:  executor {report.executor}, {report.retries} shard retries")
+        lines.extend("  " + line for line in node_summary_lines(report))
     for fmt, folder in summary.exports.items():
         lines.append(f"  {fmt}:    {folder}")
     lines.append(f"  next:    usdscene stats {out}    (counts, visibility histogram and a chart)")

@@ -84,14 +84,3 @@ def executor_for(args: argparse.Namespace):
         raise RenderError(problems)
     return make_executor(args.executor, workers=args.workers, ray_address=args.ray_address,
                          task_cpus=args.task_cpus)
-
-
-def node_summary_lines(report) -> list[str]:
-    """One line per node of a :class:`~usdscene.render.driver.RenderReport`: images, shards,
-    mean render seconds per image."""
-    lines = []
-    for node, row in sorted(report.nodes.items()):
-        per_image = row["render_s"] / row["images"] if row["images"] else 0.0
-        lines.append(f"  {node}: {int(row['images'])} images in {int(row['shards'])} shards, "
-                     f"{per_image:.2f} s/image render")
-    return lines

@@ -31,10 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene.commands._arguments import executor_for, node_summary_lines, parse_frames
+    from usdscene.commands._arguments import executor_for, parse_frames
     from usdscene.errors import Problem, RenderError
     from usdscene.pipeline import stage_for_input
-    from usdscene.render.driver import render
+    from usdscene.render.driver import node_summary_lines, render
 
     try:
         frames = parse_frames(args.frames)

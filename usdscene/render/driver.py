@@ -89,6 +89,17 @@ class RenderReport:
     nodes: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
 
 
+def node_summary_lines(report) -> list[str]:
+    """One line per node of a :class:`~usdscene.render.driver.RenderReport`: images, shards,
+    mean render seconds per image."""
+    lines = []
+    for node, row in sorted(report.nodes.items()):
+        per_image = row["render_s"] / row["images"] if row["images"] else 0.0
+        lines.append(f"  {node}: {int(row['images'])} images in {int(row['shards'])} shards, "
+                     f"{per_image:.2f} s/image render")
+    return lines
+
+
 def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[str, Any] | None) -> dict:
     """Render settings as the worker's JSON dict: ``base`` updated by ``override`` (a whole
     RenderSettings, or a mapping of RenderSettings fields and the extra knob
@@ -174,7 +185,9 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
             split between them), or for Ray an upper bound on tasks in flight (default: what
             the cluster holds). Used only when ``executor`` is a name; an executor object
             carries its own.
-        on_event: called with every progress event of the workers (dicts), in the parent.
+        on_event: called with every progress event of the workers (dicts), in the parent, one
+            at a time; a ``done`` event (its image and mask are written) before the image is
+            recorded as finished in the manifest.
         executor: ``"local"``, ``"ray"`` (a local Ray runtime) or an executor object from
             :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
         retries: how many times a shard whose worker died (a signal such as the OOM killer's
@@ -245,6 +258,10 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                 node = nodes.setdefault(str(event.get("node", "local")),
                                         {"images": 0, "render_s": 0.0, "shards": 0})
                 if event.get("event") == "done":
+                    if on_event is not None:
+                        # Before the image counts as finished: what the caller does with it
+                        # (e.g. labels) exists for every image the manifest lists.
+                        on_event(event)
                     manifest.mark_done(int(event["frame"]), event["camera"],
                                        {k: event[k] for k in ("render_s", "post_s") if k in event})
                     manifest.save()
@@ -266,7 +283,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                     totals["worker_cpu_s"] += event.get("process_cpu_s", 0.0)
                 elif event.get("event") == "warning":
                     log.warning("%s", event.get("message"))
-                if on_event is not None:
+                if on_event is not None and event.get("event") != "done":
                     on_event(event)
 
         try:
