@@ -217,18 +217,24 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
     looks = f"{root.GetPath()}/{stage_schema.ASSET_LOOKS}"
     UsdGeom.Scope.Define(stage, looks)
     UsdGeom.Xform.Define(stage, f"{root.GetPath()}/Geom")
-    all_points = []
+    all_points, flat = [], []
     for index, (color, group) in enumerate(groups):
         mesh = trimesh.util.concatenate(group) if len(group) > 1 else group[0]
+        if options.kind == "environment":
+            # Scenery is walls, pillars and kerbs: hard edges. Shared corner vertices would
+            # smooth a box into a cylinder, so every face gets its own vertices (flat normals).
+            mesh = trimesh.Trimesh(mesh.vertices[mesh.faces].reshape(-1, 3),
+                                   np.arange(3 * len(mesh.faces)).reshape(-1, 3), process=False)
         points = _normalised_points(mesh.vertices, rotation, scale, "environment")
         all_points.append(points)
+        flat.append(mesh)
     lo_all = np.min([p.min(axis=0) for p in all_points], axis=0)
     hi_all = np.max([p.max(axis=0) for p in all_points], axis=0)
     offset = np.zeros(3)
     if options.kind == "object":
         offset = -np.array([(lo_all[0] + hi_all[0]) / 2, (lo_all[1] + hi_all[1]) / 2, lo_all[2]])
     for index, ((color, group), points) in enumerate(zip(groups, all_points)):
-        mesh = trimesh.util.concatenate(group) if len(group) > 1 else group[0]
+        mesh = flat[index]
         points = points + offset
         faces = np.asarray(mesh.faces, dtype=np.int32)
         data = MeshData(points, vertex_normals(points, faces), np.full(len(faces), 3, dtype=np.int32),
