@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Iterable, Mapping
+from typing import Iterable
 
 import numpy as np
 
@@ -187,15 +187,3 @@ def places_from_boxes(boxes: Iterable[PlaceBox], up_axis: str, unit_scale_m: flo
     authored = dict(sorted(authored.items()))
     return authored, places_for_catalog(authored)
 
-
-def merge_places(base: Mapping[str, Place], extra: Mapping[str, Place]) -> dict[str, Place]:
-    """``base`` places with ``extra`` ones added (an extra region replaces a base one of the
-    same place and relation)."""
-    out = dict(base)
-    for name, place in extra.items():
-        if name in out:
-            out[name] = Place(name=name, kind=out[name].kind or place.kind,
-                              regions={**out[name].regions, **place.regions})
-        else:
-            out[name] = place
-    return dict(sorted(out.items()))
