@@ -21,9 +21,9 @@ import json
 import logging
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -117,21 +117,46 @@ def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: Imp
     return resolved, data
 
 
-def _load_mesh(path: Path):
-    """The file's geometry as one trimesh.Trimesh (scene transforms applied)."""
+def _load_parts(path: Path, discover_places: bool) -> tuple[list, list]:
+    """The file's geometry as (node name, trimesh.Trimesh in file-world coordinates) parts,
+    and its place boxes (:class:`usdscene.place_discovery.PlaceBox`) when ``discover_places``
+    (their geometry is then not part of the asset)."""
     import trimesh
 
+    from usdscene.place_discovery import EMPTY_BOUNDS, PlaceBox, parse_place_name
+
+    fmt = MESH_FORMATS[path.suffix.lower()]
+    # OBJ objects (``o``) are nodes of their own only when split; other formats keep nodes.
+    extra = {"split_objects": True, "group_material": False} if fmt == "obj" else {}
     try:
-        loaded = trimesh.load(str(path), file_type=MESH_FORMATS[path.suffix.lower()], force="scene")
+        loaded = trimesh.load(str(path), file_type=fmt, force="scene", **extra)
     except Exception as exc:  # trimesh raises many types for corrupt files
         raise AssetError(f"cannot read mesh file: {type(exc).__name__}: {exc}", where=str(path)) from exc
-    meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces) > 0]
-    if not meshes:
+    parts, boxes = [], []
+    graph = loaded.graph
+    for node in sorted(graph.nodes, key=str):
+        if node == graph.base_frame:
+            continue
+        matrix, geom_name = graph[node]
+        geom = loaded.geometry.get(geom_name) if geom_name is not None else None
+        # OBJ objects become geometries named after the object under a generated node name.
+        label = str(geom_name) if fmt == "obj" and geom_name is not None else str(node)
+        named = parse_place_name(label, where=f"{path}:{label}") if discover_places else None
+        if named is not None:
+            if isinstance(geom, trimesh.Trimesh) and len(geom.vertices):
+                lo, hi = geom.vertices.min(axis=0), geom.vertices.max(axis=0)
+            else:
+                lo, hi = EMPTY_BOUNDS
+            boxes.append(PlaceBox(node=label, place=named[0], region=named[1], matrix=np.asarray(matrix),
+                                  local_min=np.asarray(lo, float), local_max=np.asarray(hi, float)))
+        elif isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0:
+            parts.append((label, geom.copy().apply_transform(matrix)))
+    if not parts:
         raise AssetError("the file holds no triangle mesh (empty or unreadable geometry)", where=str(path))
-    mesh = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise AssetError("the mesh has non-finite vertex coordinates", where=str(path))
-    return mesh
+    for label, mesh in parts:
+        if not np.all(np.isfinite(mesh.vertices)):
+            raise AssetError("the mesh has non-finite vertex coordinates", where=f"{path}:{label}")
+    return parts, boxes
 
 
 def _main_color(mesh) -> tuple[float, float, float]:
@@ -165,42 +190,157 @@ def _normalised_points(points: np.ndarray, rotation: np.ndarray, scale: float, k
     return pts
 
 
-def _write_mesh_asset(mesh, class_name: str, options: ImportOptions, up_axis: str, scale: float,
-                      target: Path) -> tuple[np.ndarray, np.ndarray]:
+def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_axis: str, scale: float,
+                      target: Path, places: Mapping | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Write the converted asset; an object is one recolourable mesh, an environment keeps one
+    mesh per colour of the file (floor, markings, walls) and gets its ``Places``."""
+    import trimesh
     from pxr import Kind, UsdGeom
 
     from usdscene import stage_schema
     from usdscene.assetgen.mesh import MeshData
-    from usdscene.assetgen.usd_write import (MaterialSpec, define_material, define_mesh, in_variant,
-                                             new_asset_stage, set_material_color)
+    from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
+                                             in_variant, new_asset_stage, set_material_color)
 
     rotation = up_axis_rotation(up_axis)
-    points = _normalised_points(mesh.vertices, rotation, scale, options.kind)
-    faces = np.asarray(mesh.faces, dtype=np.int32)
-    normals = vertex_normals(points, faces)
-    data = MeshData(points, normals, np.full(len(faces), 3, dtype=np.int32), faces.reshape(-1))
+    meshes = [mesh for _, mesh in parts]
+    if options.kind == "environment":
+        by_color: dict[tuple[float, float, float], list] = {}
+        for mesh in meshes:
+            by_color.setdefault(_main_color(mesh), []).append(mesh)
+        groups = sorted(by_color.items())
+    else:
+        whole = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
+        groups = [(_main_color(whole), [whole])]
     usd_kind = Kind.Tokens.assembly if options.kind == "environment" else Kind.Tokens.component
     stage, root = new_asset_stage(stage_schema.prim_name(class_name), usd_kind)
     looks = f"{root.GetPath()}/{stage_schema.ASSET_LOOKS}"
     UsdGeom.Scope.Define(stage, looks)
-    color = _main_color(mesh)
-    material = define_material(stage, f"{looks}/{stage_schema.ASSET_MAIN_MATERIAL}",
-                               MaterialSpec(color), color_from_variants=True)
     UsdGeom.Xform.Define(stage, f"{root.GetPath()}/Geom")
-    define_mesh(stage, f"{root.GetPath()}/Geom/Mesh", data, material)
+    all_points, flat = [], []
+    for index, (color, group) in enumerate(groups):
+        mesh = trimesh.util.concatenate(group) if len(group) > 1 else group[0]
+        if options.kind == "environment":
+            # Scenery is walls, pillars and kerbs: hard edges. Shared corner vertices would
+            # smooth a box into a cylinder, so every face gets its own vertices (flat normals).
+            mesh = trimesh.Trimesh(mesh.vertices[mesh.faces].reshape(-1, 3),
+                                   np.arange(3 * len(mesh.faces)).reshape(-1, 3), process=False)
+        points = _normalised_points(mesh.vertices, rotation, scale, "environment")
+        all_points.append(points)
+        flat.append(mesh)
+    lo_all = np.min([p.min(axis=0) for p in all_points], axis=0)
+    hi_all = np.max([p.max(axis=0) for p in all_points], axis=0)
+    offset = np.zeros(3)
+    if options.kind == "object":
+        offset = -np.array([(lo_all[0] + hi_all[0]) / 2, (lo_all[1] + hi_all[1]) / 2, lo_all[2]])
+    for index, ((color, group), points) in enumerate(zip(groups, all_points)):
+        mesh = flat[index]
+        points = points + offset
+        faces = np.asarray(mesh.faces, dtype=np.int32)
+        data = MeshData(points, vertex_normals(points, faces), np.full(len(faces), 3, dtype=np.int32),
+                        faces.reshape(-1))
+        # The first (for objects: only) material is the recolourable "Body".
+        name = stage_schema.ASSET_MAIN_MATERIAL if index == 0 else f"Surface_{index:02d}"
+        material = define_material(stage, f"{looks}/{name}", MaterialSpec(color), color_from_variants=index == 0)
+        define_mesh(stage, f"{root.GetPath()}/Geom/{'Mesh' if index == 0 else f'Mesh_{index:02d}'}", data, material)
     with in_variant(root, stage_schema.VARIANT_SET_APPEARANCE, "original"):
-        set_material_color(stage, f"{looks}/{stage_schema.ASSET_MAIN_MATERIAL}", color)
+        set_material_color(stage, f"{looks}/{stage_schema.ASSET_MAIN_MATERIAL}", groups[0][0])
+    if places:
+        author_places(stage, str(root.GetPath()), places)
     text = stage.GetRootLayer().ExportToString()
     write_text_atomic(target, text)
-    rounded = np.round(points, 4)
-    return rounded.min(axis=0), rounded.max(axis=0)
+    return np.round(lo_all + offset, 4), np.round(hi_all + offset, 4)
 
 
-def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class _Written:
+    """What writing an asset produced: bounds (metres, asset frame), places, variants."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    places: Mapping = field(default_factory=dict)
+    variants: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    default_variants: Mapping[str, str] = field(default_factory=dict)
+
+
+MAX_LIFTED_VARIANTS = 512
+"""Most combinations of a USD file's variant sets that become ``appearance`` variants."""
+
+
+def _usd_place_boxes(stage, default, source: Path) -> list:
+    """Place boxes under the default prim of a USD file (file units, matrices relative to the
+    default prim's parent, which is what a reference brings in)."""
+    from pxr import Usd, UsdGeom
+
+    from usdscene.place_discovery import EMPTY_BOUNDS, PLACE_PROPERTY, PlaceBox, parse_place_name
+
+    xforms = UsdGeom.XformCache()
+    bboxes = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render,
+                                                         UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide],
+                               useExtentsHint=False)
+    parent = np.array(xforms.GetLocalToWorldTransform(default.GetParent())).T if default.GetParent() else np.eye(4)
+    boxes = []
+    prims = iter(Usd.PrimRange(default))
+    for prim in prims:
+        value = None
+        for attr_name in (f"userProperties:{PLACE_PROPERTY}", "usdscene:place"):
+            attr = prim.GetAttribute(attr_name)
+            if attr and attr.HasAuthoredValue():
+                value = attr.Get()
+        named = parse_place_name(prim.GetName(), value, where=f"{source}:{prim.GetPath()}")
+        if named is None:
+            continue
+        prims.PruneChildren()  # a box's own children belong to the box
+        box = bboxes.ComputeUntransformedBound(prim).ComputeAlignedRange()
+        if box.IsEmpty():
+            lo, hi = EMPTY_BOUNDS
+        else:
+            lo, hi = np.array(box.GetMin(), float), np.array(box.GetMax(), float)
+        world = np.linalg.inv(parent) @ np.array(xforms.GetLocalToWorldTransform(prim)).T
+        boxes.append(PlaceBox(node=str(prim.GetPath()), place=named[0], region=named[1], matrix=world,
+                              local_min=lo, local_max=hi))
+    return boxes
+
+
+def _lift_variants(src_default, root, holder, source: Path) -> tuple[dict, dict]:
+    """Expose the variant sets of the file's default prim as the asset's ``appearance`` set.
+
+    A reference keeps the file's variant sets on the referencing child, where a document cannot
+    reach them; the asset root gets one ``appearance`` variant per combination (one set: its
+    variant names; several: names joined by ``-`` in the sets' order) that selects it on the
+    child, so ``appearance`` and ``random_appearance`` work as for the library's assets.
+    """
+    import itertools
+
+    from usdscene import stage_schema
+    from usdscene.assetgen.usd_write import in_variant
+
+    sets = src_default.GetVariantSets()
+    names = [n for n in sets.GetNames() if sets.GetVariantSet(n).GetVariantNames()]
+    if not names:
+        return {}, {}
+    choices = [tuple(sets.GetVariantSet(n).GetVariantNames()) for n in names]
+    combos = list(itertools.product(*choices))
+    if len(combos) > MAX_LIFTED_VARIANTS:
+        raise AssetError(f"the default prim's variant sets {names} make {len(combos)} combinations "
+                         f"(at most {MAX_LIFTED_VARIANTS} become appearance variants)", where=str(source))
+    current = tuple(sets.GetVariantSet(n).GetVariantSelection() or c[0] for n, c in zip(names, choices))
+    label = {combo: "-".join(combo) for combo in combos}
+    for combo in combos:
+        with in_variant(root, stage_schema.VARIANT_SET_APPEARANCE, label[combo]):
+            for set_name, value in zip(names, combo):
+                holder.GetVariantSets().SetSelection(set_name, value)
+    root.GetVariantSets().GetVariantSet(stage_schema.VARIANT_SET_APPEARANCE).SetVariantSelection(label[current])
+    variants = {stage_schema.VARIANT_SET_APPEARANCE: tuple(label[c] for c in combos)}
+    return variants, {stage_schema.VARIANT_SET_APPEARANCE: label[current]}
+
+
+def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path) -> _Written:
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom
 
     from usdscene import stage_schema
-    from usdscene.assetgen.usd_write import bounds_of_stage, new_asset_stage
+    from usdscene.assetgen.usd_write import author_places, bounds_of_stage, new_asset_stage
+    from usdscene.place_discovery import places_from_boxes
 
     try:
         src_stage = Usd.Stage.Open(str(source))
@@ -213,12 +353,19 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
         raise AssetError("the USD file has no defaultPrim; set one so it can be referenced", where=str(source))
     up_axis = options.up_axis or str(UsdGeom.GetStageUpAxis(src_stage))
     scale = options.unit_scale_m if options.unit_scale_m is not None else float(UsdGeom.GetStageMetersPerUnit(src_stage))
+    boxes = _usd_place_boxes(src_stage, default, source) if options.kind == "environment" else []
+    authored, places = places_from_boxes(boxes, up_axis, scale, source=str(source))
     usd_kind = Kind.Tokens.assembly if options.kind == "environment" else Kind.Tokens.component
     stage, root = new_asset_stage(stage_schema.prim_name(class_name), usd_kind)
     holder = UsdGeom.Xform.Define(stage, f"{root.GetPath()}/Source")
     # Bounds are computed with an absolute reference (an in-memory layer has no folder to
     # resolve against); the written file then gets the path relative to its own folder.
     holder.GetPrim().GetReferences().AddReference(Sdf.Reference(str(source)))
+    # Place boxes are annotations of the modeller, not scenery: hidden from renders and bounds.
+    for box in boxes:
+        relative = Sdf.Path(box.node).MakeRelativePath(default.GetPath())
+        stage.OverridePrim(holder.GetPath().AppendPath(relative)).SetActive(False)
+    variants, defaults = _lift_variants(default, root, holder.GetPrim(), source)
     m = np.eye(4)
     m[:3, :3] = up_axis_rotation(up_axis) * scale
     op = holder.AddTransformOp()
@@ -231,6 +378,8 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
         m[:3, 3] = offset
         op.Set(Gf.Matrix4d(m.T.tolist()))
         lo, hi = lo + offset, hi + offset
+    if authored:
+        author_places(stage, str(root.GetPath()), authored)
     # Swap in the relative reference on a detached copy of the layer (no stage recomposes
     # it, so nothing tries to resolve the relative path from an in-memory layer).
     layer = Sdf.Layer.CreateAnonymous(".usda")
@@ -238,7 +387,7 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
     relative = os.path.relpath(source, target.parent).replace(os.sep, "/")
     layer.GetPrimAtPath(holder.GetPath()).referenceList.prependedItems = [Sdf.Reference(relative)]
     write_text_atomic(target, layer.ExportToString())
-    return np.round(lo, 4), np.round(hi, 4)
+    return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults)
 
 
 def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | os.PathLike,
@@ -268,26 +417,34 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
                                    options, roots)
     target = catalog / IMPORTED_FOLDER / f"{class_name}.usda"
     suffix = resolved.suffix.lower()
-    if suffix in MESH_FORMATS:
-        mesh = _load_mesh(resolved)
-        up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[suffix]]
-        lo, hi = _write_mesh_asset(mesh, class_name, options, up_axis,
-                                   options.unit_scale_m if options.unit_scale_m is not None else 1.0, target)
-        fmt = MESH_FORMATS[suffix].upper()
-    else:
-        lo, hi = _write_usd_wrapper(resolved, class_name, options, target)
-        fmt = "USD"
     from usdscene import stage_schema
 
-    variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)} if suffix in MESH_FORMATS else {}
+    if suffix in MESH_FORMATS:
+        from usdscene.place_discovery import places_from_boxes
+
+        parts, boxes = _load_parts(resolved, discover_places=options.kind == "environment")
+        up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[suffix]]
+        scale = options.unit_scale_m if options.unit_scale_m is not None else 1.0
+        authored, places = places_from_boxes(boxes, up_axis, scale, source=str(resolved))
+        lo, hi = _write_mesh_asset(parts, class_name, options, up_axis, scale, target, authored)
+        variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)}
+        written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()})
+        fmt = MESH_FORMATS[suffix].upper()
+    else:
+        written = _write_usd_wrapper(resolved, class_name, options, target)
+        fmt = "USD"
+    if options.kind == "environment":
+        log.info("%s: %d places found (%s)", resolved.name, len(written.places),
+                 ", ".join(sorted(written.places)[:8]) + (" ..." if len(written.places) > 8 else ""))
     entry = AssetEntry(
         class_name=class_name, kind=options.kind, usd_path=target,
         description=options.description or f"Imported from {resolved.name} ({fmt}).",
-        variants=variants,
-        default_variants={k: v[0] for k, v in variants.items()},
-        extent_min_m=tuple(float(v) + 0.0 for v in lo),  # type: ignore[arg-type]
-        extent_max_m=tuple(float(v) + 0.0 for v in hi),  # type: ignore[arg-type]
-        relations=DEFAULT_RELATIONS[options.kind])
+        variants=written.variants,
+        default_variants=dict(written.default_variants),
+        extent_min_m=tuple(float(v) + 0.0 for v in written.lo),  # type: ignore[arg-type]
+        extent_max_m=tuple(float(v) + 0.0 for v in written.hi),  # type: ignore[arg-type]
+        relations=DEFAULT_RELATIONS[options.kind],
+        places=written.places)
     register_entry(catalog, entry, data)
     log.info("registered %s (%s) in %s", class_name, fmt, catalog)
     return entry

@@ -249,6 +249,14 @@ def entry_to_json(entry: AssetEntry, folder: Path) -> dict:
     return out
 
 
+def places_for_catalog(places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]]]) -> dict[str, Place]:
+    """The catalog form of authored places (place name → (kind, region prim name → region)):
+    regions keyed by relation name."""
+    return {name: Place(name=name, kind=kind,
+                        regions={region.relation: region for _, region in sorted(regions.items())})
+            for name, (kind, regions) in places.items()}
+
+
 def place_items(places: Mapping[str, Place]) -> list[tuple[str, Place]]:
     """Places sorted by name (stable output order)."""
     return sorted(places.items())

@@ -36,9 +36,9 @@ from pxr import Kind, Sdf, Usd, UsdGeom
 
 from usdscene import stage_schema
 from usdscene.assetgen import mesh as m
-from usdscene.assetgen.usd_write import (MaterialSpec, define_material, define_mesh, in_variant,
-                                         new_asset_stage, set_transform, set_translate)
-from usdscene.catalog import REGION_RELATIONS, Place, PlaceRegion
+from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
+                                         in_variant, new_asset_stage, set_transform, set_translate)
+from usdscene.catalog import REGION_RELATIONS, Place, PlaceRegion, places_for_catalog
 from usdscene.model import Pose
 
 SEAT_LETTERS = "ABCDEF"
@@ -384,28 +384,6 @@ def cabin_places(config: CabinConfig) -> dict[str, tuple[str, dict[str, PlaceReg
     return dict(sorted(places.items()))
 
 
-def _author_places(stage: Usd.Stage, root: str, places: dict[str, tuple[str, dict[str, PlaceRegion]]]) -> None:
-    scope = UsdGeom.Scope.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}")
-    # Places are annotations, not scenery: purpose "guide" keeps them out of renders and out
-    # of Blender's import (its importer skips guides by default), while pxr still reads them.
-    scope.CreatePurposeAttr(UsdGeom.Tokens.guide)
-    for name, (kind, regions) in places.items():
-        place = UsdGeom.Xform.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}/{name}").GetPrim()
-        place.CreateAttribute(stage_schema.ATTR_PLACE_KIND, Sdf.ValueTypeNames.Token).Set(kind)
-        for region_name, region in sorted(regions.items()):
-            prim = UsdGeom.Xform.Define(stage, f"{place.GetPath()}/{region_name}").GetPrim()
-            set_transform(prim, region.pose.as_array())
-            prim.CreateAttribute(stage_schema.ATTR_PLACE_RELATION, Sdf.ValueTypeNames.Token).Set(region.relation)
-            prim.CreateAttribute(stage_schema.ATTR_PLACE_SIZE, Sdf.ValueTypeNames.Double3).Set(tuple(region.size_m))
-
-
-def places_for_catalog(places: dict[str, tuple[str, dict[str, PlaceRegion]]]) -> dict[str, Place]:
-    """The catalog form: regions keyed by relation name."""
-    return {name: Place(name=name, kind=kind,
-                        regions={region.relation: region for _, region in sorted(regions.items())})
-            for name, (kind, regions) in places.items()}
-
-
 # --- the asset --------------------------------------------------------------------------------
 
 def build_cabin(config: CabinConfig = CabinConfig()) -> tuple[Usd.Stage, dict[str, Place]]:
@@ -463,7 +441,7 @@ def build_cabin(config: CabinConfig = CabinConfig()) -> tuple[Usd.Stage, dict[st
             set_translate(seat, (row_front_x(config, r), seat_y(config, letter), 0.0))
 
     places = cabin_places(config)
-    _author_places(stage, root, places)
+    author_places(stage, root, places)
     return stage, places_for_catalog(places)
 
 

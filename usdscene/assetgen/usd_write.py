@@ -19,6 +19,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from usdscene import stage_schema
 from usdscene.assetgen.mesh import MeshData
+from usdscene.catalog import PlaceRegion
 from usdscene.files import write_text_atomic
 
 # Vertex positions are rounded to a tenth of a millimetre: invisible, and it keeps the text
@@ -156,6 +157,29 @@ def add_variant_names(prim: Usd.Prim, set_name: str, names: Sequence[str], defau
     for name in names:
         vset.AddVariant(name)
     vset.SetVariantSelection(default)
+
+
+def author_places(stage: Usd.Stage, root: str, places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]]]) -> None:
+    """Author an environment's places as ``<root>/Places/<place>/<region>`` Xforms.
+
+    Args:
+        stage: the asset stage.
+        root: path of the asset's default prim.
+        places: place name → (kind, region prim name (``on``, ``below``, ...) → region whose
+            pose is in the asset frame).
+    """
+    scope = UsdGeom.Scope.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}")
+    # Places are annotations, not scenery: purpose "guide" keeps them out of renders and out
+    # of Blender's import (its importer skips guides by default), while pxr still reads them.
+    scope.CreatePurposeAttr(UsdGeom.Tokens.guide)
+    for name, (kind, regions) in places.items():
+        place = UsdGeom.Xform.Define(stage, f"{root}/{stage_schema.ASSET_PLACES}/{name}").GetPrim()
+        place.CreateAttribute(stage_schema.ATTR_PLACE_KIND, Sdf.ValueTypeNames.Token).Set(kind)
+        for region_name, region in sorted(regions.items()):
+            prim = UsdGeom.Xform.Define(stage, f"{place.GetPath()}/{region_name}").GetPrim()
+            set_transform(prim, region.pose.as_array())
+            prim.CreateAttribute(stage_schema.ATTR_PLACE_RELATION, Sdf.ValueTypeNames.Token).Set(region.relation)
+            prim.CreateAttribute(stage_schema.ATTR_PLACE_SIZE, Sdf.ValueTypeNames.Double3).Set(tuple(region.size_m))
 
 
 def save_stage(stage: Usd.Stage, path: Path) -> Path:

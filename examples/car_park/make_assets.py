@@ -1,0 +1,244 @@
+"""Stand-in for the modelling tool: writes the car park's source files as a DCC tool would.
+
+    python examples/car_park/make_assets.py        # writes examples/car_park/source/
+
+* ``source/car_park.glb``: the environment, Y up and metres as glTF exporters write it. Places
+  are boxes named ``place.<place>.<region>``, exactly what a modeller adds in Blender:
+  ``place.bay_A3.on`` (a parking bay), ``place.lane_A3.on`` (the driving lane in front of it),
+  ``place.walkway_A3.on`` (the footpath behind it).
+* ``source/vehicle.usda``: a vehicle, Y up and in centimetres (as many DCC exports are), with
+  the variant sets ``model`` (sedan, hatchback, van) and ``paint`` (five colours).
+* ``source/pedestrian.usda``: a standing person, Z up, metres, variant set ``appearance``.
+
+Nothing here is usdscene-specific except the place names: the files then go through
+``usdscene assets add`` like any file from Blender, Maya or Houdini (see README.md).
+Deterministic: the same script writes the same bytes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+HERE = Path(__file__).resolve().parent
+
+# Layout in Z-up metres (converted to Y up when the GLB is written).
+BAY_X_M = (-5.2, -2.6, 0.0, 2.6, 5.2)   # bay centres along x, two rows
+BAY_SIZE_M = (2.4, 5.0)                 # usable width x length of a bay
+ROW_Y_M = {"A": 5.5, "B": -5.5}         # bay centres along y (row A north, row B south)
+ROOF_Y_M = (-11.0, 0.5)                 # the roof deck covers the south half: the north is open sky
+ROOF_Z_M = 3.2
+CONCRETE = (150, 150, 148)
+PAINT_WHITE = (235, 235, 228)
+PAINT_YELLOW = (225, 185, 40)
+WALL = (185, 178, 165)
+KERB = (120, 120, 118)
+
+Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0], [0, 0, 0, 1.0]])
+
+
+def _box(size_m, centre_m, colour) -> trimesh.Trimesh:
+    box = trimesh.creation.box(extents=size_m)
+    box.apply_translation(centre_m)
+    box.visual.face_colors = [*colour, 255]
+    return box
+
+
+def environment_parts() -> tuple[list[tuple[str, trimesh.Trimesh]], list[tuple[str, tuple, tuple]]]:
+    """(scenery, place boxes) in Z-up metres: (name, mesh) and (name, size, bottom centre)."""
+    parts = [("floor", _box((34.0, 24.0, 0.2), (0.0, 0.0, -0.1), CONCRETE)),
+             ("roof", _box((34.0, ROOF_Y_M[1] - ROOF_Y_M[0], 0.3),
+                           (0.0, sum(ROOF_Y_M) / 2, ROOF_Z_M + 0.15), CONCRETE)),
+             ("wall_south", _box((34.0, 0.3, ROOF_Z_M), (0.0, -12.0, ROOF_Z_M / 2), WALL)),
+             ("wall_west", _box((0.3, 24.0, ROOF_Z_M), (-17.0, 0.0, ROOF_Z_M / 2), WALL)),
+             ("parapet_north", _box((34.0, 0.3, 1.1), (0.0, 12.0, 0.55), WALL))]
+    for i, x in enumerate((-9.1, -3.9, 3.9, 9.1)):
+        parts.append((f"pillar_{i}", _box((0.5, 0.5, ROOF_Z_M), (x, -8.6, ROOF_Z_M / 2), CONCRETE)))
+        parts.append((f"pillar_{i}_n", _box((0.5, 0.5, ROOF_Z_M), (x, 0.25, ROOF_Z_M / 2), CONCRETE)))
+    places = []
+    for row, y in ROW_Y_M.items():
+        inward = -np.sign(y)  # towards the lane
+        edges = [x - 1.3 for x in BAY_X_M] + [BAY_X_M[-1] + 1.3]
+        for j, x in enumerate(edges):
+            parts.append((f"line_{row}{j}", _box((0.12, BAY_SIZE_M[1], 0.01), (x, y, 0.005), PAINT_WHITE)))
+        parts.append((f"kerb_{row}", _box((34.0, 0.25, 0.15), (0.0, y - inward * 2.9, 0.075), KERB)))
+        for k, x in enumerate(BAY_X_M, start=1):
+            name = f"{row}{k}"
+            places.append((f"place.bay_{name}.on", (*BAY_SIZE_M, 2.2), (x, y, 0.0)))
+            places.append((f"place.lane_{name}.on", (2.4, 1.6, 2.2), (x, y + inward * 3.4, 0.0)))
+            places.append((f"place.walkway_{name}.on", (2.4, 1.4, 2.2), (x, y - inward * 3.9, 0.15)))
+    for k in range(-6, 7):
+        parts.append((f"lane_mark_{k}", _box((1.2, 0.12, 0.01), (2.6 * k, 0.0, 0.005), PAINT_YELLOW)))
+    parts.append(("walkway_A", _box((34.0, 2.5, 0.15), (0.0, 9.8, 0.075), KERB)))
+    parts.append(("walkway_B", _box((34.0, 2.5, 0.15), (0.0, -9.8, 0.075), KERB)))
+    return parts, places
+
+
+def write_environment(path: Path) -> Path:
+    """The car park as a Y-up glTF binary with its place boxes."""
+    parts, places = environment_parts()
+    scene = trimesh.Scene()
+    for name, mesh in parts:
+        scene.add_geometry(mesh.copy().apply_transform(Z_UP_TO_Y_UP), node_name=name, geom_name=name)
+    for name, size, bottom in places:
+        box = trimesh.creation.box(extents=size)
+        box.apply_transform(Z_UP_TO_Y_UP)  # the box's local frame is Y up too
+        placed = np.eye(4)
+        placed[:3, 3] = (bottom[0], bottom[1], bottom[2] + size[2] / 2)
+        scene.add_geometry(box, node_name=name, geom_name=name,
+                           transform=Z_UP_TO_Y_UP @ placed @ Z_UP_TO_Y_UP.T)
+    path.write_bytes(scene.export(file_type="glb"))
+    return path
+
+
+# --- objects, written with pxr as a DCC's USD exporter would -------------------------------
+
+VEHICLE_MODELS_CM = {  # length, body height, width, cabin length, cabin height
+    "sedan": (460.0, 60.0, 180.0, 250.0, 45.0),
+    "hatchback": (400.0, 65.0, 175.0, 220.0, 55.0),
+    "van": (500.0, 95.0, 195.0, 380.0, 80.0),
+}
+PAINTS = {"red": (0.55, 0.04, 0.03), "blue": (0.04, 0.10, 0.45), "silver": (0.55, 0.56, 0.58),
+          "black": (0.02, 0.02, 0.025), "white": (0.80, 0.80, 0.78)}
+OUTFITS = {  # jacket, trousers, skin
+    "grey_coat": ((0.25, 0.25, 0.27), (0.05, 0.05, 0.08), (0.72, 0.53, 0.42)),
+    "red_jacket": ((0.55, 0.06, 0.05), (0.12, 0.12, 0.20), (0.45, 0.30, 0.22)),
+    "yellow_vest": ((0.85, 0.70, 0.05), (0.10, 0.10, 0.12), (0.60, 0.42, 0.30)),
+    "blue_hoodie": ((0.06, 0.15, 0.45), (0.25, 0.22, 0.18), (0.30, 0.20, 0.14)),
+}
+
+
+def _material(stage, path: str, rgb, roughness: float = 0.5):
+    from pxr import Gf, Sdf, UsdShade
+
+    material = UsdShade.Material.Define(stage, path)
+    shader = UsdShade.Shader.Define(stage, f"{path}/Surface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    color = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+    if rgb is not None:
+        color.Set(Gf.Vec3f(*rgb))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(roughness)
+    material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return material, color
+
+
+def _mesh(stage, path: str, mesh: trimesh.Trimesh, material) -> None:
+    from pxr import UsdGeom, UsdShade, Vt
+
+    usd = UsdGeom.Mesh.Define(stage, path)
+    points = Vt.Vec3fArray.FromNumpy(np.round(mesh.vertices, 3).astype(np.float32))
+    usd.CreatePointsAttr(points)
+    usd.CreateFaceVertexCountsAttr([3] * len(mesh.faces))
+    usd.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(mesh.faces.reshape(-1).astype(np.int32)))
+    usd.CreateExtentAttr(UsdGeom.PointBased.ComputeExtent(points))
+    usd.CreateSubdivisionSchemeAttr("none")
+    UsdShade.MaterialBindingAPI.Apply(usd.GetPrim()).Bind(material)
+
+
+def _in_cm_y_up(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    return mesh.copy().apply_transform(Z_UP_TO_Y_UP)
+
+
+def write_vehicle(path: Path) -> Path:
+    """The vehicle: Y up, centimetres, variant sets ``model`` and ``paint``."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    root = UsdGeom.Xform.Define(stage, "/Vehicle").GetPrim()
+    stage.SetDefaultPrim(root)
+    paint, paint_color = _material(stage, "/Vehicle/Looks/Paint", None, roughness=0.25)
+    glass, _ = _material(stage, "/Vehicle/Looks/Glass", (0.03, 0.04, 0.05), roughness=0.05)
+    rubber, _ = _material(stage, "/Vehicle/Looks/Rubber", (0.015, 0.015, 0.015), roughness=0.9)
+    models = root.GetVariantSets().AddVariantSet("model")
+    for name, (length, body_h, width, cabin_l, cabin_h) in VEHICLE_MODELS_CM.items():
+        models.AddVariant(name)
+        models.SetVariantSelection(name)
+        with models.GetVariantEditContext():
+            clearance = 20.0  # body above the ground; wheels fill the gap
+            body = trimesh.creation.box(extents=(length, width, body_h))
+            body.apply_translation((0.0, 0.0, clearance + body_h / 2))
+            cabin = trimesh.creation.box(extents=(cabin_l, width - 16.0, cabin_h))
+            cabin.apply_translation((-0.08 * length if name != "van" else -0.04 * length, 0.0,
+                                     clearance + body_h + cabin_h / 2))
+            wheels = []
+            for sx in (-0.32, 0.32):
+                for sy in (-0.5, 0.5):
+                    wheel = trimesh.creation.cylinder(radius=32.0, height=22.0, sections=16)
+                    wheel.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))
+                    wheel.apply_translation((sx * length, sy * (width - 22.0), 32.0))
+                    wheels.append(wheel)
+            _mesh(stage, "/Vehicle/Body", _in_cm_y_up(body), paint)
+            _mesh(stage, "/Vehicle/Cabin", _in_cm_y_up(cabin), glass)
+            _mesh(stage, "/Vehicle/Wheels", _in_cm_y_up(trimesh.util.concatenate(wheels)), rubber)
+    models.SetVariantSelection("sedan")
+    paints = root.GetVariantSets().AddVariantSet("paint")
+    for name, rgb in PAINTS.items():
+        paints.AddVariant(name)
+        paints.SetVariantSelection(name)
+        with paints.GetVariantEditContext():
+            from pxr import Gf
+
+            paint_color.Set(Gf.Vec3f(*rgb))
+    paints.SetVariantSelection("silver")
+    path.write_text(stage.GetRootLayer().ExportToString())
+    return path
+
+
+def write_pedestrian(path: Path) -> Path:
+    """A standing adult, 1.75 m, facing -Y: Z up, metres, variant set ``appearance``."""
+    from pxr import Gf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    root = UsdGeom.Xform.Define(stage, "/Pedestrian").GetPrim()
+    stage.SetDefaultPrim(root)
+    jacket, jacket_color = _material(stage, "/Pedestrian/Looks/Jacket", None, roughness=0.8)
+    trousers, trousers_color = _material(stage, "/Pedestrian/Looks/Trousers", None, roughness=0.8)
+    skin, skin_color = _material(stage, "/Pedestrian/Looks/Skin", None, roughness=0.6)
+    legs = []
+    for side in (-0.1, 0.1):
+        leg = trimesh.creation.capsule(height=0.72, radius=0.075, count=[8, 8])
+        leg.apply_translation((side, 0.0, 0.075 + 0.36))
+        legs.append(leg)
+    torso = trimesh.creation.capsule(height=0.42, radius=0.19, count=[8, 10])
+    torso.apply_scale((1.0, 0.62, 1.0))
+    torso.apply_translation((0.0, 0.0, 1.12))
+    arms = []
+    for side in (-0.26, 0.26):
+        arm = trimesh.creation.capsule(height=0.52, radius=0.055, count=[6, 8])
+        arm.apply_translation((side, 0.0, 1.08))
+        arms.append(arm)
+    head = trimesh.creation.icosphere(subdivisions=2, radius=0.11)
+    head.apply_scale((0.9, 1.0, 1.15))
+    head.apply_translation((0.0, 0.0, 1.62))
+    _mesh(stage, "/Pedestrian/Legs", trimesh.util.concatenate(legs), trousers)
+    _mesh(stage, "/Pedestrian/Torso", trimesh.util.concatenate([torso, *arms]), jacket)
+    _mesh(stage, "/Pedestrian/Head", head, skin)
+    outfits = root.GetVariantSets().AddVariantSet("appearance")
+    for name, (top, bottom, face) in OUTFITS.items():
+        outfits.AddVariant(name)
+        outfits.SetVariantSelection(name)
+        with outfits.GetVariantEditContext():
+            jacket_color.Set(Gf.Vec3f(*top))
+            trousers_color.Set(Gf.Vec3f(*bottom))
+            skin_color.Set(Gf.Vec3f(*face))
+    outfits.SetVariantSelection("grey_coat")
+    path.write_text(stage.GetRootLayer().ExportToString())
+    return path
+
+
+def main() -> None:
+    out = HERE / "source"
+    out.mkdir(exist_ok=True)
+    for written in (write_environment(out / "car_park.glb"), write_vehicle(out / "vehicle.usda"),
+                    write_pedestrian(out / "pedestrian.usda")):
+        print(f"wrote {written.relative_to(HERE)} ({written.stat().st_size / 1024:.0f} KiB)")
+
+
+if __name__ == "__main__":
+    main()
