@@ -17,6 +17,7 @@ PURE_MODULES = [
     "usdscene.sequences",
     "usdscene.coverage",
     "usdscene.amodal",
+    "usdscene.place_discovery",
     "usdscene.projection",
     "usdscene.labels",
     "usdscene.validation",
