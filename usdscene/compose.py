@@ -76,7 +76,7 @@ from usdscene import __version__
 from usdscene import stage_schema as ss
 from usdscene.catalog import Catalog
 from usdscene.errors import CompositionError, ProblemCollector
-from usdscene.files import write_text_atomic
+from usdscene.files import make_folder, write_text_atomic
 from usdscene.layout import mask_ids
 from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
                             Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
@@ -156,8 +156,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     except ValueError as exc:
         raise CompositionError(str(exc), where="objects") from None
 
-    stage_dir = Path(out_dir).resolve()
-    stage_dir.mkdir(parents=True, exist_ok=True)
+    stage_dir = make_folder(Path(out_dir), what="stage folder").resolve()
     texts = {
         "render.usda": _render_layer(resolved),
         "cameras.usda": _cameras_layer(resolved),

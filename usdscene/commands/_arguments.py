@@ -45,3 +45,30 @@ def parse_frames(text: str | None) -> list[int] | None:
             raise ValueError(f"--frames {text!r}: end {end} is before start {start}")
         return list(range(start, end + 1))
     return [int(v) for v in text.split(",") if v.strip()]
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type of ``--seed``: a whole number >= 0 (numpy seeds are unsigned).
+
+    Raises:
+        argparse.ArgumentTypeError: naming the bad text (argparse exits 2 with it).
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is negative; a seed is a whole number >= 0")
+    return value
+
+
+def output_path(text: str) -> str:
+    """argparse type of output options (``-o``): any path but the empty one, which would
+    silently mean the current folder.
+
+    Raises:
+        argparse.ArgumentTypeError: for an empty or blank path (argparse exits 2 with it).
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is an empty path; name a file or folder")
+    return text
