@@ -196,12 +196,19 @@ def _write_mesh_asset(mesh, class_name: str, options: ImportOptions, up_axis: st
     return rounded.min(axis=0), rounded.max(axis=0)
 
 
-def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path) -> tuple[np.ndarray, np.ndarray]:
+def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path,
+                       roots: Sequence[Path]) -> tuple[np.ndarray, np.ndarray]:
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom
 
     from usdscene import stage_schema
     from usdscene.assetgen.usd_write import bounds_of_stage, new_asset_stage
+    from usdscene.containment import usd_dependency_problems
 
+    # Every sublayer, reference and payload stays inside the allowed folders, checked before
+    # the stage composes (and reads) them.
+    problems = usd_dependency_problems(source, [Path(r).resolve() for r in roots])
+    if problems:
+        raise AssetError(problems)
     try:
         src_stage = Usd.Stage.Open(str(source))
     except Exception as exc:  # pxr raises Tf.ErrorException for unreadable layers
@@ -262,7 +269,10 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
             options, or the class already exists (without ``replace``). Nothing is written.
     """
     catalog = Path(catalog_dir).resolve()
-    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None else (Path.cwd(), catalog))]
+    from usdscene.containment import consented_folders
+
+    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
+                               else (Path.cwd(), catalog, *consented_folders()))]
     src = Path(source)
     resolved, data = _check_inputs(src if src.is_absolute() else Path.cwd() / src, class_name, catalog,
                                    options, roots)
@@ -275,7 +285,7 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
                                    options.unit_scale_m if options.unit_scale_m is not None else 1.0, target)
         fmt = MESH_FORMATS[suffix].upper()
     else:
-        lo, hi = _write_usd_wrapper(resolved, class_name, options, target)
+        lo, hi = _write_usd_wrapper(resolved, class_name, options, target, roots)
         fmt = "USD"
     from usdscene import stage_schema
 

@@ -13,8 +13,10 @@ dependencies (pxr, bpy, cv2) inside ``run``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
+import os
 import pkgutil
 import signal
 import sys
@@ -48,6 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
     for module in _command_modules():
         cmd = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
         module.add_arguments(cmd)
+        cmd.add_argument("--asset-path", action="append", default=[], metavar="DIR",
+                         help="allow reading asset catalogs and USD files in DIR although it lies "
+                              "outside the document's folder and the working folder (repeatable; "
+                              "also $USDSCENE_ASSET_PATH)")
         cmd.set_defaults(_run=module.run)
     return parser
 
@@ -57,6 +63,25 @@ def report_error(error: UsdSceneError, stream=None) -> None:
     stream = stream if stream is not None else sys.stderr
     for problem in error.problems:
         print(f"{PROG}: error: {problem}", file=stream)
+
+
+@contextlib.contextmanager
+def _consented_asset_paths(folders: Sequence[str]):
+    """``--asset-path``: the folders join ``$USDSCENE_ASSET_PATH`` for this run (render worker
+    processes inherit it), and the variable is restored afterwards."""
+    from usdscene.containment import ASSET_PATH_ENV
+
+    before = os.environ.get(ASSET_PATH_ENV)
+    if folders:
+        absolute = [os.path.abspath(f) for f in folders]
+        os.environ[ASSET_PATH_ENV] = os.pathsep.join([*absolute, *([before] if before else [])])
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(ASSET_PATH_ENV, None)
+        else:
+            os.environ[ASSET_PATH_ENV] = before
 
 
 def _file_size_limit_as_error() -> None:
@@ -80,7 +105,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=level, format=f"{PROG}: %(levelname)s: %(message)s")
     _file_size_limit_as_error()
     try:
-        return int(args._run(args) or 0)
+        with _consented_asset_paths(args.asset_path):
+            return int(args._run(args) or 0)
     except UsdSceneError as exc:
         report_error(exc)
         return 1

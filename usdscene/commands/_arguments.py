@@ -64,11 +64,17 @@ def non_negative_int(text: str) -> int:
 
 def output_path(text: str) -> str:
     """argparse type of output options (``-o``): any path but the empty one, which would
-    silently mean the current folder.
+    silently mean the current folder, and the file-system root, which would scatter outputs
+    (``stage/``, ``images/``) over the top of the disk.
 
     Raises:
-        argparse.ArgumentTypeError: for an empty or blank path (argparse exits 2 with it).
+        argparse.ArgumentTypeError: for an empty or blank path or the root (argparse exits 2).
     """
+    import os
+
     if not text.strip():
         raise argparse.ArgumentTypeError(f"{text!r} is an empty path; name a file or folder")
+    resolved = os.path.realpath(text)
+    if os.path.dirname(resolved) == resolved:
+        raise argparse.ArgumentTypeError(f"{text!r} is the root of the file system; name a folder below it")
     return text
