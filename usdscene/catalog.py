@@ -28,6 +28,7 @@ object rests on a surface when its origin lies on it.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import dataclass, field
@@ -209,31 +210,51 @@ def _read_catalog_file(folder: Path, problems: ProblemCollector,
 
     path = folder / CATALOG_FILE
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        stat = path.stat()
+        parsed = _parsed_catalog(path, folder, stat.st_mtime_ns, stat.st_size)
     except FileNotFoundError:
         problems.add(str(path), "asset catalog not found (is this an asset folder?)")
         return {}
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         problems.add(str(path), f"cannot read asset catalog: {exc}")
         return {}
-    if not isinstance(data, dict) or not isinstance(data.get("classes"), dict):
-        problems.add(str(path), "expected an object with a 'classes' object")
+    if isinstance(parsed, str):
+        problems.add(str(path), parsed)
         return {}
     entries = {}
-    for name, raw in data["classes"].items():
+    for name, usd, entry in parsed:
         where = f"{path}:classes.{name}"
-        try:
-            entries[name] = _entry_from_json(name, raw, folder)
-        except (KeyError, TypeError, ValueError) as exc:
-            problems.add(where, f"malformed catalog entry ({type(exc).__name__}: {exc})")
+        if isinstance(entry, str):
+            problems.add(where, entry)
             continue
-        if not is_inside(entries[name].usd_path, roots):
-            problems.extend([outside_problem(where + ".usd", raw["usd"], "asset file", anchor=folder)])
-            del entries[name]
+        if not is_inside(entry.usd_path, roots):
+            problems.extend([outside_problem(where + ".usd", usd, "asset file", anchor=folder)])
             continue
-        if entries[name].kind not in ASSET_KINDS:
-            problems.add(where + ".kind", f"unknown kind {entries[name].kind!r}; expected one of {ASSET_KINDS}")
+        if entry.kind not in ASSET_KINDS:
+            problems.add(where + ".kind", f"unknown kind {entry.kind!r}; expected one of {ASSET_KINDS}")
+        entries[name] = entry
     return entries
+
+
+@functools.lru_cache(maxsize=64)
+def _parsed_catalog(path: Path, folder: Path, mtime_ns: int, size: int):
+    """``catalog.json`` parsed into ``(name, usd as written, entry or problem text)`` per class,
+    or one problem text for the whole file. Cached by modification time and size: validate,
+    compose and export read the same (large) shipped catalog again and again.
+
+    Raises:
+        OSError, UnicodeDecodeError, json.JSONDecodeError: the file cannot be read.
+    """
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if not isinstance(data, dict) or not isinstance(data.get("classes"), dict):
+        return "expected an object with a 'classes' object"
+    parsed = []
+    for name, raw in data["classes"].items():
+        try:
+            parsed.append((name, str(raw["usd"]), _entry_from_json(name, raw, folder)))
+        except (KeyError, TypeError, ValueError) as exc:
+            parsed.append((name, "", f"malformed catalog entry ({type(exc).__name__}: {exc})"))
+    return tuple(parsed)
 
 
 def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:

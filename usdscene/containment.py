@@ -18,6 +18,7 @@ consent to. Paths are checked before the file is opened, so a refused file is ne
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -96,10 +97,6 @@ def usd_dependency_problems(usd_path: str | os.PathLike, roots: Sequence[Path]) 
         One problem per arc that leaves ``roots`` or names a file that cannot be opened,
         naming the layer that holds the arc; empty when all are inside.
     """
-    from pxr import Sdf
-
-    from usdscene.errors import usd_error_text
-
     problems: list[Problem] = []
     seen: set[Path] = set()
     pending = [Path(usd_path).resolve()]
@@ -109,19 +106,38 @@ def usd_dependency_problems(usd_path: str | os.PathLike, roots: Sequence[Path]) 
             continue
         seen.add(path)
         try:
-            layer = Sdf.Layer.FindOrOpen(str(path))
-        except Exception as exc:  # pxr raises Tf.ErrorException for unreadable layers
-            problems.append(Problem(str(path), f"cannot open USD layer: {usd_error_text(exc)}"))
+            stat = path.stat()
+            arcs = _layer_arcs(path, stat.st_mtime_ns, stat.st_size)
+        except (OSError, ValueError) as exc:
+            problems.append(Problem(str(path), f"cannot open USD layer: {exc}"))
             continue
-        if layer is None:
-            problems.append(Problem(str(path), "cannot open USD layer"))
-            continue
-        for arc in sorted(layer.GetCompositionAssetDependencies()):
-            if not arc:
-                continue
-            target = Path(layer.ComputeAbsolutePath(arc))
+        for arc, target in arcs:
             if not is_inside(target, roots):
                 problems.append(outside_problem(str(path), arc, "USD composition arc", anchor=path.parent))
-            elif target.resolve() not in seen:
-                pending.append(target.resolve())
+            elif Path(target).resolve() not in seen:
+                pending.append(Path(target).resolve())
     return problems
+
+
+@functools.lru_cache(maxsize=1024)
+def _layer_arcs(path: Path, mtime_ns: int, size: int) -> tuple[tuple[str, str], ...]:
+    """(arc as written, absolute path) of every sublayer, reference and payload of one layer.
+
+    Cached by the file's modification time and size (parsing a large asset layer costs tens
+    of milliseconds, and every composition checks the same assets again).
+
+    Raises:
+        ValueError: the layer cannot be opened (USD's reason, on one line).
+    """
+    from pxr import Sdf
+
+    from usdscene.errors import usd_error_text
+
+    try:
+        layer = Sdf.Layer.FindOrOpen(str(path))
+    except Exception as exc:  # pxr raises Tf.ErrorException for unreadable layers
+        raise ValueError(usd_error_text(exc)) from None
+    if layer is None:
+        raise ValueError("not a USD layer")
+    return tuple((arc, layer.ComputeAbsolutePath(arc))
+                 for arc in sorted(layer.GetCompositionAssetDependencies()) if arc)
