@@ -312,7 +312,8 @@ def test_compose_command_prints_a_summary(tmp_path, workdir, capsys):
 
     scene = dataclasses.replace(small_scene(), asset_paths=(str(workdir / "cat"),))
     _write_document(tmp_path / "doc.json", scene)
-    assert main(["compose", str(tmp_path / "doc.json"), "-o", str(tmp_path / "out")]) == 0
+    assert main(["compose", str(tmp_path / "doc.json"), "-o", str(tmp_path / "out"),
+                 "--asset-path", str(workdir)]) == 0
     out = capsys.readouterr().out
     assert (tmp_path / "out" / "stage" / "scene.usda").is_file()
     assert "frames:  6" in out and "bag 1" in out and "cup 2" in out and "objects.usda" in out
@@ -333,7 +334,8 @@ def test_compose_command_exits_1_naming_the_element(tmp_path, workdir, capsys, c
     scene = change(dataclasses.replace(small_scene(), asset_paths=(str(workdir / "cat"),)))
     _write_document(tmp_path / "doc.json", scene)
     word, uid = expected(read_openlabel(tmp_path / "doc.json"))  # uids as the document spells them
-    assert main(["compose", str(tmp_path / "doc.json"), "-o", str(tmp_path / "out")]) == 1
+    assert main(["compose", str(tmp_path / "doc.json"), "-o", str(tmp_path / "out"),
+                 "--asset-path", str(workdir)]) == 1
     err = capsys.readouterr().err
     assert "usdscene: error:" in err and word in err and repr(uid) in err, err
     assert not (tmp_path / "out" / "stage" / "scene.usda").exists()

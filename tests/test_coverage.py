@@ -255,10 +255,12 @@ def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(ro
 
 @pytest.mark.usd
 @pytest.mark.blender
-def test_predicted_and_rendered_visibility_agree(room_setup):
+def test_predicted_and_rendered_visibility_agree(room_setup, monkeypatch):
     from usdscene.camera_design import plan_cameras, verify_plan
 
     root, document = room_setup
+    # The plan document in root/both names ../assets: outside its folder, so consent to root.
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(root))
     # Re-score both wall cameras at k = 2 so that the blocked west camera is part of the plan.
     plan_cameras(document, root / "both", targets=["spot_*:on"], mounts="setup", dori="monitor",
                  occluders="setup", target_spacing_m=0.1, k=2)

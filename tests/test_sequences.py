@@ -189,8 +189,10 @@ def test_appearance_provenance_is_in_the_document(car_park):
                for o in balanced.scene.objects)
 
 
-def test_same_setup_and_seed_give_identical_bytes(car_park, tmp_path):
+def test_same_setup_and_seed_give_identical_bytes(car_park, tmp_path, monkeypatch):
     catalog, setup, folder = car_park
+    # The catalog lies in another temporary folder than the documents: consent to it.
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(car_park[2]))
     setup_path = tmp_path / "setup.json"
     write_document(setup_path, write_openlabel(setup))
     outputs = []
@@ -218,8 +220,10 @@ def test_fixed_objects_of_the_setup_keep_their_region(car_park):
     check_composes(read_openlabel(write_openlabel(gen.scene)), catalog)
 
 
-def test_bad_options_are_one_readable_error(car_park, tmp_path, capsys):
+def test_bad_options_are_one_readable_error(car_park, tmp_path, capsys, monkeypatch):
     catalog, setup, _ = car_park
+    # The catalog lies in another temporary folder than the documents: consent to it.
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(car_park[2]))
     with pytest.raises(DocumentError) as info:
         generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", classes=("crate", "sofa"),
                                                           place_patterns=("nowhere_*",)))
@@ -287,10 +291,12 @@ def test_balance_report_counts_a_hand_written_scene():
     assert report["instance_frames"] == 6
 
 
-def test_stats_on_a_scene_document(car_park, tmp_path, capsys):
+def test_stats_on_a_scene_document(car_park, tmp_path, capsys, monkeypatch):
     import cv2
 
     catalog, setup, _ = car_park
+    # The catalog lies in another temporary folder than the documents: consent to it.
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(car_park[2]))
     gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=6, seed=2, objects_per_frame=4))
     doc = tmp_path / "seq.json"
     write_document(doc, write_openlabel(gen.scene))

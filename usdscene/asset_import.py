@@ -335,13 +335,20 @@ def _lift_variants(src_default, root, holder, source: Path) -> tuple[dict, dict]
     return variants, {stage_schema.VARIANT_SET_APPEARANCE: label[current]}
 
 
-def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path) -> _Written:
+def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path,
+                       roots: Sequence[Path]) -> _Written:
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom
 
     from usdscene import stage_schema
     from usdscene.assetgen.usd_write import author_places, bounds_of_stage, new_asset_stage
+    from usdscene.containment import usd_dependency_problems
     from usdscene.place_discovery import places_from_boxes
 
+    # Every sublayer, reference and payload stays inside the allowed folders, checked before
+    # the stage composes (and reads) them.
+    problems = usd_dependency_problems(source, [Path(r).resolve() for r in roots])
+    if problems:
+        raise AssetError(problems)
     try:
         src_stage = Usd.Stage.Open(str(source))
     except Exception as exc:  # pxr raises Tf.ErrorException for unreadable layers
@@ -411,7 +418,10 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
             options, or the class already exists (without ``replace``). Nothing is written.
     """
     catalog = Path(catalog_dir).resolve()
-    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None else (Path.cwd(), catalog))]
+    from usdscene.containment import consented_folders
+
+    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
+                               else (Path.cwd(), catalog, *consented_folders()))]
     src = Path(source)
     resolved, data = _check_inputs(src if src.is_absolute() else Path.cwd() / src, class_name, catalog,
                                    options, roots)
@@ -431,7 +441,7 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()})
         fmt = MESH_FORMATS[suffix].upper()
     else:
-        written = _write_usd_wrapper(resolved, class_name, options, target)
+        written = _write_usd_wrapper(resolved, class_name, options, target, roots)
         fmt = "USD"
     if options.kind == "environment":
         log.info("%s: %d places found (%s)", resolved.name, len(written.places),

@@ -28,6 +28,7 @@ object rests on a surface when its origin lies on it.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import dataclass, field
@@ -122,10 +123,13 @@ class Catalog:
     Attributes:
         entries: class name → entry. A later folder overrides an earlier one.
         folders: the catalog folders that were read, in order.
+        roots: resolved folders the assets' USD files and their composition arcs may lie in
+            (:mod:`usdscene.containment`); empty means unchecked (a catalog built in code).
     """
 
     entries: Mapping[str, AssetEntry]
     folders: tuple[Path, ...] = ()
+    roots: tuple[Path, ...] = ()
 
     def __contains__(self, class_name: str) -> bool:
         return class_name in self.entries
@@ -152,55 +156,105 @@ def default_asset_folder() -> Path:
 
 
 def load_catalog(extra_folders: Iterable[str | os.PathLike] = (), *,
-                 include_default: bool = True, base_dir: str | os.PathLike | None = None) -> Catalog:
+                 include_default: bool = True, base_dir: str | os.PathLike | None = None,
+                 consented: Iterable[str | os.PathLike] = ()) -> Catalog:
     """Read the shipped catalog plus extra catalog folders.
+
+    With ``base_dir`` (the folder of the scene document that names ``extra_folders``), every
+    folder must lie inside the reading roots of :func:`usdscene.containment.reading_roots`
+    (the document's folder, the working folder, the shipped library, ``consented`` and
+    ``$USDSCENE_ASSET_PATH``). Without it the caller vouches for ``extra_folders`` (folders
+    given on the command line). Either way every entry's USD file must lie inside the roots or
+    a catalog folder.
 
     Args:
         extra_folders: folders holding a ``catalog.json`` (relative ones resolved against
             ``base_dir``, e.g. the folder of the scene document).
         include_default: read the shipped library first.
-        base_dir: folder that relative ``extra_folders`` are relative to (default: cwd).
+        base_dir: folder that relative ``extra_folders`` are relative to (default: cwd, and
+            the folders are then trusted).
+        consented: more folders that may be read (``--asset-path``).
 
     Raises:
-        AssetError: a folder or catalog file is missing or malformed (all problems at once).
+        AssetError: a folder or catalog file is missing, malformed or outside the reading
+            roots, or an entry's USD file is outside them (all problems at once).
     """
+    from usdscene.containment import is_inside, outside_problem, reading_roots
+
     folders: list[Path] = [default_asset_folder()] if include_default else []
     base = Path(base_dir) if base_dir is not None else Path.cwd()
+    problems = ProblemCollector()
+    given = []
     for folder in extra_folders:
         p = Path(folder)
-        folders.append(p if p.is_absolute() else base / p)
-    problems = ProblemCollector()
+        given.append((folder, p if p.is_absolute() else base / p))
+    roots = reading_roots(base_dir, consented if base_dir is not None else
+                          [*consented, *(path for _, path in given)])
+    for i, (folder, path) in enumerate(given):
+        if base_dir is not None and not is_inside(path, roots):
+            problems.extend([outside_problem(f"metadata.usdscene.asset_paths[{i}]", folder,
+                                             "asset folder", anchor=base)])
+        else:
+            folders.append(path)
+    roots = tuple(dict.fromkeys([*roots, *(f.resolve() for f in folders)]))
     entries: dict[str, AssetEntry] = {}
     for folder in folders:
-        entries.update(_read_catalog_file(folder, problems))
+        entries.update(_read_catalog_file(folder, problems, roots))
     problems.raise_if_any(AssetError)
-    return Catalog(entries=entries, folders=tuple(folders))
+    return Catalog(entries=entries, folders=tuple(folders), roots=roots)
 
 
-def _read_catalog_file(folder: Path, problems: ProblemCollector) -> dict[str, AssetEntry]:
+def _read_catalog_file(folder: Path, problems: ProblemCollector,
+                       roots: tuple[Path, ...]) -> dict[str, AssetEntry]:
+    from usdscene.containment import is_inside, outside_problem
+
     path = folder / CATALOG_FILE
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        stat = path.stat()
+        parsed = _parsed_catalog(path, folder, stat.st_mtime_ns, stat.st_size)
     except FileNotFoundError:
         problems.add(str(path), "asset catalog not found (is this an asset folder?)")
         return {}
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         problems.add(str(path), f"cannot read asset catalog: {exc}")
         return {}
-    if not isinstance(data, dict) or not isinstance(data.get("classes"), dict):
-        problems.add(str(path), "expected an object with a 'classes' object")
+    if isinstance(parsed, str):
+        problems.add(str(path), parsed)
         return {}
     entries = {}
-    for name, raw in data["classes"].items():
+    for name, usd, entry in parsed:
         where = f"{path}:classes.{name}"
-        try:
-            entries[name] = _entry_from_json(name, raw, folder)
-        except (KeyError, TypeError, ValueError) as exc:
-            problems.add(where, f"malformed catalog entry ({type(exc).__name__}: {exc})")
+        if isinstance(entry, str):
+            problems.add(where, entry)
             continue
-        if entries[name].kind not in ASSET_KINDS:
-            problems.add(where + ".kind", f"unknown kind {entries[name].kind!r}; expected one of {ASSET_KINDS}")
+        if not is_inside(entry.usd_path, roots):
+            problems.extend([outside_problem(where + ".usd", usd, "asset file", anchor=folder)])
+            continue
+        if entry.kind not in ASSET_KINDS:
+            problems.add(where + ".kind", f"unknown kind {entry.kind!r}; expected one of {ASSET_KINDS}")
+        entries[name] = entry
     return entries
+
+
+@functools.lru_cache(maxsize=64)
+def _parsed_catalog(path: Path, folder: Path, mtime_ns: int, size: int):
+    """``catalog.json`` parsed into ``(name, usd as written, entry or problem text)`` per class,
+    or one problem text for the whole file. Cached by modification time and size: validate,
+    compose and export read the same (large) shipped catalog again and again.
+
+    Raises:
+        OSError, UnicodeDecodeError, json.JSONDecodeError: the file cannot be read.
+    """
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if not isinstance(data, dict) or not isinstance(data.get("classes"), dict):
+        return "expected an object with a 'classes' object"
+    parsed = []
+    for name, raw in data["classes"].items():
+        try:
+            parsed.append((name, str(raw["usd"]), _entry_from_json(name, raw, folder)))
+        except (KeyError, TypeError, ValueError) as exc:
+            parsed.append((name, "", f"malformed catalog entry ({type(exc).__name__}: {exc})"))
+    return tuple(parsed)
 
 
 def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:

@@ -75,8 +75,8 @@ import numpy as np
 from usdscene import __version__
 from usdscene import stage_schema as ss
 from usdscene.catalog import Catalog
-from usdscene.errors import CompositionError, ProblemCollector
-from usdscene.files import write_text_atomic
+from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCollector
+from usdscene.files import make_folder, write_text_atomic
 from usdscene.layout import mask_ids
 from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
                             Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
@@ -148,6 +148,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
                                where="frame_end")
     check_placement_inputs(scene, catalog)
     _check_prim_names(scene)
+    _check_asset_arcs(scene, catalog)
     choices = draw_looks(scene, catalog, rng)
     placements = place_objects(scene, catalog, rng)
     resolved = resolved_scene(scene, placements, choices)
@@ -156,8 +157,10 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     except ValueError as exc:
         raise CompositionError(str(exc), where="objects") from None
 
-    stage_dir = Path(out_dir).resolve()
-    stage_dir.mkdir(parents=True, exist_ok=True)
+    if Path(out_dir).is_symlink():  # writing through it would put the stage anywhere
+        raise OutputError(f"the stage folder is a symbolic link to {os.readlink(out_dir)!r}; "
+                          "remove it or choose another output folder", where=str(out_dir))
+    stage_dir = make_folder(Path(out_dir), what="stage folder").resolve()
     texts = {
         "render.usda": _render_layer(resolved),
         "cameras.usda": _cameras_layer(resolved),
@@ -565,6 +568,27 @@ def _lights_layer(scene: SceneSpec) -> str:
         _attr(prim, ss.ATTR_LIGHT_SIZE, T.Double2, Gf.Vec2d(*light.size_m), custom=True)
         _attr(prim, ss.ATTR_LIGHT_SUN_ANGLE, T.Double, float(light.sun_angle_deg), custom=True)
     return layer.ExportToString()
+
+
+def _check_asset_arcs(scene: SceneSpec, catalog: Catalog) -> None:
+    """Refuse assets whose sublayers, references or payloads leave the catalog's reading
+    roots (:mod:`usdscene.containment`), before the stage references them.
+
+    Raises:
+        AssetError: every arc outside, naming the layer that holds it and the class.
+    """
+    if not catalog.roots:  # a catalog built in code, not read from folders
+        return
+    from usdscene.containment import usd_dependency_problems
+
+    used = dict.fromkeys([*([scene.environment] if scene.environment else []),
+                          *(o.class_name for o in scene.objects)])
+    problems = ProblemCollector()
+    for name in used:
+        if name in catalog:
+            for problem in usd_dependency_problems(catalog[name].usd_path, catalog.roots):
+                problems.add(problem.where, f"asset class {name!r}: {problem.message}")
+    problems.raise_if_any(AssetError)
 
 
 def asset_reference_path(usd_path: Path, stage_dir: Path) -> str:

@@ -61,6 +61,21 @@ class OutputError(UsdSceneError):
     """An output folder or file is unusable (escapes its root, not writable, inconsistent)."""
 
 
+def usd_error_text(exc: BaseException) -> str:
+    """The user-facing sentence of a USD error (``pxr.Tf.ErrorException``), on one line.
+
+    USD's message lists every C++ frame as ``Error in 'function' at line N in file F : 'text'``;
+    only the quoted texts help a user, so they are kept and joined with ``; ``.
+    """
+    texts = []
+    for line in str(exc).splitlines():
+        head, sep, text = line.rpartition(" : ")
+        text = (text if sep else line).strip().strip("'").strip()
+        if text and text not in texts:
+            texts.append(text)
+    return "; ".join(texts) or type(exc).__name__
+
+
 class ProblemCollector:
     """Collects problems during validation and raises them together.
 

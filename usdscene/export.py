@@ -50,9 +50,8 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
 
     scene = read_openlabel(document)
     base = _source_folder(out_dir) or Path(out_dir)
-    folders = [*(base / p if not Path(p).is_absolute() else Path(p) for p in scene.asset_paths),
-               *(Path(p).resolve() for p in extra_folders)]
-    return load_catalog(folders)
+    extra = [Path(p).resolve() for p in extra_folders]  # given on the command line: consented
+    return load_catalog([*scene.asset_paths, *extra], base_dir=base, consented=extra)
 
 
 def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,

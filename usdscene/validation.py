@@ -85,9 +85,25 @@ def validate_document(path: str | os.PathLike, *,
     except DocumentError as exc:
         problems.extend(exc.problems)
         scene = None
+    if scene is not None and catalog is not None:
+        problems.extend(_composition_input_problems(scene, catalog))
     if problems:
         raise DocumentError(problems)
     return ValidatedDocument(scene=scene, schema=schema_path, catalog=catalog)
+
+
+def _composition_input_problems(scene, catalog) -> list:
+    """What composition would refuse before drawing anything (appearances that are not
+    variants, relations to unknown places, cyclic relations...): validate is the gate, so a
+    document it accepts composes."""
+    from usdscene.errors import CompositionError
+    from usdscene.placement import check_placement_inputs
+
+    try:
+        check_placement_inputs(scene, catalog)
+    except CompositionError as exc:
+        return list(exc.problems)
+    return []
 
 
 def catalog_for_document(document: dict, base_dir: str | os.PathLike) -> Catalog | None:

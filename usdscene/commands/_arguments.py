@@ -84,3 +84,36 @@ def executor_for(args: argparse.Namespace):
         raise RenderError(problems)
     return make_executor(args.executor, workers=args.workers, ray_address=args.ray_address,
                          task_cpus=args.task_cpus)
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type of ``--seed``: a whole number >= 0 (numpy seeds are unsigned).
+
+    Raises:
+        argparse.ArgumentTypeError: naming the bad text (argparse exits 2 with it).
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is negative; a seed is a whole number >= 0")
+    return value
+
+
+def output_path(text: str) -> str:
+    """argparse type of output options (``-o``): any path but the empty one, which would
+    silently mean the current folder, and the file-system root, which would scatter outputs
+    (``stage/``, ``images/``) over the top of the disk.
+
+    Raises:
+        argparse.ArgumentTypeError: for an empty or blank path or the root (argparse exits 2).
+    """
+    import os
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is an empty path; name a file or folder")
+    resolved = os.path.realpath(text)
+    if os.path.dirname(resolved) == resolved:
+        raise argparse.ArgumentTypeError(f"{text!r} is the root of the file system; name a folder below it")
+    return text

@@ -11,9 +11,11 @@ ORDER = 32
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("input", metavar="DOC_OR_STAGE", help="scene document (.json) or composed stage (.usda)")
-    parser.add_argument("-o", "--output", required=True, metavar="SCENE.blend", help="Blender file to write")
-    parser.add_argument("--stage-dir", metavar="DIR",
+    parser.add_argument("-o", "--output", required=True, type=output_path, metavar="SCENE.blend", help="Blender file to write")
+    parser.add_argument("--stage-dir", type=output_path, metavar="DIR",
                         help="where to compose the stage of a document (default: SCENE_stage/ beside the "
                              ".blend; the .blend reads animated transforms from it, keep it)")
 

@@ -10,10 +10,12 @@ ORDER = 20
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import non_negative_int, output_path
+
     parser.add_argument("document", metavar="DOC", help="OpenLABEL/VCD scene document (.json)")
-    parser.add_argument("-o", "--out", metavar="OUT", required=True,
+    parser.add_argument("-o", "--out", type=output_path, metavar="OUT", required=True,
                         help="output folder; the stage is written to OUT/stage/")
-    parser.add_argument("--seed", type=int, default=None,
+    parser.add_argument("--seed", type=non_negative_int, default=None,
                         help="override the document's random seed (metadata.usdscene.seed)")
 
 

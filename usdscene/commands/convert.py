@@ -11,10 +11,10 @@ ORDER = 11
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from usdscene.commands._arguments import add_document_check_arguments
+    from usdscene.commands._arguments import add_document_check_arguments, output_path
 
     parser.add_argument("document", help="scene document (.json, root 'openlabel' or 'vcd')")
-    parser.add_argument("-o", "--output", required=True, metavar="OUT",
+    parser.add_argument("-o", "--output", required=True, type=output_path, metavar="OUT",
                         help="output file (written atomically; nothing is written when the input is invalid)")
     add_document_check_arguments(parser)
 

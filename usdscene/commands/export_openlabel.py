@@ -12,9 +12,11 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("stage", metavar="STAGE",
                         help="composed or DCC-edited stage (file, or a stage folder with scene.usda), or a .blend file")
-    parser.add_argument("-o", "--out", metavar="DOC", required=True, help="OpenLABEL document to write (.json)")
+    parser.add_argument("-o", "--out", type=output_path, metavar="DOC", required=True, help="OpenLABEL document to write (.json)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -33,20 +33,22 @@ def _positive(text: str) -> int:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import non_negative_int, output_path
+
     parser.add_argument("strategy", choices=_STRATEGIES,
                         help="single-class: one class in one relation at every place it fits, per frame; "
                              "balanced: equal instance-frames per class, every fitting (class, relation, place) "
                              "at least once; appearance: balanced with random variants and colours")
     parser.add_argument("--setup", metavar="SETUP_DOC", required=True,
                         help="setup document: environment, cameras, lights, render settings, fixed objects")
-    parser.add_argument("-o", "--output", metavar="DOC", required=True,
+    parser.add_argument("-o", "--output", type=output_path, metavar="DOC", required=True,
                         help="sequence document to write; the balance report goes to DOC.report.json")
     parser.add_argument("--frames", type=_positive, default=None,
                         help="sequence length (balanced, appearance); default: what full coverage needs")
     parser.add_argument("--objects-per-frame", type=_positive, default=None,
                         help="generated objects per frame (balanced, appearance); default: the class count, "
                              "or what coverage within --frames needs")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
     parser.add_argument("--classes", nargs="+", metavar="NAME", default=(),
                         help="object classes to place (default: every object class of the catalog)")
     parser.add_argument("--places", nargs="+", metavar="GLOB", default=(),

@@ -11,10 +11,12 @@ ORDER = 15
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("--setup", metavar="SETUP_DOC",
                         help="OpenLABEL setup document (environment, lights, render; its cameras with --mounts setup)")
-    parser.add_argument("-o", "--out", metavar="PLAN_DIR", help="plan folder to write")
-    parser.add_argument("--verify", metavar="PLAN_DIR",
+    parser.add_argument("-o", "--out", type=output_path, metavar="PLAN_DIR", help="plan folder to write")
+    parser.add_argument("--verify", type=output_path, metavar="PLAN_DIR",
                         help="render the plan in PLAN_DIR with its targets as markers and compare with the prediction")
     parser.add_argument("--targets", metavar="SPEC", nargs="+", default=None,
                         help="PLACE_GLOB:REGION,... (e.g. 'seat_*:on,below,in_front') or "

@@ -10,8 +10,10 @@ ORDER = 31
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("input", metavar="DOC_OR_STAGE", help="scene document (.json) or composed stage (.usda)")
-    parser.add_argument("-o", "--output", required=True, metavar="SHEET.png", help="contact sheet PNG")
+    parser.add_argument("-o", "--output", required=True, type=output_path, metavar="SHEET.png", help="contact sheet PNG")
     parser.add_argument("--frame", type=int, help="frame to show (default: the first)")
     parser.add_argument("--samples", type=int, default=2, help="samples per pixel (default 2)")
     parser.add_argument("--tile-width", type=int, default=320, metavar="PX",
@@ -30,12 +32,13 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.contact_sheet import contact_sheet
     from usdscene.pipeline import stage_for_input
     from usdscene.errors import RenderError
-    from usdscene.files import write_bytes_atomic
+    from usdscene.files import prepare_output_file, write_bytes_atomic
     from usdscene.render.driver import render
     from usdscene.render.stage_reader import read_stage_plan
 
     if not Path(args.input).exists():
         raise RenderError(f"input {args.input!r} does not exist", where=args.input)
+    prepare_output_file(args.output, what="contact sheet")
     with tempfile.TemporaryDirectory(prefix="usdscene-preview-") as tmp:
         stage = stage_for_input(args.input, tmp)
         plan = read_stage_plan(stage)

@@ -14,9 +14,11 @@ ORDER = 30
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("input", metavar="STAGE_OR_DOC",
                         help="composed stage (scene.usda) or scene document (.json, composed into OUT/stage first)")
-    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    parser.add_argument("-o", "--output", required=True, type=output_path, metavar="OUT", help="output folder")
     parser.add_argument("--frames", metavar="A:B",
                         help="closed frame range A:B, a single frame N, or a list N,M,... (default: all)")
     parser.add_argument("--cameras", nargs="+", metavar="NAME", help="cameras to render (default: all)")

@@ -17,8 +17,10 @@ ORDER = 5
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("document", metavar="DOC", help="OpenLABEL (or VCD 4.3) scene document")
-    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    parser.add_argument("-o", "--output", required=True, type=output_path, metavar="OUT", help="output folder")
     parser.add_argument("--frames", metavar="A:B", help="closed frame range A:B, a frame N or a list N,M (default: all)")
     parser.add_argument("--cameras", nargs="+", metavar="NAME", help="cameras to render (default: all)")
     parser.add_argument("--export", nargs="*", choices=FORMATS, metavar="FORMAT",

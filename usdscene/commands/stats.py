@@ -20,9 +20,11 @@ ORDER = 60
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from usdscene.commands._arguments import output_path
+
     parser.add_argument("output", metavar="OUT|DOC",
                         help="output folder with annotations.openlabel.json, or a scene document")
-    parser.add_argument("--chart", metavar="PNG",
+    parser.add_argument("--chart", type=output_path, metavar="PNG",
                         help="where to write the chart (default OUT/stats.png, or DOC.stats.png)")
 
 

@@ -35,10 +35,13 @@ def write_blend(stage_path: str | Path, blend_path: str | Path) -> Path:
 
     Raises:
         RenderError: the stage is unusable or Blender failed.
+        OutputError: ``blend_path`` cannot be written (a folder, its parent is a file...).
     """
+    from usdscene.files import prepare_output_file
     from usdscene.render.driver import camera_jobs, resolve_settings, run_job
     from usdscene.render.stage_reader import read_stage_plan
 
+    prepare_output_file(blend_path, what="Blender file")
     plan = read_stage_plan(stage_path)
     frames = list(plan.frames)
     job = {

@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from usdscene import stage_schema as names
-from usdscene.errors import Problem, RenderError
+from usdscene.errors import Problem, RenderError, usd_error_text
 from usdscene.model import (Camera, Intrinsics, LensModel, Pose, RenderSettings,
                             usd_pose_to_cv_pose)
 
@@ -76,7 +76,10 @@ def read_stage_plan(stage_path: str | Path) -> StagePlan:
     from pxr import Usd
 
     path = Path(stage_path).resolve()
-    stage = Usd.Stage.Open(str(path)) if path.is_file() else None
+    try:
+        stage = Usd.Stage.Open(str(path)) if path.is_file() else None
+    except Exception as exc:  # pxr raises Tf.ErrorException for files that are not USD
+        raise RenderError(f"cannot open USD stage: {usd_error_text(exc)}", where=str(stage_path)) from None
     if stage is None:
         raise RenderError(f"cannot open USD stage {str(stage_path)!r}", where=str(stage_path))
     problems: list[Problem] = []
