@@ -42,6 +42,7 @@ class RunSummary:
             nothing was rendered.
         images_labelled_while_rendering: images whose labels were computed while the next ones
             rendered (the rest are labelled in the annotate step).
+        labelling_s_while_rendering: wall seconds those labels took (inside the render step).
     """
 
     out_dir: Path
@@ -56,6 +57,7 @@ class RunSummary:
     exports: Mapping[str, Path] = field(default_factory=dict)
     render: RenderReport | None = None
     images_labelled_while_rendering: int = 0
+    labelling_s_while_rendering: float = 0.0
 
 
 def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int | None = None):
@@ -176,7 +178,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         labels_per_class=dict(sorted(per_class.items())), hidden_labels=hidden,
         seconds=seconds,
         render_seconds_per_image=seconds["render"] / report.pairs_rendered if report.pairs_rendered else 0.0,
-        exports=written, render=report, images_labelled_while_rendering=labelling.images)
+        exports=written, render=report, images_labelled_while_rendering=labelling.images,
+        labelling_s_while_rendering=labelling.seconds)
 
 
 def summary_text(summary: RunSummary) -> str:
