@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Mapping
 
@@ -200,7 +201,24 @@ def _kernels():
                 hi[k] = max(hi[k], points[j, k])
         return (lo + hi) / 2.0, math.sqrt(((hi - lo) ** 2).sum()) / 2.0
 
-    return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, bounding_sphere=bounding_sphere)
+    @numba.njit(cache=True, nogil=True)
+    def needs_split(uv, imaged, max_edge):
+        """(T,) bool: imaged triangles of (T, 3, 2) uv with a projected edge longer than max_edge."""
+        out = np.zeros(uv.shape[0], dtype=np.bool_)
+        limit = max_edge * max_edge
+        for t in range(uv.shape[0]):
+            if not (imaged[t, 0] and imaged[t, 1] and imaged[t, 2]):
+                continue
+            for k in range(3):
+                dx = uv[t, k, 0] - uv[t, (k + 1) % 3, 0]
+                dy = uv[t, k, 1] - uv[t, (k + 1) % 3, 1]
+                if dx * dx + dy * dy > limit:
+                    out[t] = True
+                    break
+        return out
+
+    return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, bounding_sphere=bounding_sphere,
+                                 needs_split=needs_split)
 
 
 def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int | None = None, *,
@@ -237,14 +255,14 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         is out of view).
     """
     from usdscene.model import LensModel
-    from usdscene.projection import project_camera_points
 
     intr = camera.intrinsics
     size = (intr.width_px, intr.height_px)
     uids = list(triangles_world_m)
     empty = AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
     result = dict.fromkeys(uids, empty)
-    arrays = [np.ascontiguousarray(triangles_world_m[uid], dtype=np.float64).reshape(-1, 3, 3) for uid in uids]
+    given = [triangles_world_m[uid] for uid in uids]
+    arrays = [np.ascontiguousarray(t, dtype=np.float64).reshape(-1, 3, 3) for t in given]
     pose = camera.pose_at(frame) if frame is not None else camera.pose
     m = pose.as_array()
     # Cull whole objects by their bounding spheres before touching their triangles.
@@ -252,39 +270,40 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     visible = np.flatnonzero(in_view)
     if not visible.size:
         return result
-    counts = np.array([len(arrays[i]) for i in visible], dtype=np.int64)
-    tris = np.concatenate([arrays[i] for i in visible])
-    owner = np.repeat(visible, counts)
+    # Each vertex is projected once (a closed mesh has about half as many vertices as
+    # triangles, against three corners per triangle).
+    indexed = [_indexed_mesh(given[i]) for i in visible]
+    offsets = np.cumsum([0] + [len(points) for points, _ in indexed])
+    points = np.concatenate([points for points, _ in indexed])
+    faces = np.concatenate([faces + offset for (_, faces), offset in zip(indexed, offsets)])
+    owner = np.repeat(visible, [len(faces) for _, faces in indexed])
     # world → camera (OpenCV axes): R^T (p - t), written for row vectors.
-    cam = ((tris.reshape(-1, 3) - m[:3, 3]) @ m[:3, :3]).reshape(-1, 3, 3)
+    cam_points = (points - m[:3, 3]) @ m[:3, :3]
     cut = np.zeros(len(uids), dtype=bool)
     if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-        cam, owner, clipped = _clip_triangles_near(cam, owner, max(camera.clip_near_m, 1e-6))
+        cam_points, faces, owner, clipped = _clip_near(cam_points, faces, owner, max(camera.clip_near_m, 1e-6))
         cut[clipped] = True
     cone = _fisheye_cone_rad(intr)
     curved = intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion)
 
     def project(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """→ uv (T, 3, 2), imaged (T, 3) bool, inside the field of view (T, 3) bool."""
-        points = t.reshape(-1, 3)
-        inside = np.ones(len(points), dtype=bool)
-        if cone is not None:
-            points, inside = _onto_cone(points, cone)
-        uv, ok = project_camera_points(intr, points)
-        return (np.asarray(uv, dtype=np.float64).reshape(-1, 3, 2), np.asarray(ok, bool).reshape(-1, 3),
-                inside.reshape(-1, 3))
+        """(T, 3, 3) camera-frame triangles → uv (T, 3, 2), imaged (T, 3), inside the view (T, 3)."""
+        uv, ok, inside = _project_points(intr, t.reshape(-1, 3), cone)
+        return uv.reshape(-1, 3, 2), ok.reshape(-1, 3), inside.reshape(-1, 3)
 
-    uv, ok, inside = project(cam)
+    uv_p, ok_p, inside_p = _project_points(intr, cam_points, cone)
+    uv, ok, inside = uv_p[faces], ok_p[faces], inside_p[faces]
     if curved:
+        cam = None  # camera-frame triangles once subdividing (the first pass is indexed)
         done = []
         for _ in range(_MAX_SUBDIVISIONS):
-            edges = np.linalg.norm(uv - np.roll(uv, -1, axis=1), axis=2)
-            longest = np.maximum(np.maximum(edges[:, 0], edges[:, 1]), edges[:, 2])
-            split = ok[:, 0] & ok[:, 1] & ok[:, 2] & (longest > max_edge_px)
-            done.append((uv[~split], ok[~split], inside[~split], owner[~split]))
+            split = _kernels().needs_split(np.ascontiguousarray(uv), np.ascontiguousarray(ok), float(max_edge_px))
             if not split.any():
+                done.append((uv, ok, inside, owner))
                 break
-            cam, owner = _subdivide(cam[split]), np.tile(owner[split], 4)
+            done.append((uv[~split], ok[~split], inside[~split], owner[~split]))
+            cam = _subdivide(cam_points[faces[split]] if cam is None else cam[split])
+            owner = np.tile(owner[split], 4)
             uv, ok, inside = project(cam)
         else:
             done.append((uv, ok, inside, owner))
@@ -307,6 +326,63 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         projection = rasterize_triangles(uv[lo:hi], intr.width_px, intr.height_px, ok[lo:hi])
         result[uids[index]] = replace(projection, truncated=projection.truncated or bool(cut[index]))
     return result
+
+
+def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray,
+                    cone: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 3) camera-frame points → uv (N, 2), imaged (N,) bool, inside the field of view (N,)
+    bool; points beyond a fisheye's cone are moved onto it first (:func:`_onto_cone`)."""
+    from usdscene.projection import project_camera_points
+
+    inside = np.ones(len(points_cam), dtype=bool)
+    if cone is not None:
+        points_cam, inside = _onto_cone(points_cam, cone)
+    uv, ok = project_camera_points(intrinsics, points_cam)
+    return np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool), inside
+
+
+# (id of a triangle array) → (weak reference to it, its vertices (P, 3), faces (T, 3)); the
+# triangle arrays of a stage are shared between the cameras of a frame and between frames.
+_INDEXED: dict[int, tuple[weakref.ref, np.ndarray, np.ndarray]] = {}
+
+
+def _indexed_mesh(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3, 3) triangles (the caller's array object) → (unique vertices (P, 3), faces (T, 3)
+    int64), remembered for as long as that array object lives."""
+    key = id(triangles)
+    known = _INDEXED.get(key)
+    if known is not None and known[0]() is triangles:
+        return known[1], known[2]
+    corners = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
+    points, inverse = np.unique(corners, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1, 3).astype(np.int64)
+    try:
+        ref = weakref.ref(triangles, lambda _, key=key: _INDEXED.pop(key, None))
+    except TypeError:  # not weak-referenceable: not remembered
+        return points, faces
+    _INDEXED[key] = (ref, points, faces)
+    return points, faces
+
+
+def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,
+               near_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Clip an indexed camera-frame mesh (OpenCV axes) to z >= near: triangles wholly in front
+    are kept, those crossing the plane are cut (their pieces get new vertices), the rest go.
+
+    Returns:
+        ``(points (P', 3), faces (T', 3), owner (T',), owners that were cut)``.
+    """
+    in_front = points_cam[:, 2] >= near_m
+    corner_in = in_front[faces]
+    all_in = corner_in[:, 0] & corner_in[:, 1] & corner_in[:, 2]
+    if all_in.all():
+        return points_cam, faces, owner, np.zeros(0, dtype=np.int64)
+    crossing = np.flatnonzero((corner_in[:, 0] | corner_in[:, 1] | corner_in[:, 2]) & ~all_in)
+    pieces, piece_owner, _ = _clip_triangles_near(points_cam[faces[crossing]], owner[crossing], near_m)
+    new_faces = len(points_cam) + np.arange(3 * len(pieces)).reshape(-1, 3)
+    return (np.concatenate([points_cam, pieces.reshape(-1, 3)]),
+            np.concatenate([faces[all_in], new_faces]), np.concatenate([owner[all_in], piece_owner]),
+            np.unique(owner[~all_in]))
 
 
 def _fisheye_cone_rad(intrinsics: Intrinsics) -> float | None:
