@@ -84,6 +84,14 @@ class TriangleSource(Protocol):
     def triangles(self, frame: int, uids=None) -> dict[str, np.ndarray]: ...
 
 
+def _by_frame(annotations: Annotations) -> dict[int, list]:
+    """frame → its images, ascending (one pass; ``Annotations.for_frame`` scans every image)."""
+    out: dict[int, list] = {}
+    for image in annotations.images:
+        out.setdefault(image.frame, []).append(image)
+    return dict(sorted(out.items()))
+
+
 def object_centre(triangles_m: np.ndarray) -> np.ndarray:
     """Centre of the axis-aligned bounds of (T, 3, 3) world triangles → (3,) metres."""
     points = np.asarray(triangles_m, dtype=np.float64).reshape(-1, 3)
@@ -120,12 +128,21 @@ def object_densities(annotations: Annotations, cameras: Mapping[str, Camera],
     from usdscene.coverage import pixel_density
 
     out: dict[tuple[int, str, str], float] = {}
-    for frame in annotations.frames():
-        images = [image for image in annotations.for_frame(frame) if image.camera in cameras]
+    # Static objects come back as the same cached triangle array frame after frame: one centre
+    # each. Keeping the array in the cache keeps its id from being reused.
+    known: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def centre_of(triangles: np.ndarray) -> np.ndarray:
+        if id(triangles) not in known:
+            known[id(triangles)] = (triangles, object_centre(triangles))
+        return known[id(triangles)][1]
+
+    for frame, frame_images in _by_frame(annotations).items():
+        images = [image for image in frame_images if image.camera in cameras]
         uids = {o.uid for image in images for o in image.objects if o.visible}
         if not uids:
             continue
-        centres = {uid: object_centre(tris) for uid, tris in geometry.triangles(frame, uids).items() if len(tris)}
+        centres = {uid: centre_of(tris) for uid, tris in geometry.triangles(frame, uids).items() if len(tris)}
         for image in images:
             seen = [o.uid for o in image.objects if o.visible and o.uid in centres]
             if not seen:
@@ -151,26 +168,30 @@ def cross_camera_table(annotations: Annotations, scene: SceneSpec, *, densities:
         One row per (labelled frame, object present at that frame or labelled in it), sorted by
         (frame, uid); pixel densities are rounded to 1e-3 px/m.
     """
-    from usdscene.coverage import dori_class, load_dori
+    from usdscene.coverage import dori_index, load_dori
 
-    table = load_dori() if dori_table is None else dori_table
+    table = tuple(load_dori() if dori_table is None else dori_table)
+    names = [c.name for c in table] + [""]  # index -1 (below the lowest class) → ""
     densities = densities or {}
+    # Rounded once, classified in one vectorised pass (thousands of labels per frame).
+    rounded = {key: round(float(value), 3) for key, value in densities.items()}
+    classified = dict(zip(rounded, (names[i] for i in dori_index(np.fromiter(rounded.values(), float,
+                                                                                 len(rounded)), table))))
     classes = {o.uid: o.class_name for o in scene.objects}
     rows = []
-    for frame in annotations.frames():
+    for frame, images in _by_frame(annotations).items():
         seen: dict[str, list[Sighting]] = {o.uid: [] for o in scene.objects_present(frame)}
-        for image in annotations.for_frame(frame):
+        for image in images:
             for label in image.objects:
                 classes.setdefault(label.uid, label.class_name)
                 sightings = seen.setdefault(label.uid, [])
                 if not label.visible:
                     continue
-                density = densities.get((frame, image.camera, label.uid))
-                density = None if density is None else round(float(density), 3)
+                key = (frame, image.camera, label.uid)
                 fraction = None if label.visible_fraction is None else round(float(label.visible_fraction), 6)
                 sightings.append(Sighting(
                     camera=image.camera, pixel_count=int(label.pixel_count), visible_fraction=fraction,
-                    px_per_m=density, dori=None if density is None else (dori_class(density, table) or "")))
+                    px_per_m=rounded.get(key), dori=classified.get(key)))
         rows.extend(CrossCameraRow(frame=frame, uid=uid, class_name=classes.get(uid, ""),
                                    sightings=tuple(sorted(s, key=lambda x: x.camera)))
                     for uid, s in sorted(seen.items()))
