@@ -31,6 +31,15 @@ for moving cameras; a friendly-form camera block becomes calibrated intrinsics) 
     indices k among the same camera's polygons (holes are children of their outer contour);
     attribute ``boolean`` ``is_hole``.
 
+Per labelled frame, every object present in that frame (or labelled in it) gets the cross-camera
+table of :mod:`usdscene.cross_camera`: ``vec`` object data named ``usdscene_cameras`` whose value
+is the names of the cameras that see it (at least one visible pixel), sorted, ``[]`` when none
+does. Attributes: ``num`` ``camera_count``; ``vec`` ``visible_fractions``, ``px_per_m`` (pixel
+density at the object's centre) and ``dori`` (IEC 62676-4 image-detail class, ``""`` below the
+lowest), parallel to the camera names and present only when known for every camera; ``num``
+``best_px_per_m`` and ``text`` ``best_dori`` of the densest camera, present when known. The
+DORI table used is recorded in ``metadata.usdscene_annotations.dori_classes``.
+
 Per labelled frame, objects placed through relations also get ``text`` object data
 ``resolved_place`` (place name) and ``resolved_relation`` (e.g. ``is_below``): the place their
 chain of relations ends at (:func:`resolve_places`), so ``bag is_on suitcase is_below
@@ -47,10 +56,12 @@ from __future__ import annotations
 import copy
 import os
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 from usdscene import layout
 from usdscene.errors import DocumentError, ProblemCollector
+from usdscene.coverage import DoriClass, load_dori
+from usdscene.cross_camera import CrossCameraRow, Densities, cross_camera_table
 from usdscene.labels import Annotations, ObjectLabel
 from usdscene.model import FrameInterval, RelationType, SceneSpec, in_intervals, union_intervals
 
@@ -62,12 +73,15 @@ POLY2D_INFIX = "_poly2d_"
 POLY2D_MODE = "MODE_POLY2D_ABSOLUTE"
 RESOLVED_PLACE = "resolved_place"
 RESOLVED_RELATION = "resolved_relation"
+CAMERAS_DATA = "usdscene_cameras"
 
 _BBOX_ATTRIBUTES = {"visible_fraction": "num", "pixel_count": "num", "truncated": "boolean",
                     "amodal_bbox": "vec", "mask_id": "num"}
 _AMODAL_ATTRIBUTES = {"visible_fraction": "num", "pixel_count": "num", "amodal_pixel_count": "num",
                       "truncated": "boolean", "mask_id": "num"}
 _POLY_ATTRIBUTES = {"is_hole": "boolean"}
+_CAMERAS_ATTRIBUTES = {"camera_count": "num", "visible_fractions": "vec", "px_per_m": "vec", "dori": "vec",
+                       "best_px_per_m": "num", "best_dori": "text"}
 
 
 def _relative_uri(path: Path, out_dir: str | os.PathLike) -> str:
@@ -130,7 +144,27 @@ def _object_data(camera: str, label: ObjectLabel) -> dict[str, list]:
     return data
 
 
+def _cameras_data(row: CrossCameraRow) -> dict:
+    """``usdscene_cameras`` vec of one cross-camera row (see the module docstring)."""
+    sightings = row.sightings
+
+    def parallel(values: list) -> list | None:
+        return None if any(v is None for v in values) else values
+
+    best = row.best()
+    values = {"camera_count": row.camera_count,
+              "visible_fractions": parallel([s.visible_fraction for s in sightings]),
+              "px_per_m": parallel([s.px_per_m for s in sightings]),
+              "dori": parallel([s.dori for s in sightings]),
+              "best_px_per_m": None if best is None else best.px_per_m,
+              "best_dori": None if best is None else best.dori}
+    return {"name": CAMERAS_DATA, "val": [s.camera for s in sightings],
+            "attributes": _attributes(values, _CAMERAS_ATTRIBUTES)}
+
+
 def _pointer_type_attrs(name: str, kind: str) -> dict[str, str]:
+    if name == CAMERAS_DATA:
+        return _CAMERAS_ATTRIBUTES
     if kind == "text":
         return {}
     if kind == "poly2d":
@@ -272,14 +306,20 @@ def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
 
 
 def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
-                    out_dir: str | os.PathLike) -> dict:
-    """The document plus per-frame image/mask uris and per-camera labels (a new dict).
+                    out_dir: str | os.PathLike, *, densities: Densities | None = None,
+                    dori_table: Sequence[DoriClass] | None = None) -> dict:
+    """The document plus per-frame image/mask uris, per-camera labels and the cross-camera
+    table (a new dict).
 
     Args:
         document: ``{"openlabel": {...}}`` of the scene (not modified).
         scene: the SceneSpec it describes (camera names, object classes).
         annotations: labels of every labelled (frame, camera).
         out_dir: the output folder; uris are relative to it (the document is written there).
+        densities: pixel densities of the cross-camera table
+            (:func:`usdscene.cross_camera.object_densities`); None = unknown (no ``px_per_m``
+            and ``dori`` attributes).
+        dori_table: ascending DORI classes; None = the shipped IEC 62676-4:2015 table.
 
     Returns:
         A new ``{"openlabel": {...}}`` dict; see the module docstring for where things go.
@@ -344,6 +384,16 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
             for name in values:
                 pointer_frames.setdefault(key, {}).setdefault(name, ("text", set()))[1].add(frame_number)
 
+    dori_table = load_dori() if dori_table is None else tuple(dori_table)
+    for row in cross_camera_table(annotations, scene, densities=densities, dori_table=dori_table):
+        key = _document_key(row.uid, objects, scene)
+        if key is None:
+            continue
+        frame_objects = frames.setdefault(str(row.frame), {}).setdefault("objects", {})
+        vecs = frame_objects.setdefault(key, {}).setdefault("object_data", {}).setdefault("vec", [])
+        vecs[:] = [v for v in vecs if v.get("name") != CAMERAS_DATA] + [_cameras_data(row)]
+        pointer_frames.setdefault(key, {}).setdefault(CAMERAS_DATA, ("vec", set()))[1].add(row.frame)
+
     for uid, names in pointer_frames.items():
         element = objects[uid]
         ptrs = element.setdefault("object_data_pointers", {})
@@ -372,6 +422,9 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
         "polygon_epsilon_px": float(annotations.epsilon_px),
         "min_visible_fraction": float(annotations.min_visible_fraction),
         "mask_uris": f"frames.<f>.frame_properties.{FRAME_PROPERTIES_KEY}.streams.<camera>.mask_uri",
+        "cross_camera": f"frames.<f>.objects.<uid>.object_data.vec[name={CAMERAS_DATA}]: cameras with a "
+                        "visible pixel; px_per_m at the object's bounds centre; dori per dori_classes",
+        "dori_classes": [{"name": c.name, "px_per_m": float(c.px_per_m)} for c in dori_table],
     }
     return result
 
@@ -488,3 +541,29 @@ def label_classes(document: dict, classes: Iterable[str] | None = None) -> list[
         if any(name.endswith(BBOX_SUFFIX) or POLY2D_INFIX in name for name in pointers):
             found.add(element.get("type", ""))
     return sorted(found)
+
+
+def cross_camera_rows(document: dict) -> list[dict]:
+    """The cross-camera table read back from an annotated document, sorted by (frame, uid).
+
+    Returns:
+        Dicts ``{"frame": int, "uid": str, "type": str, "cameras": [str], "visible_fractions":
+        [float] | None, "px_per_m": [float] | None, "dori": [str] | None, "best_px_per_m":
+        float | None, "best_dori": str | None}`` (lists parallel to ``cameras``; None = unknown).
+    """
+    root = document.get("openlabel", {})
+    objects = root.get("objects", {}) or {}
+    rows = []
+    for key, frame in (root.get("frames", {}) or {}).items():
+        for uid, entry in ((frame or {}).get("objects", {}) or {}).items():
+            item = next((v for v in ((entry or {}).get("object_data", {}) or {}).get("vec", [])
+                         if v.get("name") == CAMERAS_DATA), None)
+            if item is None:
+                continue
+            attributes = {a["name"]: a["val"] for kind_items in (item.get("attributes") or {}).values()
+                          for a in kind_items}
+            rows.append({"frame": int(key), "uid": uid, "type": (objects.get(uid) or {}).get("type", ""),
+                         "cameras": [str(c) for c in item.get("val", [])],
+                         **{name: attributes.get(name) for name in
+                            ("visible_fractions", "px_per_m", "dori", "best_px_per_m", "best_dori")}})
+    return sorted(rows, key=lambda r: (r["frame"], r["uid"]))

@@ -20,6 +20,7 @@ PURE_MODULES = [
     "usdscene.place_discovery",
     "usdscene.projection",
     "usdscene.labels",
+    "usdscene.cross_camera",
     "usdscene.validation",
     "usdscene.annotation",
     "usdscene.export",

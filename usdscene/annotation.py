@@ -311,4 +311,9 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
             bar.stop()
     annotations = label_images(images, epsilon_px=labeller.epsilon_px,
                                min_visible_fraction=labeller.min_visible_fraction)
-    return add_annotations(document, scene, annotations, out), annotations
+    densities = None
+    if labeller.geometry is not None:  # px/m of the cross-camera table, at the objects' centres
+        from usdscene.cross_camera import object_densities
+
+        densities = object_densities(annotations, labeller.cameras, labeller.geometry)
+    return add_annotations(document, scene, annotations, out, densities=densities), annotations

@@ -3,6 +3,10 @@ of visible fractions, and a chart of them (OpenCV drawing, no plotting library).
 
 A *label* is one object seen by one camera in one frame (a ``<camera>_bbox``); *hidden* counts
 objects whose projection falls in the image but which no pixel shows (amodal box only).
+
+The cross-camera summary (:func:`cross_camera_statistics`) counts *object-frames* (one object
+present in one frame) by the number of cameras that see them, and per class gives the median
+number of cameras and the best DORI class reached (see :mod:`usdscene.cross_camera`).
 """
 
 from __future__ import annotations
@@ -48,28 +52,72 @@ def label_statistics(document: dict) -> dict:
         classes[name]["objects"] = len(uids)
     return {"images": len(records), "classes": dict(sorted(classes.items())),
             "cameras": dict(sorted(cameras.items())), "visibility": histogram,
-            "visibility_unknown": unknown}
+            "visibility_unknown": unknown, "cross_camera": cross_camera_statistics(document)}
 
 
-def _bar_panel(title: str, names: list[str], values: list[int], width: int, colour) -> np.ndarray:
+def cross_camera_statistics(document: dict) -> dict:
+    """Summary of the cross-camera table of an annotated document.
+
+    Returns:
+        ``{"object_frames": int, "by_camera_count": {n: object-frames seen by exactly n cameras}
+        (n = 0 .. the largest count, every n listed), "classes": {class: {"object_frames",
+        "unseen", "median_cameras", "median_best_px_per_m" (None when unknown), "best_px_per_m"
+        (None when unknown), "best_dori" (None when unknown, "" below the lowest class)}}}``;
+        classes sorted by name. Empty counts for a document without the table.
+    """
+    from usdscene.converters.openlabel_annotations import cross_camera_rows
+
+    rows = cross_camera_rows(document)
+    counts = [len(r["cameras"]) for r in rows]
+    by_count = {n: counts.count(n) for n in range(max(counts, default=-1) + 1)}
+    per_class: dict[str, list[dict]] = {}
+    for row in rows:
+        per_class.setdefault(row["type"], []).append(row)
+    classes = {}
+    for name, class_rows in sorted(per_class.items()):
+        best = [r for r in class_rows if r["best_px_per_m"] is not None]
+        top = max(best, key=lambda r: float(r["best_px_per_m"]), default=None)
+        classes[name] = {
+            "object_frames": len(class_rows),
+            "unseen": sum(1 for r in class_rows if not r["cameras"]),
+            "median_cameras": float(np.median([len(r["cameras"]) for r in class_rows])),
+            "median_best_px_per_m": float(np.median([float(r["best_px_per_m"]) for r in best])) if best else None,
+            "best_px_per_m": None if top is None else float(top["best_px_per_m"]),
+            "best_dori": None if top is None else top["best_dori"]}
+    return {"object_frames": len(rows), "by_camera_count": by_count, "classes": classes}
+
+
+def dori_text(name: str | None) -> str:
+    """A DORI class name for tables and charts: ``-`` when unknown, ``none`` below the lowest class."""
+    return "-" if name is None else (name or "none")
+
+
+def _bar_panel(title: str, names: list[str], values: list[float], width: int, colour,
+               texts: list[str] | None = None) -> np.ndarray:
+    """One chart panel: a bar per name, labelled with ``texts`` (default: the values)."""
     row_h, label_w, pad = 22, 170, 10
     height = 40 + row_h * max(1, len(names)) + pad
     panel = np.full((height, width, 3), 255, np.uint8)
     cv2.putText(panel, title, (pad, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
     top = max(values) if values and max(values) > 0 else 1
-    bar_w = width - label_w - 2 * pad - 60
-    for k, (name, value) in enumerate(zip(names, values)):
+    texts = texts if texts is not None else [str(v) for v in values]
+    # Room right of the longest bar for the longest value text.
+    room = max([60, *(cv2.getTextSize(t, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] + 12 for t in texts)])
+    bar_w = width - label_w - 2 * pad - room
+    for k, (name, value, text) in enumerate(zip(names, values, texts)):
         y = 40 + k * row_h
         cv2.putText(panel, name[:22], (pad, y + 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (40, 40, 40), 1, cv2.LINE_AA)
         length = int(round(bar_w * value / top))
         cv2.rectangle(panel, (label_w, y + 3), (label_w + max(length, 1), y + row_h - 4), colour, -1)
-        cv2.putText(panel, str(value), (label_w + length + 6, y + 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+        cv2.putText(panel, text, (label_w + length + 6, y + 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
                     (40, 40, 40), 1, cv2.LINE_AA)
     return panel
 
 
 def draw_chart(stats: dict, width_px: int = 720) -> np.ndarray:
-    """(H, width_px, 3) uint8 BGR image: bars per class, per camera and the visibility histogram."""
+    """(H, width_px, 3) uint8 BGR image: bars per class, per camera, the visibility histogram
+    and, when the document has the cross-camera table, object-frames by number of cameras and
+    the median cameras per class with its best DORI class."""
     classes = stats["classes"]
     cameras = stats["cameras"]
     bins = [f"{k / HISTOGRAM_BINS:.1f}-{(k + 1) / HISTOGRAM_BINS:.1f}" for k in range(HISTOGRAM_BINS)]
@@ -80,6 +128,16 @@ def draw_chart(stats: dict, width_px: int = 720) -> np.ndarray:
                    width_px, (60, 160, 60)),
         _bar_panel("visible fraction", bins, list(stats["visibility"]), width_px, (50, 90, 200)),
     ]
+    cross = stats.get("cross_camera") or {}
+    if cross.get("object_frames"):
+        counts = cross["by_camera_count"]
+        panels.append(_bar_panel("object-frames seen by n cameras", [f"{n} camera{'s' * (n != 1)}" for n in counts],
+                                 list(counts.values()), width_px, (140, 80, 160)))
+        per_class = cross["classes"]
+        panels.append(_bar_panel(
+            "median cameras per class (best DORI)", list(per_class), [c["median_cameras"] for c in per_class.values()],
+            width_px, (40, 150, 190),
+            [f"{c['median_cameras']:g} ({dori_text(c['best_dori'])})" for c in per_class.values()]))
     return np.concatenate(panels, axis=0)
 
 

@@ -6,8 +6,10 @@ Given a scene document (a file) instead of an output folder, it prints the balan
 place kinds) and draws it at ``DOC.stats.png`` (or ``--chart``).
 
 Reads ``OUT/annotations.openlabel.json`` and prints per-class and per-camera counts and the
-histogram of visible fractions as tables, and draws the same as a PNG chart at
-``OUT/stats.png`` (or ``--chart``); the counting and drawing are :mod:`usdscene.statistics`.
+histogram of visible fractions as tables, the cross-camera summary (object-frames seen by 0, 1,
+2, ... cameras; per class the median number of cameras, the median best px/m and the best DORI
+class), and draws the same as a PNG chart at ``OUT/stats.png`` (or ``--chart``); the counting and
+drawing are :mod:`usdscene.statistics`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from __future__ import annotations
 import argparse
 
 NAME = "stats"
-HELP = "per-class and per-camera label counts and the visibility histogram (table + PNG chart)"
+HELP = ("per-class and per-camera label counts, the visibility histogram and the cross-camera "
+        "summary (table + PNG chart)")
 ORDER = 60
 
 
@@ -74,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from usdscene import layout
     from usdscene.converters.openlabel import load_document
     from usdscene.errors import OutputError
-    from usdscene.statistics import HISTOGRAM_BINS, draw_chart, label_statistics, write_chart
+    from usdscene.statistics import HISTOGRAM_BINS, dori_text, draw_chart, label_statistics, write_chart
 
     out = Path(args.output)
     if out.is_file():
@@ -104,6 +107,22 @@ def run(args: argparse.Namespace) -> int:
     if stats["visibility_unknown"]:
         table.add_row("unknown", str(stats["visibility_unknown"]))
     console.print(table)
+    cross = stats["cross_camera"]
+    if cross["object_frames"]:
+        table = Table(title="cross-camera", caption=f"{cross['object_frames']} object-frames")
+        table.add_column("seen by")
+        table.add_column("object-frames", justify="right")
+        for n, count in cross["by_camera_count"].items():
+            table.add_row(f"{n} camera{'s' * (n != 1)}", str(count))
+        console.print(table)
+        table = Table(title="cross-camera per class")
+        for column in ("class", "object-frames", "unseen", "median cameras", "median best px/m", "best DORI"):
+            table.add_column(column, justify="left" if column in ("class", "best DORI") else "right")
+        for name, c in cross["classes"].items():
+            density = "-" if c["median_best_px_per_m"] is None else f"{c['median_best_px_per_m']:.1f}"
+            table.add_row(name, str(c["object_frames"]), str(c["unseen"]), f"{c['median_cameras']:g}",
+                          density, dori_text(c["best_dori"]))
+        console.print(table)
     chart = write_chart(Path(args.chart) if args.chart else out / "stats.png", draw_chart(stats))
     console.print(f"chart: {chart}")
     return 0
