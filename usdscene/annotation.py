@@ -169,12 +169,11 @@ class ImageLabeller:
         return image_labels_from_json(payload)
 
     def _compute(self, mask_bytes: bytes, mask_file: Path, frame: int, camera_name: str):
-        import dataclasses
-
         import cv2
         import numpy as np
 
         from usdscene.amodal import amodal_projections
+        from usdscene.cross_camera import camera_for_image
         from usdscene.errors import OutputError
         from usdscene.labels import label_image
 
@@ -187,12 +186,8 @@ class ImageLabeller:
             if self._triangles is None or self._triangles[0] != frame:
                 self._triangles = (frame, self.geometry.triangles(frame, set(self.ids.values())))
             height, width = mask.shape
-            intr = camera.intrinsics
-            if (intr.width_px, intr.height_px) != (width, height):  # rendered at a resolution scale
-                sx, sy = width / intr.width_px, height / intr.height_px
-                camera = dataclasses.replace(camera, intrinsics=dataclasses.replace(
-                    intr, width_px=width, height_px=height, fx_px=intr.fx_px * sx, fy_px=intr.fy_px * sy,
-                    cx_px=(intr.cx_px + 0.5) * sx - 0.5, cy_px=(intr.cy_px + 0.5) * sy - 0.5))
+            # as rendered: its pose at the frame, its intrinsics at the image's resolution scale
+            camera = camera_for_image(camera, frame, width, height)
             amodal_masks = amodal_projections(camera, self._triangles[1], frame)
             # Objects the camera does not see at all carry no label there.
             amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
