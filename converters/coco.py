@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import numpy as np
 
@@ -61,13 +61,27 @@ def _coco_polygon(ring: np.ndarray) -> list[float]:
     return [round(float(v), 3) for v in pts.reshape(-1)]
 
 
-def coco_dataset(document: dict, classes: Iterable[str] | None = None) -> dict:
-    """The COCO dict (``info``, ``images``, ``annotations``, ``categories``) of a document."""
-    names = label_classes(document, classes)
-    category_ids = {name: k + 1 for k, name in enumerate(names)}
+def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[str, int],
+                 image_ids: Iterable[int], first_annotation_id: int = 1,
+                 uri_prefix: str = "") -> tuple[list[dict], list[dict]]:
+    """COCO image and annotation records of some images of one document.
+
+    Args:
+        document: annotated document.
+        records: its images (:func:`image_records` items), in the order to write.
+        category_ids: class name → COCO category id; labels of other types are left out.
+        image_ids: one id per record (ids unique across the documents of a dataset).
+        first_annotation_id: id of the first annotation written, then +1 each.
+        uri_prefix: prepended (``prefix/uri``) to each image uri for ``file_name``, so images
+            of several output folders can share one ``image_root``.
+
+    Returns:
+        ``(images, annotations)`` lists of COCO dicts.
+    """
     images, annotations = [], []
-    for image_id, record in enumerate(image_records(document), start=1):
-        images.append({"id": image_id, "file_name": record["uri"], "width": record["width_px"],
+    for image_id, record in zip(image_ids, records):
+        file_name = f"{uri_prefix}/{record['uri']}" if uri_prefix else record["uri"]
+        images.append({"id": image_id, "file_name": file_name, "width": record["width_px"],
                        "height": record["height_px"], "camera": record["camera"],
                        "frame": record["frame"]})
         for label in labels_in(document, record["frame"], record["camera"]):
@@ -81,7 +95,7 @@ def coco_dataset(document: dict, classes: Iterable[str] | None = None) -> dict:
                 x, y, w, h = corner_box(label["bbox"])
                 segmentation = [[x, y, x + w, y, x + w, y + h, x, y + h]]
             annotations.append({
-                "id": len(annotations) + 1, "image_id": image_id,
+                "id": first_annotation_id + len(annotations), "image_id": image_id,
                 "category_id": category_ids[label["type"]],
                 "bbox": corner_box(label["bbox"]),
                 "area": float(attrs.get("pixel_count", label["bbox"][2] * label["bbox"][3])),
@@ -91,13 +105,33 @@ def coco_dataset(document: dict, classes: Iterable[str] | None = None) -> dict:
                 "truncated": bool(attrs.get("truncated", False)),
                 "amodal_bbox": corner_box(label["amodal_bbox"]) if label["amodal_bbox"] else None,
             })
+    return images, annotations
+
+
+def coco_document(images: list[dict], annotations: list[dict], names: list[str],
+                  image_root: str = "../..", **info) -> dict:
+    """The COCO dict from its records; categories are ``names`` with ids 1, 2, ...
+
+    Args:
+        image_root: folder that ``file_name`` is relative to, relative to the COCO file.
+        info: extra ``info`` fields (e.g. ``split``).
+    """
     return {
-        "info": {"description": "usdscene export", "image_root": "../..",
-                 "bbox": "[x, y, w, h], top-left corner, pixel i covers [i, i + 1)"},
+        "info": {"description": "usdscene export", "image_root": image_root,
+                 "bbox": "[x, y, w, h], top-left corner, pixel i covers [i, i + 1)", **info},
         "images": images,
         "annotations": annotations,
-        "categories": [{"id": category_ids[n], "name": n, "supercategory": "object"} for n in names],
+        "categories": [{"id": k + 1, "name": n, "supercategory": "object"} for k, n in enumerate(names)],
     }
+
+
+def coco_dataset(document: dict, classes: Iterable[str] | None = None) -> dict:
+    """The COCO dict (``info``, ``images``, ``annotations``, ``categories``) of a document."""
+    names = label_classes(document, classes)
+    category_ids = {name: k + 1 for k, name in enumerate(names)}
+    records = image_records(document)
+    images, annotations = coco_entries(document, records, category_ids, range(1, len(records) + 1))
+    return coco_document(images, annotations, names)
 
 
 def export_coco(document: dict, out_dir: str | os.PathLike,

@@ -22,7 +22,7 @@ import logging
 import os
 import shutil
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import numpy as np
 
@@ -78,6 +78,70 @@ def _link_or_copy(source: Path, target: Path, copy: bool) -> None:
     shutil.copyfile(source, target)
 
 
+def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os.PathLike,
+                      records: Iterable[dict], class_ids: Mapping[str, int], *, prefix: str = "",
+                      link_images: bool = True, copy_images: bool = False) -> list[str]:
+    """Write the label files (and image links) of some images of one document, both tasks.
+
+    Args:
+        document: annotated OpenLABEL document.
+        out_dir: the output folder holding the document and ``images/``.
+        root: the ``yolo`` folder (``<root>/<task>/images|labels/...``).
+        records: the images (:func:`image_records` items).
+        class_ids: class name → YOLO class id.
+        prefix: sub-folder under ``images/`` and ``labels/`` (one per output folder of a
+            dataset made of several, so their ``<camera>/<frame>`` names cannot collide).
+        link_images: link (relative symlink, copy where impossible) each image into the
+            dataset; False writes labels only.
+        copy_images: copy the images instead of linking them.
+
+    Returns:
+        Each record's image path relative to ``<root>/<task>`` (POSIX, same for both tasks).
+    """
+    out, root = Path(out_dir), Path(root)
+    paths = []
+    for record in records:
+        detect, segment = yolo_lines(document, record["frame"], record["camera"],
+                                     record["width_px"], record["height_px"], class_ids)
+        stem = Path(prefix) / record["camera"] / Path(record["uri"]).stem
+        image = stem.with_suffix(Path(record["uri"]).suffix)
+        for task, lines in zip(TASKS, (detect, segment)):
+            write_text_atomic(root / task / "labels" / stem.with_suffix(".txt"),
+                              "".join(line + "\n" for line in lines))
+            if link_images:
+                source = out / record["uri"]
+                if source.exists():
+                    _link_or_copy(source, root / task / "images" / image, copy_images)
+                else:
+                    log.warning("image %s is missing; labels written without it", source)
+        paths.append(("images" / image).as_posix())
+    return paths
+
+
+def write_yolo_data_yaml(root: str | os.PathLike, names: list[str],
+                         lists: Mapping[str, str] | None = None) -> None:
+    """Write ``<root>/<task>/data.yaml`` for both tasks.
+
+    Args:
+        root: the ``yolo`` folder.
+        names: class names in id order.
+        lists: split name → image list file relative to the task folder (``train.txt``);
+            None names every image (``images``) for both ``train`` and ``val``.
+    """
+    root = Path(root)
+    if lists is None:
+        head = ["# usdscene export: every rendered image; split train/val with usdscene export --split",
+                "train: images", "val: images"]
+    else:
+        head = ["# usdscene export: image lists per split (usdscene export --split)"]
+        head += [f"{split}: {_yaml_string(path)}" for split, path in lists.items()]
+    for task in TASKS:
+        # No "path" key: Ultralytics then resolves train/val against this file's folder.
+        yaml = [*head, f"task: {task}", "names:"]
+        yaml += [f"  {k}: {_yaml_string(name)}" for k, name in enumerate(names)]
+        write_bytes_atomic(root / task / "data.yaml", ("\n".join(yaml) + "\n").encode("utf-8"))
+
+
 def export_yolo(document: dict, out_dir: str | os.PathLike, classes: Iterable[str] | None = None, *,
                 link_images: bool = True, copy_images: bool = False) -> Path:
     """Write the detection and segmentation datasets under ``<out_dir>/exports/yolo``.
@@ -93,30 +157,12 @@ def export_yolo(document: dict, out_dir: str | os.PathLike, classes: Iterable[st
     Returns:
         The ``exports/yolo`` folder.
     """
-    out = Path(out_dir)
-    root = out / layout.EXPORTS_DIR / YOLO_DIR
+    root = Path(out_dir) / layout.EXPORTS_DIR / YOLO_DIR
     names = label_classes(document, classes)
-    class_ids = {name: k for k, name in enumerate(names)}
-    for record in image_records(document):
-        detect, segment = yolo_lines(document, record["frame"], record["camera"],
-                                     record["width_px"], record["height_px"], class_ids)
-        stem = Path(record["camera"]) / Path(record["uri"]).stem
-        for task, lines in zip(TASKS, (detect, segment)):
-            write_text_atomic(root / task / "labels" / stem.with_suffix(".txt"),
-                              "".join(line + "\n" for line in lines))
-            if link_images:
-                source = out / record["uri"]
-                if source.exists():
-                    _link_or_copy(source, root / task / "images" / stem.with_suffix(Path(record["uri"]).suffix),
-                                  copy_images)
-                else:
-                    log.warning("image %s is missing; labels written without it", source)
-    for task in TASKS:
-        # No "path" key: Ultralytics then resolves train/val against this file's folder.
-        yaml = ["# usdscene export: every rendered image; split train/val by camera or frame as needed",
-                "train: images", "val: images", f"task: {task}", "names:"]
-        yaml += [f"  {k}: {_yaml_string(name)}" for k, name in enumerate(names)]
-        write_bytes_atomic(root / task / "data.yaml", ("\n".join(yaml) + "\n").encode("utf-8"))
+    write_yolo_images(document, out_dir, root, image_records(document),
+                      {name: k for k, name in enumerate(names)},
+                      link_images=link_images, copy_images=copy_images)
+    write_yolo_data_yaml(root, names)
     return root
 
 

@@ -11,6 +11,13 @@ Class lists come from the asset catalog (object and passenger classes, sorted), 
 the same for every scene built from one library; the catalog is the shipped library plus the
 document's asset folders (relative to the source document recorded in the stage) plus
 ``extra_assets``.
+
+Splits and campaigns (:func:`export_dataset`): with a split rule (:mod:`usdscene.splits`),
+COCO is written as ``coco/annotations_<split>.json`` and YOLO as ``<task>/<split>.txt`` image
+lists named by ``data.yaml``, and ``splits.json`` records the split of every image. Several
+output folders (one per sequence document) become one dataset in a folder of its own, with
+image and annotation ids unique across them and the images of each output folder under a
+sub-folder named by its path relative to the folder they share.
 """
 
 from __future__ import annotations
@@ -54,8 +61,46 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
     return load_catalog([*scene.asset_paths, *extra], base_dir=base, consented=extra)
 
 
+def _export_classes(document: dict, catalog, document_classes: bool) -> list[str] | None:
+    """COCO/YOLO class names of one document: the catalog's object and passenger classes, or
+    None (= the document's labelled types) with ``document_classes`` or without a catalog."""
+    import logging
+
+    if catalog is None or document_classes:
+        return None
+    classes = [*catalog.classes("object"), *catalog.classes("passenger")]
+    labelled = {e.get("type", "") for e in document["openlabel"].get("objects", {}).values()
+                if any(p.get("type") == "bbox" for p in e.get("object_data_pointers", {}).values())}
+    unknown = sorted(labelled - set(classes))
+    if unknown:
+        logging.getLogger(__name__).warning("labelled types %s are not object classes of the catalog; "
+                                            "they are left out (use --document-classes)", unknown)
+    return classes
+
+
+def _load_annotated(out_dir, extra_assets, need_catalog: bool):
+    """``(document, catalog or None)`` of one annotated output folder."""
+    from pathlib import Path
+
+    from usdscene.converters.openlabel import load_document
+    from usdscene import layout
+    from usdscene.errors import AssetError, OutputError
+
+    path = Path(out_dir) / layout.ANNOTATIONS_FILE
+    if not path.is_file():
+        raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
+    document = load_document(path)
+    try:
+        return document, load_export_catalog(document, out_dir, extra_assets)
+    except AssetError:
+        if need_catalog:
+            raise
+        return document, None
+
+
 def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,
-                   copy_images: bool = False, min_roi_px: int = 8) -> dict:
+                   copy_images: bool = False, min_roi_px: int = 8, split=None,
+                   split_seed: int = 0) -> dict:
     """Export ``OUT/annotations.openlabel.json`` to each of ``formats``.
 
     Args:
@@ -65,54 +110,160 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         document_classes: COCO/YOLO classes from the document's labelled types, not the catalog.
         copy_images: YOLO copies images instead of linking them.
         min_roi_px: ROIs: smallest crop side in pixels.
+        split: a split rule (text or :class:`usdscene.splits.SplitRule`) for COCO and YOLO;
+            None writes one COCO file and a YOLO ``data.yaml`` naming every image.
+        split_seed: seed of a ``fractions`` split rule.
 
     Returns:
-        format → folder written.
+        format → folder (or file) written.
 
     Raises:
         OutputError: no annotations yet. AssetError: the catalog cannot be read.
+        DocumentError: a bad split rule.
     """
-    import logging
     from pathlib import Path
 
-    from usdscene.converters.openlabel import load_document
     from usdscene import layout
-    from usdscene.errors import AssetError, OutputError
+    from usdscene.errors import OutputError
 
     out = Path(out_dir)
-    path = out / layout.ANNOTATIONS_FILE
-    if not path.is_file():
-        raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
-    document = load_document(path)
-    catalog = None
-    try:
-        catalog = load_export_catalog(document, out, extra_assets)
-    except AssetError:
-        if "rois" in formats or not document_classes:
-            raise
-    classes = None
-    if catalog is not None and not document_classes:
-        classes = [*catalog.classes("object"), *catalog.classes("passenger")]
-        labelled = {e.get("type", "") for e in document["openlabel"].get("objects", {}).values()
-                    if any(p.get("type") == "bbox" for p in e.get("object_data_pointers", {}).values())}
-        unknown = sorted(labelled - set(classes))
-        if unknown:
-            logging.getLogger(__name__).warning("labelled types %s are not object classes of the catalog; "
-                                                "they are left out (use --document-classes)", unknown)
+    unknown = [f for f in formats if f not in FORMATS]
+    if unknown:
+        raise OutputError(f"unknown export format {unknown[0]!r}; expected one of {FORMATS}", where="exports")
+    ordered = list(dict.fromkeys(formats))
     written = {}
-    for fmt in dict.fromkeys(formats):
-        if fmt == "coco":
-            from usdscene.converters.coco import export_coco
+    dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
+    if dataset_formats:
+        written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR,
+                                      extra_assets=extra_assets, document_classes=document_classes,
+                                      copy_images=copy_images, split=split, split_seed=split_seed))
+    if "rois" in ordered:
+        from usdscene.converters.rois import export_rois
 
-            written[fmt] = export_coco(document, out, classes)
-        elif fmt == "yolo":
-            from usdscene.converters.yolo import export_yolo
+        document, catalog = _load_annotated(out, extra_assets, need_catalog=True)
+        written["rois"] = export_rois(document, out, catalog, min_size_px=min_roi_px)
+    return {fmt: written[fmt] for fmt in ordered}
 
-            written[fmt] = export_yolo(document, out, classes, link_images=True, copy_images=copy_images)
-        elif fmt == "rois":
-            from usdscene.converters.rois import export_rois
 
-            written[fmt] = export_rois(document, out, catalog, min_size_px=min_roi_px)
-        else:
-            raise OutputError(f"unknown export format {fmt!r}; expected one of {FORMATS}", where="exports")
+def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_classes: bool = False,
+                   copy_images: bool = False, split=None, split_seed: int = 0) -> dict:
+    """Export one COCO/YOLO dataset from one or more annotated output folders.
+
+    Images are ordered by output folder (as given), then frame, then camera; image ids are
+    1, 2, ... in that order over the whole dataset, so an image has the same id whichever split
+    it falls in, and annotation ids are unique across the dataset too. Classes are the union of
+    each folder's classes (sorted), so class ids agree between splits and folders.
+
+    Args:
+        out_dirs: annotated output folders (each the output of ``usdscene run`` / ``annotate``).
+        formats: ``coco`` and/or ``yolo``.
+        dataset_dir: the dataset folder; ``coco/`` and ``yolo/`` are written inside it.
+        extra_assets: as in :func:`export_formats`.
+        document_classes: as in :func:`export_formats`.
+        copy_images: as in :func:`export_formats`.
+        split: split rule text or :class:`usdscene.splits.SplitRule`; None = no split.
+        split_seed: seed of a ``fractions`` rule.
+
+    Returns:
+        format → what was written: ``coco/annotations.json`` without a split, else the
+        ``coco`` folder; the ``yolo`` folder.
+
+    Raises:
+        OutputError: a folder without annotations, a folder given twice, a format other
+            than COCO/YOLO. DocumentError: a bad split rule. AssetError: unreadable catalog.
+    """
+    import logging
+    import os
+    from pathlib import Path
+
+    from usdscene.converters.coco import COCO_DIR, COCO_FILE, coco_document, coco_entries
+    from usdscene.converters.openlabel_annotations import image_records, label_classes
+    from usdscene.converters.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
+    from usdscene.errors import OutputError
+    from usdscene.files import write_json_atomic, write_text_atomic
+    from usdscene.splits import ImageKey, SplitRule, assign_splits, parse_split, split_counts
+
+    bad = [f for f in formats if f not in ("coco", "yolo")]
+    if bad:
+        raise OutputError(f"format {bad[0]!r} cannot be exported as one dataset of several output "
+                          "folders; export it per output folder", where="exports")
+    outs = [Path(o) for o in out_dirs]
+    if not outs:
+        raise OutputError("no output folder to export", where="exports")
+    resolved = [o.resolve() for o in outs]
+    for o, r in zip(outs, resolved):
+        if resolved.count(r) > 1:
+            raise OutputError(f"output folder {str(o)!r} is given twice", where=str(o))
+    dataset = Path(dataset_dir)
+    # file_name and the YOLO image folders are relative to the folder common to every output,
+    # so a single output gives exactly the one-folder layout (``images/<camera>/...``).
+    base = Path(os.path.commonpath(resolved)) if len(resolved) > 1 else resolved[0]
+    prefixes = [r.relative_to(base).as_posix() if r != base else "" for r in resolved]
+    sources = [p or r.name for p, r in zip(prefixes, resolved)]
+
+    loaded = [_load_annotated(o, extra_assets, need_catalog=not document_classes) for o in outs]
+    names = sorted({n for document, catalog in loaded
+                    for n in label_classes(document, _export_classes(document, catalog, document_classes))})
+    records = [image_records(document) for document, _ in loaded]
+
+    # Global order: folder as given, then frame, then camera (image_records' order).
+    items, image_id = [], 0
+    for index, (source, recs) in enumerate(zip(sources, records)):
+        for record in recs:
+            image_id += 1
+            items.append((ImageKey(source, record["frame"], record["camera"]), image_id, index, record))
+
+    rule = None
+    groups: dict = {None: items}
+    if split is not None:
+        rule = split if isinstance(split, SplitRule) else parse_split(split)
+        aliases = {s: {str(o), o.name, r.name} for s, o, r in zip(sources, outs, resolved)}
+        assignment = assign_splits([item[0] for item in items], rule, split_seed, source_aliases=aliases)
+        groups = {name: [item for item in items if assignment.get(item[0]) == name] for name in rule.names}
+        counts = split_counts(assignment, rule.names)
+        for name, count in counts.items():
+            if not count["images"]:
+                logging.getLogger(__name__).warning("split %r has no image", name)
+        write_json_atomic(dataset / "splits.json", {
+            "rule": rule.text, "kind": rule.kind, "seed": int(split_seed), "counts": counts,
+            "sources": [{"name": s, "folder": p or "."} for s, p in zip(sources, prefixes)],
+            "images": [{"source": key.source, "frame": key.frame, "camera": key.camera,
+                        "split": assignment[key], "image_id": image_id}
+                       for key, image_id, _, _ in items if key in assignment]})
+
+    written = {}
+    if "coco" in formats:
+        category_ids = {n: k + 1 for k, n in enumerate(names)}
+        coco_dir = dataset / COCO_DIR
+        image_root = Path(os.path.relpath(base, coco_dir.resolve())).as_posix()
+        # Annotation ids are numbered over the whole dataset in image order, like image ids.
+        entries, next_id = {}, 1
+        for _, image_id, index, record in items:
+            entries[image_id] = coco_entries(loaded[index][0], [record], category_ids, [image_id],
+                                             first_annotation_id=next_id, uri_prefix=prefixes[index])
+            next_id += len(entries[image_id][1])
+        for split_name, members in groups.items():
+            images = [e for _, image_id, _, _ in members for e in entries[image_id][0]]
+            annotations = [a for _, image_id, _, _ in members for a in entries[image_id][1]]
+            info = {} if split_name is None else {"split": split_name}
+            target = coco_dir / (COCO_FILE if split_name is None else f"annotations_{split_name}.json")
+            write_json_atomic(target, coco_document(images, annotations, names, image_root, **info))
+        written["coco"] = coco_dir / COCO_FILE if rule is None else coco_dir
+    if "yolo" in formats:
+        root = dataset / YOLO_DIR
+        class_ids = {n: k for k, n in enumerate(names)}
+        lists = {}
+        for split_name, members in groups.items():
+            paths = []
+            for _, _, index, record in members:
+                paths += write_yolo_images(loaded[index][0], outs[index], root, [record], class_ids,
+                                           prefix=prefixes[index], copy_images=copy_images)
+            if split_name is not None:
+                # "./" makes Ultralytics resolve each line against the list file's folder
+                text = "".join(f"./{p}\n" for p in paths)
+                for task in TASKS:
+                    write_text_atomic(root / task / f"{split_name}.txt", text)
+                lists[split_name] = f"{split_name}.txt"
+        write_yolo_data_yaml(root, names, lists if rule is not None else None)
+        written["yolo"] = root
     return written

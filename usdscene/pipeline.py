@@ -102,7 +102,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
                  cameras: Sequence[str] | None = None, exports: Sequence[str] | None = None,
                  samples: int | None = None, workers: int = 1, progress: bool = True,
                  on_step: Callable[[str], None] | None = None,
-                 render_options: Mapping[str, object] | None = None) -> RunSummary:
+                 render_options: Mapping[str, object] | None = None, split=None,
+                 split_seed: int = 0) -> RunSummary:
     """Run the whole job for one scene document.
 
     Args:
@@ -115,6 +116,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         workers: render worker processes side by side.
         progress: show progress bars on stderr.
         on_step: called with each step's name as it starts (for a status line).
+        split: training split rule of the COCO/YOLO export (:mod:`usdscene.splits`); None = none.
+        split_seed: seed of a fraction split.
 
     Raises:
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
@@ -166,7 +169,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     written: dict[str, Path] = {}
     if formats:
         t = step("export")
-        written = export_formats(out, formats)
+        written = export_formats(out, formats, split=split, split_seed=split_seed)
         seconds["export"] = time.perf_counter() - t
 
     per_class = Counter(obj.class_name for image in annotations for obj in image.objects if obj.visible)

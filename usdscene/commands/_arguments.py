@@ -117,3 +117,30 @@ def output_path(text: str) -> str:
     if os.path.dirname(resolved) == resolved:
         raise argparse.ArgumentTypeError(f"{text!r} is the root of the file system; name a folder below it")
     return text
+
+
+def split_rule(text: str):
+    """argparse type of ``--split``: a :class:`usdscene.splits.SplitRule`.
+
+    Raises:
+        argparse.ArgumentTypeError: every problem of the rule (argparse exits 2 with it).
+    """
+    from usdscene.errors import DocumentError
+    from usdscene.splits import parse_split
+
+    try:
+        return parse_split(text)
+    except DocumentError as exc:
+        raise argparse.ArgumentTypeError("; ".join(p.message for p in exc.problems)) from None
+
+
+def add_split_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--split`` and ``--split-seed``, shared by ``export`` and ``run``."""
+    parser.add_argument(
+        "--split", type=split_rule, metavar="RULE",
+        help="training splits for COCO and YOLO: seeded fractions grouped by frame "
+             "(train=0.8,val=0.1,test=0.1), closed frame ranges (frames:train=0:399,val=400:449), "
+             "cameras (cameras:val=cam_01,cam_02) or output folders (documents:val=out_b); "
+             "images a listing rule leaves unnamed go to train unless train is listed")
+    parser.add_argument("--split-seed", type=non_negative_int, default=0, metavar="N",
+                        help="seed of a fraction split (default 0)")

@@ -1,20 +1,40 @@
-"""``usdscene export coco|yolo|rois OUT``: training sets from ``OUT/annotations.openlabel.json``
-(the exporters are :mod:`usdscene.export`)."""
+"""``usdscene export FORMAT... OUT... [--dataset DIR] [--split RULE]``: training sets from
+``OUT/annotations.openlabel.json`` (the exporters are :mod:`usdscene.export`)."""
 
 from __future__ import annotations
 
 import argparse
 
+from usdscene.commands._arguments import add_split_arguments
 from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "export"
-HELP = "export the annotated output as COCO, YOLO or ROI crops (from OUT/annotations.openlabel.json)"
-ORDER = 50
+HELP = ("export annotated outputs as COCO, YOLO or ROI crops (from OUT/annotations.openlabel.json), "
+        "with training splits; several outputs as one dataset")
+
+
+class _FormatsThenOutputs(argparse.Action):
+    """``coco yolo OUT1 OUT2``: the leading format names, then at least one output folder."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        count = 0
+        while count < len(values) and values[count] in FORMATS:
+            count += 1
+        if count == 0:
+            parser.error(f"argument FORMAT: invalid choice: {values[0]!r} (choose from {', '.join(FORMATS)})")
+        if count == len(values):
+            parser.error("the following arguments are required: OUT")
+        namespace.format, namespace.outputs = values[:count], values[count:]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("format", choices=FORMATS, nargs="+", help="one or more formats")
-    parser.add_argument("output", metavar="OUT", help="output folder with annotations.openlabel.json")
+    parser.add_argument("items", nargs="+", action=_FormatsThenOutputs, metavar="FORMAT|OUT",
+                        help=f"one or more formats ({', '.join(FORMATS)}), then one or more output "
+                             "folders with annotations.openlabel.json")
+    parser.add_argument("--dataset", metavar="DIR",
+                        help="write one COCO/YOLO dataset of every OUT into DIR (needed for several OUT); "
+                             "default: OUT/exports")
+    add_split_arguments(parser)
     parser.add_argument("--assets", nargs="+", default=[], metavar="DIR",
                         help="extra asset catalog folders (classes, place regions)")
     parser.add_argument("--document-classes", action="store_true",
@@ -27,11 +47,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from usdscene.export import export_formats
+    from usdscene.errors import OutputError, Problem
+    from usdscene.export import export_dataset, export_formats
 
-    written = export_formats(args.output, args.format, extra_assets=args.assets,
-                             document_classes=args.document_classes, copy_images=args.copy_images,
-                             min_roi_px=args.min_roi_px)
+    options = dict(extra_assets=args.assets, document_classes=args.document_classes,
+                   copy_images=args.copy_images, split=args.split, split_seed=args.split_seed)
+    if args.dataset is None and len(args.outputs) > 1:
+        raise OutputError([Problem("--dataset", f"{len(args.outputs)} output folders make one dataset: "
+                                                "name its folder with --dataset DIR")])
+    if args.dataset is None:
+        written = export_formats(args.outputs[0], args.format, min_roi_px=args.min_roi_px, **options)
+    else:
+        if "rois" in args.format:
+            raise OutputError([Problem("--dataset", "ROI crops are exported per output folder; "
+                                                    "export rois without --dataset")])
+        written = export_dataset(args.outputs, args.format, args.dataset, **options)
     for fmt, target in written.items():
         print(f"{fmt}: {target}")
+    if args.split is not None:
+        import json
+        from pathlib import Path
+
+        folder = Path(args.dataset) if args.dataset else Path(args.outputs[0]) / "exports"
+        counts = json.loads((folder / "splits.json").read_text(encoding="utf-8"))["counts"]
+        print("splits: " + ", ".join(f"{name} {c['images']} images ({c['frames']} frames)"
+                                     for name, c in counts.items()))
     return 0

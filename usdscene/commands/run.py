@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from usdscene.commands._arguments import add_executor_arguments
+from usdscene.commands._arguments import add_executor_arguments, add_split_arguments
 
 from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
 
@@ -30,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, metavar="N",
                         help="render worker processes side by side (default 1; with --executor ray: at "
                              "most N tasks in flight, default what the cluster holds)")
+    add_split_arguments(parser)
     add_executor_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -58,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras,
                            exports=args.export, samples=args.samples, workers=args.workers or 1,
                            progress=progress, on_step=show_step,
-                           render_options={"executor": executor, "retries": args.retries})
+                           render_options={"executor": executor, "retries": args.retries},
+                           split=args.split, split_seed=args.split_seed)
     print(summary_text(summary))
     return 0
