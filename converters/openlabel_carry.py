@@ -52,8 +52,7 @@ def element_residue(element: Mapping, known_data: Mapping[str, str], consumed: f
     if isinstance(data, dict):
         carried = {}
         for kind, items in data.items():
-            kept = [item for item in items if not (isinstance(item, dict) and item.get("name") in known_data)] \
-                if isinstance(items, list) else items
+            kept = [item for item in items if not _is_known(item, known_data)] if isinstance(items, list) else items
             if kept:
                 carried[kind] = kept
         if carried:
@@ -64,6 +63,11 @@ def element_residue(element: Mapping, known_data: Mapping[str, str], consumed: f
         if kept_pointers:
             out["object_data_pointers"] = kept_pointers
     return canonical_json(out)
+
+
+def _is_known(item: Any, known_data: Mapping[str, str]) -> bool:
+    """Whether an object data item is one usdscene reads (by its name; any JSON may be there)."""
+    return isinstance(item, dict) and isinstance(item.get("name"), str) and item["name"] in known_data
 
 
 def stream_residue(stream: Mapping) -> str:
