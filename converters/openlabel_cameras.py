@@ -13,6 +13,7 @@ from typing import Mapping
 
 from usdscene.model import Camera, Pose, RenderSettings
 
+from usdscene.converters.openlabel_carry import stream_residue
 from usdscene.converters.openlabel_intrinsics import FRIENDLY_KEYS, read_intrinsics
 from usdscene.converters.openlabel_load import DocumentBody
 from usdscene.converters.openlabel_poses import CoordinateSystems, read_coordinate_systems, read_friendly_pose
@@ -127,4 +128,4 @@ def _read_camera(doc: DocumentBody, name: str, stream: Mapping, where: str, rend
         description = ""
     return Camera(name=name, intrinsics=intrinsics, pose=pose, frame_poses=tuple(frame_poses),
                   clip_near_m=clip[0], clip_far_m=clip[1], model_name=model_name,
-                  description=description, custom=dict(custom))
+                  description=description, custom=dict(custom), extra=stream_residue(stream))

@@ -20,6 +20,7 @@ from typing import Any, Mapping
 from usdscene.errors import ProblemCollector
 from usdscene.model import FrameInterval, Light, LightKind, PlaceRef, Randomization, SceneObject
 
+from usdscene.converters.openlabel_carry import OBJECT_KEYS, element_residue, frame_residues
 from usdscene.converters.openlabel_load import DocumentBody
 from usdscene.converters.openlabel_poses import pose_from_object_data
 from usdscene.converters.openlabel_values import (
@@ -64,7 +65,7 @@ def read_objects(doc: DocumentBody) -> tuple[list[Light], list[PlaceRef], list[S
     uids: dict[str, str] = {}  # uid → "light" | "place" | "object" (| "other" for bad ones)
     place_names: dict[str, str] = {}
     light_names: dict[str, str] = {}
-    frame_poses = _frame_object_poses(doc)
+    frame_poses, frame_entries = _frame_object_poses(doc)
     for uid, obj in doc.section("objects").items():
         where = f"{R}.objects.{uid}"
         uids[uid] = "other"
@@ -110,16 +111,19 @@ def read_objects(doc: DocumentBody) -> tuple[list[Light], list[PlaceRef], list[S
         else:
             uids[uid] = "object"
             scene_object = _read_scene_object(doc, uid, name, otype, obj, where, intervals,
-                                              tuple((f, p) for f, p, _ in frame_poses.get(uid, ())))
+                                              tuple((f, p) for f, p, _ in frame_poses.get(uid, ())),
+                                              frame_entries.get(uid, ()))
             if scene_object is not None:
                 objects.append(scene_object)
     return lights, places, objects, uids
 
 
-def _frame_object_poses(doc: DocumentBody) -> dict[str, list]:
-    """uid → [(frame, Pose, where)] from ``frames[f].objects[uid].object_data``; frame
-    entries of uids that are not objects are reported as dangling."""
+def _frame_object_poses(doc: DocumentBody) -> tuple[dict[str, list], dict[str, list]]:
+    """(uid → [(frame, Pose, where)] from ``frames[f].objects[uid].object_data``, uid →
+    [(frame, entry)] of every JSON object entry); frame entries of uids that are not objects
+    are reported as dangling."""
     out: dict[str, list] = {}
+    entries: dict[str, list] = {}
     R = doc.root
     known = doc.body.get("objects", {})
     known = known if isinstance(known, dict) else {}
@@ -136,6 +140,7 @@ def _frame_object_poses(doc: DocumentBody) -> dict[str, list]:
             if not isinstance(entry, dict):
                 doc.add(f"{where}.{uid}", f"expected a JSON object, got {describe(entry)}")
                 continue
+            entries.setdefault(uid, []).append((number, entry))
             items = read_object_data(entry.get("object_data"), f"{where}.{uid}.object_data", POSE_DATA,
                                      strict=False, problems=doc.problems)
             if not items:
@@ -143,7 +148,7 @@ def _frame_object_poses(doc: DocumentBody) -> dict[str, list]:
             pose = pose_from_object_data(items, doc.problems)
             if pose is not None and pose is not INVALID:
                 out.setdefault(uid, []).append((number, pose, f"{where}.{uid}"))
-    return out
+    return out, entries
 
 
 def _read_light(doc: DocumentBody, uid: str, name: str, obj: Mapping, where: str,
@@ -199,7 +204,8 @@ def _read_light(doc: DocumentBody, uid: str, name: str, obj: Mapping, where: str
 
 
 def _read_scene_object(doc: DocumentBody, uid: str, name: str, otype: str, obj: Mapping, where: str,
-                       intervals: tuple[FrameInterval, ...], frame_poses: tuple) -> SceneObject | None:
+                       intervals: tuple[FrameInterval, ...], frame_poses: tuple,
+                       frame_entries: tuple | list = ()) -> SceneObject | None:
     P = doc.problems
     items = read_object_data(obj.get("object_data"), f"{where}.object_data", OBJECT_DATA,
                              strict=False, problems=P)
@@ -225,7 +231,9 @@ def _read_scene_object(doc: DocumentBody, uid: str, name: str, otype: str, obj: 
     if pose is INVALID:
         return None
     return SceneObject(uid=uid, name=name, class_name=otype, frame_intervals=intervals, pose=pose,
-                       frame_poses=frame_poses, randomization=Randomization(**knobs), **kwargs)
+                       frame_poses=frame_poses, randomization=Randomization(**knobs),
+                       extra=element_residue(obj, OBJECT_DATA, OBJECT_KEYS),
+                       frame_extra=frame_residues(frame_entries, POSE_DATA), **kwargs)
 
 
 def _read_color(item: tuple[str, Any, str], problems: ProblemCollector) -> tuple[float, float, float] | None:

@@ -14,6 +14,7 @@ Every ``Pose`` maps child → parent coordinates (``usdscene.model`` conventions
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -31,6 +32,8 @@ from usdscene.converters.openlabel_values import (
     read_numbers,
     read_transform,
 )
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -121,7 +124,12 @@ def read_coordinate_systems(doc: DocumentBody) -> CoordinateSystems:
                                      f"got {describe(cs.get('type'))}")
         parents[name] = parent
         pose = Pose()
-        if "pose_wrt_parent" in cs:
+        given = cs.get("pose_wrt_parent")
+        if isinstance(given, dict) and given.get("matrix4x4") == [] and len(given) == 1:
+            # The VCD library writes an empty matrix for a pose nobody gave; a root needs none.
+            if parent:
+                log.warning("%s.pose_wrt_parent: empty matrix4x4, read as the identity", where)
+        elif "pose_wrt_parent" in cs:
             read = read_transform(cs["pose_wrt_parent"], f"{where}.pose_wrt_parent", doc.problems)
             pose = read if read is not None else pose
         static[name] = pose
@@ -182,7 +190,16 @@ def read_coordinate_systems(doc: DocumentBody) -> CoordinateSystems:
     systems = CoordinateSystems(parents, static, per_frame)
     # After the parent/child transforms of every frame, so that a transform between distant
     # systems is resolved against the poses of its own frame.
+    streams = doc.section("streams")
+    cameras = {name for name, st in streams.items() if isinstance(st, dict) and st.get("type") == "camera"}
+    camera_roots = {systems.root_of(name) for name in cameras if name in parents}
     for number, here, src, dst, pose in indirect:
+        if systems.root_of(src) != systems.root_of(dst) and not (
+                {systems.root_of(src), systems.root_of(dst)} & camera_roots):
+            # Two trees without a camera: nothing usdscene places depends on the link.
+            log.warning("%s: transform between the separate trees of %r and %r is not used "
+                        "(no camera in either)", here, src, dst)
+            continue
         problem = _resolve_through_graph(systems, number, src, dst, pose)
         if problem:
             doc.add(here, problem)

@@ -14,10 +14,11 @@ This module ties the section readers together, in this order:
 * ``openlabel_relations``: relations and per-frame relation markers;
 * then the scene's frame range and, with a catalog, the checks against the asset library.
 
-Content that the scene model does not represent is read past without error: non-camera
-streams, bounding boxes / cuboids / polygons and other geometric object data, per-frame
-stream properties (per-frame intrinsics, sync), actions, events, contexts, tags, ontologies,
-and relations that involve actions, events or contexts (their uids are still checked).
+Content that the scene model does not represent is read past without error and kept in the
+``extra`` fields for the writer (``openlabel_carry``): non-camera streams, bounding boxes /
+cuboids / polygons and other geometric object data, per-frame stream properties (per-frame
+intrinsics, sync), actions, events, contexts, tags, ontologies, unknown metadata keys, and
+relations that involve actions, events or contexts (their uids are still checked).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from usdscene.errors import DocumentError
 from usdscene.model import FrameInterval, Provenance, SceneSpec, union_intervals
 
 from usdscene.converters.openlabel_cameras import read_cameras
+from usdscene.converters.openlabel_carry import scene_residue
 from usdscene.converters.openlabel_load import DocumentBody, load_with_provenance
 from usdscene.converters.openlabel_metadata import read_metadata
 from usdscene.converters.openlabel_objects import read_objects
@@ -86,7 +88,8 @@ def read_loaded(document: dict, provenance: Provenance, *, catalog: Catalog | No
         relations=tuple(relations), render=settings["render"], seed=settings["seed"],
         environment=settings["environment"], asset_paths=settings["asset_paths"],
         exports=settings["exports"], roi_rules=settings["roi_rules"],
-        description=settings["description"])
+        description=settings["description"],
+        extra=scene_residue(doc.body, doc.frames(), cameras, relations))
     if catalog is not None:
         _check_catalog(doc, catalog, scene)
     doc.problems.raise_if_any(DocumentError)

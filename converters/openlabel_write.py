@@ -14,7 +14,9 @@ Normal form (what ``usdscene convert`` writes):
   ``lens_coeffs``, ``center_x_px``) plus the ``usdscene`` block that names the lens model;
 * poses of lights and objects as the vec ``pose_matrix4x4`` (exact; no angle round-off);
 * ``object_data_pointers`` for every object data entry, closed frame intervals, and the root
-  ``frame_intervals`` as the union of the scene range and every element's intervals.
+  ``frame_intervals`` as the union of the scene range and every element's intervals;
+* what the scene carries for others (the ``extra`` fields, ``openlabel_carry``) merged back
+  unchanged: their object data after usdscene's, their streams, actions, events, ...
 """
 
 from __future__ import annotations
@@ -24,8 +26,18 @@ import os
 from typing import Any, Iterable
 
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import FISHEYE_LENSES, FrameInterval, LensModel, Pose, RenderSettings, SceneSpec, union_intervals
+from usdscene.model import (
+    FISHEYE_LENSES,
+    FrameInterval,
+    LensModel,
+    Pose,
+    RenderSettings,
+    SceneSpec,
+    extra_data,
+    union_intervals,
+)
 
+from usdscene.converters.openlabel_carry import merge_element, merge_scene
 from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
 from usdscene.converters.openlabel_load import SCHEMA_VERSION
 from usdscene.converters.openlabel_objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
@@ -78,6 +90,8 @@ def write_openlabel(scene: SceneSpec) -> dict:
                                  "pose_wrt_parent": {"matrix4x4": _matrix(cam.pose)}}
             streams[cam.name] = {"type": "camera", "description": cam.description, "uri": "",
                                  "stream_properties": _calibration(cam, problems)}
+            if cam.extra:
+                _merge_stream(streams[cam.name], cam.extra)
             for frame, pose in cam.frame_poses:
                 if frame < 0:
                     problems.add(f"cameras.{cam.name}.frame_poses", f"frame {frame} is negative")
@@ -148,6 +162,14 @@ def write_openlabel(scene: SceneSpec) -> dict:
             pointers["pose_matrix4x4"] = {
                 "type": "vec",
                 "frame_intervals": _intervals(_frames_to_intervals(f for f, _ in obj.frame_poses if f >= 0))}
+        if obj.extra:
+            merge_element(element, obj.extra)
+        for frame, text in obj.frame_extra:
+            if frame < 0:
+                problems.add(f"objects.{obj.uid}.frame_extra", f"frame {frame} is negative")
+                continue
+            merge_element(frames.setdefault(frame, {}).setdefault("objects", {}).setdefault(uid_map[obj.uid], {}),
+                          text)
         objects[uid_map[obj.uid]] = element
     if objects:
         body["objects"] = objects
@@ -173,6 +195,8 @@ def write_openlabel(scene: SceneSpec) -> dict:
     if relations:
         body["relations"] = relations
 
+    if scene.extra:
+        merge_scene(body, frames, scene.extra, problems)
     if frames:
         body["frames"] = {str(f): frames[f] for f in sorted(frames)}
     every = [FrameInterval(scene.frame_start, scene.frame_end)]
@@ -314,6 +338,14 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
         friendly["custom"] = dict(cam.custom)
     props["usdscene"] = friendly
     return props
+
+
+def _merge_stream(stream: dict, text: str) -> None:
+    """A camera stream's carried keys (``Camera.extra``) into the written stream."""
+    carried = extra_data(text)
+    stream["stream_properties"].update(
+        {k: v for k, v in carried.pop("stream_properties", {}).items() if k not in stream["stream_properties"]})
+    stream.update(carried)
 
 
 def write_document(path: str | os.PathLike, document: dict):

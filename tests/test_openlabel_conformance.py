@@ -1,12 +1,11 @@
 """Third-party OpenLABEL files: read, write back, validate against the official schema, and
 read → write → read gives an equal scene.
 
-What the scene model does not represent is read past and therefore not written back:
-bounding boxes, cuboids, poly2d contours and other geometric object data; non-camera streams
-(lidar, IMU); per-frame stream properties (per-frame intrinsics, sync, uris); actions, events,
-contexts, ontologies, and relations that involve them (e.g. the semantics file's
-event→action relations); camera streams without intrinsics usdscene can use (the poses file's
-cameras, the intrinsics file's ``intrinsics_custom`` camera) — those are skipped with a warning.
+What the scene model does not represent (bounding boxes, cuboids, poly2d contours and other
+geometric object data; non-camera streams; per-frame stream properties; actions, events,
+contexts, ontologies, and relations that involve them; camera streams without intrinsics
+usdscene can use, which are skipped as cameras with a warning) is carried in the ``extra``
+fields and written back unchanged: ``tests/test_openlabel_carry.py`` checks that.
 """
 
 from __future__ import annotations

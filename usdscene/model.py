@@ -17,6 +17,7 @@ nowhere else re-derived:
 from __future__ import annotations
 
 import enum
+import json
 import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping, Sequence
@@ -299,6 +300,9 @@ class Camera:
         model_name: the hardware model label (e.g. "Axis M3068-P"), informational.
         description: free text.
         custom: extra parameters of the friendly form, kept verbatim.
+        extra: the stream's content usdscene does not model (other keys of the stream and of
+            its ``stream_properties``), as :func:`canonical_json` text; "" = none. Written
+            back unchanged.
     """
 
     name: str
@@ -310,6 +314,7 @@ class Camera:
     model_name: str = ""
     description: str = ""
     custom: Mapping[str, Any] = field(default_factory=dict)
+    extra: str = ""
 
     def pose_at(self, frame: int) -> Pose:
         for f, p in self.frame_poses:
@@ -432,6 +437,11 @@ class SceneObject:
             when ``randomization.random_appearance``).
         color_rgb: explicit base colour override (linear RGB); None = asset's own.
         randomization: noise and colour knobs.
+        extra: the element's content usdscene does not model (object data of other names such
+            as bboxes, cuboids, poly2d or a vec ``Position``, their pointers, other keys), as
+            :func:`canonical_json` text of a partial OpenLABEL object; "" = none.
+        frame_extra: the same per frame ``(frame, text)`` for ``frames[f].objects[uid]``,
+            sorted by frame.
     """
 
     uid: str
@@ -443,6 +453,8 @@ class SceneObject:
     appearance: str | None = None
     color_rgb: tuple[float, float, float] | None = None
     randomization: Randomization = field(default_factory=Randomization)
+    extra: str = ""
+    frame_extra: tuple[tuple[int, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -463,6 +475,27 @@ class Relation:
     subject_uid: str
     object_uid: str
     frame_intervals: tuple[FrameInterval, ...] = ()
+
+
+# --------------------------------------------------------------------------------------------
+# Carried data
+
+
+def canonical_json(value: Mapping[str, Any] | None) -> str:
+    """Canonical JSON text of a JSON object (sorted keys, no spaces, UTF-8 characters kept);
+    "" for None or an empty object.
+
+    This is the form of the ``extra`` fields: text keeps the frozen dataclasses hashable, and
+    two carried values are equal exactly when their canonical texts are byte-equal.
+    """
+    if not value:
+        return ""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+
+
+def extra_data(text: str) -> dict[str, Any]:
+    """The JSON object of an ``extra`` field (a fresh copy; ``{}`` for "")."""
+    return json.loads(text) if text else {}
 
 
 # --------------------------------------------------------------------------------------------
@@ -540,6 +573,13 @@ class SceneSpec:
         roi_rules: relation type → label for ROI crops (e.g. ``{"is_below": "correct"}``).
         description: free text.
         provenance: where it came from.
+        extra: the document's content usdscene does not model, as :func:`canonical_json` text
+            of a partial OpenLABEL body: unknown ``metadata`` keys, non-camera streams (and
+            camera streams without usable intrinsics), actions, events, contexts, ontologies,
+            resources, tags, relations that involve them, and per-frame content
+            (``frame_properties`` other than transforms, per-frame stream properties,
+            actions, events, contexts, relation markers); "" = none. Written back unchanged,
+            so a converted document keeps other people's data.
     """
 
     name: str = "scene"
@@ -558,6 +598,7 @@ class SceneSpec:
     roi_rules: Mapping[str, str] = field(default_factory=dict)
     description: str = ""
     provenance: Provenance = field(default_factory=Provenance)
+    extra: str = ""
 
     @property
     def frames(self) -> range:
