@@ -47,6 +47,7 @@ _LAZY = {
     "annotate_output": ("usdscene.annotation", "annotate_output"),
     "write_annotations": ("usdscene.annotation", "write_annotations"),
     "export_formats": ("usdscene.export", "export_formats"),
+    "export_dataset": ("usdscene.export", "export_dataset"),
     # the whole job
     "run_pipeline": ("usdscene.pipeline", "run_pipeline"),
     "RunSummary": ("usdscene.pipeline", "RunSummary"),
