@@ -79,7 +79,8 @@ def run(stage: Path, out: Path, cams: list[str], override: dict, scale: float):
 BASELINE = {"samples": 8, "adaptive_threshold": 0.0, "adaptive_min_samples": 0, "denoise": True,
             "denoiser": "openimagedenoise", "denoising_quality": "high", "denoising_prefilter": "accurate",
             "denoising_input_passes": "rgb_albedo_normal", "light_tree": True, "path_guiding": False,
-            "clamp_indirect": 10.0, "max_bounces": 1, "caustics": False, "tile_size_px": 2048}
+            "clamp_indirect": 10.0, "sampling_pattern": "tabulated_sobol", "max_bounces": 1, "caustics": False,
+            "tile_size_px": 2048}
 CANDIDATES = {  # label -> knobs changed from BASELINE
     "OIDN high / fast prefilter": {"denoising_prefilter": "fast"},
     "OIDN balanced / fast": {"denoising_quality": "balanced", "denoising_prefilter": "fast"},
@@ -90,6 +91,13 @@ CANDIDATES = {  # label -> knobs changed from BASELINE
     "path guiding": {"path_guiding": True},
     "clamp indirect 1": {"clamp_indirect": 1.0},
     "denoiser guides RGB + albedo": {"denoising_input_passes": "rgb_albedo"},
+    "blue noise": {"sampling_pattern": "blue_noise"},
+    "blue noise, 4 spp": {"sampling_pattern": "blue_noise", "samples": 4},
+    "blue noise, 6 spp, OIDN fast / accurate": {"sampling_pattern": "blue_noise", "samples": 6,
+                                                "denoising_quality": "fast"},
+    "OIDN fast / accurate": {"denoising_quality": "fast"},
+    "12 spp adaptive 0.1 min 4, OIDN fast / accurate": {"samples": 12, "adaptive_threshold": 0.1,
+                                                         "adaptive_min_samples": 4, "denoising_quality": "fast"},
     "16 spp adaptive 0.05 min 4, OIDN balanced / fast": {"samples": 16, "adaptive_threshold": 0.05,
                                                           "adaptive_min_samples": 4, "denoising_quality": "balanced",
                                                           "denoising_prefilter": "fast"},

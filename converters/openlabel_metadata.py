@@ -28,7 +28,7 @@ from usdscene.errors import ProblemCollector
 METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range")
 RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
-               "path_guiding", "clamp_indirect", "max_bounces", "caustics", "tile_size_px", "resolution_px",
+               "path_guiding", "clamp_indirect", "sampling_pattern", "max_bounces", "caustics", "tile_size_px", "resolution_px",
                "seed")
 ENGINES = ("cycles", "eevee", "workbench")
 DEVICES = ("cpu", "gpu")
@@ -36,6 +36,7 @@ DENOISERS = ("openimagedenoise", "optix")
 DENOISING_QUALITIES = ("high", "balanced", "fast")
 DENOISING_PREFILTERS = ("accurate", "fast", "none")
 DENOISING_INPUT_PASSES = ("rgb_albedo_normal", "rgb_albedo", "rgb")
+SAMPLING_PATTERNS = ("tabulated_sobol", "blue_noise")
 EXPORT_FORMATS = ("coco", "yolo", "rois")
 RENDER_LIMITS = {"samples": (MAX_SAMPLES, "Cycles' most samples"),
                  "tile_size_px": (MAX_TILE_SIZE_PX, "Cycles' largest tile"),
@@ -139,11 +140,12 @@ def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSet
             continue
         parsed: Any
         if key in ("engine", "device", "denoiser", "denoising_quality", "denoising_prefilter",
-                   "denoising_input_passes"):
+                   "denoising_input_passes", "sampling_pattern"):
             choices = {"engine": ENGINES, "device": DEVICES, "denoiser": DENOISERS,
                        "denoising_quality": DENOISING_QUALITIES,
                        "denoising_prefilter": DENOISING_PREFILTERS,
-                       "denoising_input_passes": DENOISING_INPUT_PASSES}[key]
+                       "denoising_input_passes": DENOISING_INPUT_PASSES,
+                       "sampling_pattern": SAMPLING_PATTERNS}[key]
             parsed = read_text(item, here, P)
             if parsed is not None and parsed not in choices:
                 problems.add(here, f"unknown {key} {parsed!r}; expected one of {', '.join(choices)}")

@@ -42,7 +42,8 @@ def _render(stage, out, override):
 def test_speed_knobs_change_the_image_and_never_the_mask(stage, tmp_path):
     image, mask = _render(stage, tmp_path / "default", {})
     knobs = {"light_tree": False, "clamp_indirect": 0.05, "denoising_input_passes": "rgb",
-             "path_guiding": True, "adaptive_threshold": 0.1, "adaptive_min_samples": 1}
+             "path_guiding": True, "adaptive_threshold": 0.1, "adaptive_min_samples": 1,
+             "sampling_pattern": "blue_noise"}
     other_image, other_mask = _render(stage, tmp_path / "knobs", knobs)
     assert set(np.unique(mask)) == {0, 1, 2}
     np.testing.assert_array_equal(other_mask, mask)

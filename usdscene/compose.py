@@ -426,6 +426,7 @@ def _render_layer(scene: SceneSpec) -> str:
             (ss.ATTR_RENDER_LIGHT_TREE, T.Bool, bool(rs.light_tree)),
             (ss.ATTR_RENDER_PATH_GUIDING, T.Bool, bool(rs.path_guiding)),
             (ss.ATTR_RENDER_CLAMP_INDIRECT, T.Double, float(rs.clamp_indirect)),
+            (ss.ATTR_RENDER_SAMPLING_PATTERN, T.Token, rs.sampling_pattern),
             (ss.ATTR_RENDER_MAX_BOUNCES, T.Int, int(rs.max_bounces)),
             (ss.ATTR_RENDER_CAUSTICS, T.Bool, bool(rs.caustics)),
             (ss.ATTR_RENDER_TILE_SIZE, T.Int, int(rs.tile_size_px)),

@@ -490,6 +490,9 @@ class RenderSettings:
         light_tree: Cycles' light tree (many-light sampling by importance); off samples the
             lights by power alone.
         path_guiding: learned path guiding of surface bounces (CPU only).
+        sampling_pattern: Cycles' sample sequence: ``tabulated_sobol`` (what a fresh Blender
+            scene uses) or ``blue_noise`` (the error of neighbouring pixels decorrelated into
+            high frequencies, which the denoiser removes more easily).
         clamp_indirect: largest value of one indirect sample (linear radiance); 0 disables
             clamping. Lower values trade bias for fewer fireflies.
         max_bounces: total light bounces.
@@ -514,6 +517,7 @@ class RenderSettings:
     light_tree: bool = True
     path_guiding: bool = False
     clamp_indirect: float = 10.0
+    sampling_pattern: str = "tabulated_sobol"
     max_bounces: int = 1
     caustics: bool = False
     tile_size_px: int = 2048

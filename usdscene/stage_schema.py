@@ -74,6 +74,7 @@ ATTR_RENDER_DENOISING_INPUT_PASSES = "usdscene:render:denoisingInputPasses"  # t
 ATTR_RENDER_LIGHT_TREE = "usdscene:render:lightTree"         # bool
 ATTR_RENDER_PATH_GUIDING = "usdscene:render:pathGuiding"     # bool
 ATTR_RENDER_CLAMP_INDIRECT = "usdscene:render:clampIndirect"  # float, 0 = off
+ATTR_RENDER_SAMPLING_PATTERN = "usdscene:render:samplingPattern"  # token
 ATTR_RENDER_MAX_BOUNCES = "usdscene:render:maxBounces"       # int
 ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
 ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int

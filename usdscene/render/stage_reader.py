@@ -114,6 +114,7 @@ def _read_settings(stage, problems: list[Problem]) -> RenderSettings:
         "denoising_input_passes": names.ATTR_RENDER_DENOISING_INPUT_PASSES,
         "light_tree": names.ATTR_RENDER_LIGHT_TREE, "path_guiding": names.ATTR_RENDER_PATH_GUIDING,
         "clamp_indirect": names.ATTR_RENDER_CLAMP_INDIRECT,
+        "sampling_pattern": names.ATTR_RENDER_SAMPLING_PATTERN,
         "max_bounces": names.ATTR_RENDER_MAX_BOUNCES, "caustics": names.ATTR_RENDER_CAUSTICS,
         "tile_size_px": names.ATTR_RENDER_TILE_SIZE, "resolution_px": names.ATTR_RENDER_RESOLUTION,
         "seed": names.ATTR_RENDER_SEED,

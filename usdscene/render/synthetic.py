@@ -195,6 +195,7 @@ def write_render_settings(stage, settings: RenderSettings) -> None:
     prim.CreateAttribute(names.ATTR_RENDER_LIGHT_TREE, t.Bool).Set(settings.light_tree)
     prim.CreateAttribute(names.ATTR_RENDER_PATH_GUIDING, t.Bool).Set(settings.path_guiding)
     prim.CreateAttribute(names.ATTR_RENDER_CLAMP_INDIRECT, t.Float).Set(settings.clamp_indirect)
+    prim.CreateAttribute(names.ATTR_RENDER_SAMPLING_PATTERN, t.Token).Set(settings.sampling_pattern)
     prim.CreateAttribute(names.ATTR_RENDER_MAX_BOUNCES, t.Int).Set(settings.max_bounces)
     prim.CreateAttribute(names.ATTR_RENDER_CAUSTICS, t.Bool).Set(settings.caustics)
     prim.CreateAttribute(names.ATTR_RENDER_TILE_SIZE, t.Int).Set(settings.tile_size_px)

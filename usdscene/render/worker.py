@@ -177,6 +177,7 @@ class Session:
             cycles.denoising_input_passes = str(s["denoising_input_passes"]).upper()
         cycles.use_light_tree = bool(s["light_tree"])
         cycles.sample_clamp_indirect = float(s["clamp_indirect"])
+        cycles.sampling_pattern = str(s["sampling_pattern"]).upper()
         # Path guiding exists on the CPU only; Cycles ignores it on a GPU.
         cycles.use_guiding = bool(s["path_guiding"])
         cycles.use_surface_guiding = True
