@@ -92,6 +92,10 @@ class Session:
         self._remaps: dict[str, tuple] = {}
         self._fov_masks: dict[str, object] = {}
         self._setup_scene()
+        # Before the import: a missing GPU is reported in a second, not after the stage loads.
+        self.rendering = job.get("mode", "render") == "render"
+        if self.rendering and job["settings"]["device"] == "gpu":
+            self._enable_gpu()
         self._import_stage()
         self._setup_render()
 
@@ -154,14 +158,10 @@ class Session:
             raise RuntimeError(f"render engine {s['engine']!r}: exact instance masks need the Cycles "
                                "object-index pass; use engine 'cycles'")
         cycles = scene.cycles
-        cycles.device = "CPU"
-        # A .blend for camera design keeps the document's device without needing one here.
-        rendering = self.job.get("mode", "render") == "render"
-        if s["device"] == "gpu":
-            if rendering:
-                self._enable_gpu()
-            cycles.device = "GPU"
-        elif rendering and s["denoise"] and s["denoiser"] == "optix":
+        # The GPU was enabled (or found missing) before the import; a .blend for camera design
+        # keeps the document's device without needing one here.
+        cycles.device = "GPU" if s["device"] == "gpu" else "CPU"
+        if self.rendering and s["device"] == "cpu" and s["denoise"] and s["denoiser"] == "optix":
             raise DeviceError("render.denoiser 'optix' runs on an NVIDIA GPU only and render.device is 'cpu'; "
                               "use denoiser 'openimagedenoise' or device 'gpu'")
         cycles.samples = int(s["samples"])
