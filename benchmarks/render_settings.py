@@ -21,6 +21,8 @@ image (BVH already built, as in a long run); PSNR is computed on the 8-bit sRGB 
 second camera against a ``--reference-samples`` render (1 bounce, no denoising).
 
 Run: python benchmarks/render_settings.py [--reference-samples 1024] [--quick]
+     python benchmarks/render_settings.py --side-by-side [--rounds 3] [--reference-samples 128]
+         [--reference-dir DIR] [--only LABEL ...] [--candidate 'LABEL:samples=4,light_tree=false']
 """
 
 from __future__ import annotations
@@ -159,7 +161,7 @@ def side_by_side(args) -> None:
 
     candidates = dict(parse_knobs(c) for c in args.candidate) if args.candidate else CANDIDATES
     if args.only:
-        candidates = {k: v for k, v in candidates.items() if any(o in k for o in args.only)}
+        candidates = {k: v for k, v in candidates.items() if k in args.only}
     settings = {"baseline (8 spp, OIDN high / accurate)": {},
                 **candidates}
     with tempfile.TemporaryDirectory() as tmp:
@@ -206,8 +208,9 @@ def side_by_side(args) -> None:
             delta = statistics.mean(quality[name][c][0] - quality[base][c][0] for c in args.cameras)
             per_image = median_total(walls[name]) / len(args.cameras)
             print(f"| {name} | {per_image:.2f} | {wall_ratio:.3f} | {cpu_ratio:.3f} | {cells} | {delta:+.2f} |")
-        print(f"\n{args.rounds} rounds, baseline rendered before every candidate; ratios are sums over cameras of "
-              "per-camera medians; total", f"{time.perf_counter() - started:.0f} s", flush=True)
+        order = "baseline rendered before every candidate" if args.interleave else "baseline once per round"
+        print(f"\n{args.rounds} round(s), {order}; ratios are sums over cameras of per-camera medians; total "
+              f"{time.perf_counter() - started:.0f} s", flush=True)
 
 
 def main() -> None:
@@ -225,7 +228,7 @@ def main() -> None:
     parser.add_argument("--no-interleave", dest="interleave", action="store_false",
                         help="render the baseline once per round instead of before every candidate")
     parser.add_argument("--reference-dir", help="folder keeping the reference images between runs")
-    parser.add_argument("--only", action="append", help="keep built-in candidates whose label contains this")
+    parser.add_argument("--only", action="append", help="keep the built-in candidate of this label (repeatable)")
     args = parser.parse_args()
     if args.side_by_side:
         side_by_side(args)
