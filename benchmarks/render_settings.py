@@ -3,7 +3,7 @@
 Two modes.
 
 Side by side (``--side-by-side``, the one that decides defaults): candidate settings and the
-baseline (the defaults before issue 15: 8 spp, OIDN high/accurate, light tree, 1 bounce) are
+baseline (the defaults of ``RenderSettings()`` when this mode was written: 8 spp, OIDN high/accurate, light tree, 1 bounce) are
 rendered interleaved (baseline, candidates, baseline, reversed candidates, ...) for
 ``--rounds`` rounds on several cabin cameras, so load from other jobs on a shared machine
 falls on all of them alike. Each call renders a warm-up camera first and times the others
@@ -76,7 +76,7 @@ def run(stage: Path, out: Path, cams: list[str], override: dict, scale: float):
     return wall, cpu, cv2.imread(str(layout.image_path(out, cams[-1], 0)))
 
 
-# The defaults before issue 15, spelled out so that the comparison survives a change of
+# The defaults of RenderSettings() when this mode was written, spelled out so that the comparison survives a change of
 # RenderSettings(); every candidate starts from it.
 BASELINE = {"samples": 8, "adaptive_threshold": 0.0, "adaptive_min_samples": 0, "denoise": True,
             "denoiser": "openimagedenoise", "denoising_quality": "high", "denoising_prefilter": "accurate",
@@ -219,7 +219,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="fewer rows")
     parser.add_argument("--scale", type=float, default=1.0, help="resolution scale (0.5 = 320x240)")
     parser.add_argument("--side-by-side", action="store_true",
-                        help="interleaved candidates vs the pre-issue-15 defaults on several cameras")
+                        help="interleaved candidates vs the baseline defaults on several cameras")
     parser.add_argument("--cameras", nargs="+", default=["corridor_05", "corridor_10", "seats_L03", "seats_R07"])
     parser.add_argument("--warmup", default="corridor_01", help="camera rendered first and not timed")
     parser.add_argument("--rounds", type=int, default=3)
