@@ -7,7 +7,7 @@ figure is the steady-state seconds per image of a long run (scene already synchr
 is measured on the 8-bit image against a high-sample reference of the same camera rendered
 with 12 bounces and caustics (``--reference-samples``, default 256).
 
-Run: python benchmarks/paper_table.py [--samples 16] [--reference-samples 256] [--quick]
+Run: python benchmarks/paper_table.py [--samples 16] [--reference-samples 256] [--quick] [--device gpu]
 """
 
 from __future__ import annotations
@@ -34,6 +34,8 @@ def main() -> None:
                         help="samples per pixel of the paper-style rows (default 16)")
     parser.add_argument("--reference-samples", type=int, default=256)
     parser.add_argument("--quick", action="store_true", help="fewer rows")
+    parser.add_argument("--device", choices=("cpu", "gpu"), default="cpu",
+                        help="render device of every row (the reference included)")
     args = parser.parse_args()
 
     rows = [  # (label, override)
@@ -46,7 +48,8 @@ def main() -> None:
     ]
     if args.quick:
         rows = [rows[0], rows[3], rows[5]]
-    common = {"samples": args.samples, "denoise": True, "denoising_quality": "fast", "denoising_prefilter": "fast"}
+    common = {"samples": args.samples, "denoise": True, "denoising_quality": "fast", "denoising_prefilter": "fast",
+              "device": args.device}
     default = RenderSettings()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
@@ -58,7 +61,7 @@ def main() -> None:
             else [c.name for c in plan.cameras][:2]
         _, _, reference = run(stage, root / "ref", cams,
                               {"samples": args.reference_samples, "max_bounces": 12, "caustics": True,
-                               "denoise": False, "adaptive_threshold": 0.0}, SCALE)
+                               "denoise": False, "adaptive_threshold": 0.0, "device": args.device}, SCALE)
         print(f"scene: {what}, {len(plan.objects)} objects, cameras {cams}, "
               f"{reference.shape[1]}x{reference.shape[0]}; reference {args.reference_samples} spp, 12 bounces")
         print(f"{'settings':44s} {'spp':>4s} {'s/image':>8s} {'CPU s':>7s} {'PSNR dB':>8s}")
@@ -70,10 +73,11 @@ def main() -> None:
                                 (f"usdscene default ({default.samples} spp, OIDN {default.denoising_quality})",
                                  default)):
             override = {k: v for k, v in dataclasses.asdict(settings).items() if k != "resolution_px"}
+            override["device"] = args.device
             wall, cpu, image = run(stage, root / label.split()[0], cams, override, SCALE)
             print(f"{label:44s} {settings.samples:4d} {wall:8.2f} {cpu:7.2f} {psnr(image, reference):8.2f}")
         print(f"paper, NVIDIA T4 GPU: {PAPER_T4_SECONDS:.1f} s per 640x480 image; usdscene default on this "
-              f"2-core CPU: {wall:.2f} s ({PAPER_T4_SECONDS / wall:.2f}x the paper's speed)")
+              f"machine ({args.device}): {wall:.2f} s ({PAPER_T4_SECONDS / wall:.2f}x the paper's speed)")
 
 
 if __name__ == "__main__":

@@ -26,14 +26,17 @@ from usdscene.converters.openlabel_values import (
 from usdscene.errors import ProblemCollector
 
 METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range")
-RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "denoise", "denoiser",
-               "denoising_quality", "denoising_prefilter", "max_bounces", "caustics", "tile_size_px",
-               "resolution_px", "seed")
+RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
+               "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
+               "path_guiding", "clamp_indirect", "sampling_pattern", "max_bounces", "caustics", "tile_size_px", "resolution_px",
+               "seed")
 ENGINES = ("cycles", "eevee", "workbench")
 DEVICES = ("cpu", "gpu")
 DENOISERS = ("openimagedenoise", "optix")
 DENOISING_QUALITIES = ("high", "balanced", "fast")
 DENOISING_PREFILTERS = ("accurate", "fast", "none")
+DENOISING_INPUT_PASSES = ("rgb_albedo_normal", "rgb_albedo", "rgb")
+SAMPLING_PATTERNS = ("tabulated_sobol", "blue_noise")
 EXPORT_FORMATS = ("coco", "yolo", "rois")
 RENDER_LIMITS = {"samples": (MAX_SAMPLES, "Cycles' most samples"),
                  "tile_size_px": (MAX_TILE_SIZE_PX, "Cycles' largest tile"),
@@ -136,10 +139,13 @@ def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSet
                                f"known: {', '.join(RENDER_KEYS)}")
             continue
         parsed: Any
-        if key in ("engine", "device", "denoiser", "denoising_quality", "denoising_prefilter"):
+        if key in ("engine", "device", "denoiser", "denoising_quality", "denoising_prefilter",
+                   "denoising_input_passes", "sampling_pattern"):
             choices = {"engine": ENGINES, "device": DEVICES, "denoiser": DENOISERS,
                        "denoising_quality": DENOISING_QUALITIES,
-                       "denoising_prefilter": DENOISING_PREFILTERS}[key]
+                       "denoising_prefilter": DENOISING_PREFILTERS,
+                       "denoising_input_passes": DENOISING_INPUT_PASSES,
+                       "sampling_pattern": SAMPLING_PATTERNS}[key]
             parsed = read_text(item, here, P)
             if parsed is not None and parsed not in choices:
                 problems.add(here, f"unknown {key} {parsed!r}; expected one of {', '.join(choices)}")
@@ -148,9 +154,11 @@ def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSet
             parsed = read_int(item, here, P, positive=True, maximum=RENDER_LIMITS[key])
         elif key in ("max_bounces", "seed"):
             parsed = read_int(item, here, P, non_negative=True, maximum=RENDER_LIMITS[key])
-        elif key == "adaptive_threshold":
+        elif key == "adaptive_min_samples":
+            parsed = read_int(item, here, P, non_negative=True, maximum=RENDER_LIMITS["samples"])
+        elif key in ("adaptive_threshold", "clamp_indirect"):
             parsed = read_number(item, here, P, non_negative=True)
-        elif key in ("denoise", "caustics"):
+        elif key in ("denoise", "caustics", "light_tree", "path_guiding"):
             parsed = read_bool(item, here, P)
         else:  # resolution_px
             parsed = read_resolution(item, here, P)

@@ -270,6 +270,10 @@ def _metadata(scene: SceneSpec) -> dict:
         "adaptive_threshold": float(render.adaptive_threshold), "denoise": bool(render.denoise),
         "denoiser": render.denoiser, "denoising_quality": render.denoising_quality,
         "denoising_prefilter": render.denoising_prefilter,
+        "denoising_input_passes": render.denoising_input_passes,
+        "adaptive_min_samples": int(render.adaptive_min_samples), "light_tree": bool(render.light_tree),
+        "path_guiding": bool(render.path_guiding), "clamp_indirect": float(render.clamp_indirect),
+        "sampling_pattern": render.sampling_pattern,
         "max_bounces": int(render.max_bounces), "caustics": bool(render.caustics),
         "tile_size_px": int(render.tile_size_px), "resolution_px": [int(v) for v in render.resolution_px],
         "seed": int(render.seed)}

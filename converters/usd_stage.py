@@ -254,6 +254,12 @@ class _StageReader:
                   ("denoise", ss.ATTR_RENDER_DENOISE, bool), ("denoiser", ss.ATTR_RENDER_DENOISER, str),
                   ("denoising_quality", ss.ATTR_RENDER_DENOISING_QUALITY, str),
                   ("denoising_prefilter", ss.ATTR_RENDER_DENOISING_PREFILTER, str),
+                  ("adaptive_min_samples", ss.ATTR_RENDER_ADAPTIVE_MIN_SAMPLES, int),
+                  ("denoising_input_passes", ss.ATTR_RENDER_DENOISING_INPUT_PASSES, str),
+                  ("light_tree", ss.ATTR_RENDER_LIGHT_TREE, bool),
+                  ("path_guiding", ss.ATTR_RENDER_PATH_GUIDING, bool),
+                  ("clamp_indirect", ss.ATTR_RENDER_CLAMP_INDIRECT, float),
+                  ("sampling_pattern", ss.ATTR_RENDER_SAMPLING_PATTERN, str),
                   ("max_bounces", ss.ATTR_RENDER_MAX_BOUNCES, int), ("caustics", ss.ATTR_RENDER_CAUSTICS, bool),
                   ("tile_size_px", ss.ATTR_RENDER_TILE_SIZE, int), ("seed", ss.ATTR_RENDER_SEED, int))
         for field_name, attr, kind in fields:

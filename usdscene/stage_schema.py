@@ -69,6 +69,12 @@ ATTR_RENDER_DENOISE = "usdscene:render:denoise"              # bool
 ATTR_RENDER_DENOISER = "usdscene:render:denoiser"            # token
 ATTR_RENDER_DENOISING_QUALITY = "usdscene:render:denoisingQuality"      # token
 ATTR_RENDER_DENOISING_PREFILTER = "usdscene:render:denoisingPrefilter"  # token
+ATTR_RENDER_ADAPTIVE_MIN_SAMPLES = "usdscene:render:adaptiveMinSamples"  # int, 0 = Cycles chooses
+ATTR_RENDER_DENOISING_INPUT_PASSES = "usdscene:render:denoisingInputPasses"  # token
+ATTR_RENDER_LIGHT_TREE = "usdscene:render:lightTree"         # bool
+ATTR_RENDER_PATH_GUIDING = "usdscene:render:pathGuiding"     # bool
+ATTR_RENDER_CLAMP_INDIRECT = "usdscene:render:clampIndirect"  # float, 0 = off
+ATTR_RENDER_SAMPLING_PATTERN = "usdscene:render:samplingPattern"  # token
 ATTR_RENDER_MAX_BOUNCES = "usdscene:render:maxBounces"       # int
 ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
 ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int

@@ -53,6 +53,29 @@ def _import_bpy():
 
 
 ENGINES = {"cycles": "CYCLES", "eevee": "BLENDER_EEVEE", "workbench": "BLENDER_WORKBENCH"}
+# Cycles GPU backends in the order tried: OptiX (NVIDIA RTX path, hardware ray tracing) before
+# CUDA (every NVIDIA GPU Cycles supports), then AMD and Intel.
+GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI")
+
+
+class DeviceError(RuntimeError):
+    """The requested render device cannot be used; its message is complete for the user."""
+
+
+def gpu_missing_message(blender_version: str, tried: list[str]) -> str:
+    """Why ``render.device: gpu`` cannot run here: the backends tried and, for NVIDIA, whether
+    the driver library that Cycles' CUDA and OptiX backends load at run time exists."""
+    import ctypes
+
+    try:
+        ctypes.CDLL("libcuda.so.1" if sys.platform.startswith("linux") else "nvcuda.dll")
+        nvidia = ("the NVIDIA driver library loads but Cycles accepts none of its GPUs (CUDA needs "
+                  "compute capability 5.0 or newer, OptiX an RTX-class GPU and a recent driver)")
+    except OSError as exc:
+        nvidia = f"the NVIDIA driver library that CUDA and OptiX need cannot be loaded ({exc})"
+    return (f"render.device 'gpu': Cycles (bpy {blender_version}) found no GPU: no "
+            f"{' / '.join(tried)} device; {nvidia}. Install the GPU driver or set render.device to 'cpu'")
+
 
 
 class Session:
@@ -69,6 +92,10 @@ class Session:
         self._remaps: dict[str, tuple] = {}
         self._fov_masks: dict[str, object] = {}
         self._setup_scene()
+        # Before the import: a missing GPU is reported in a second, not after the stage loads.
+        self.rendering = job.get("mode", "render") == "render"
+        if self.rendering and job["settings"]["device"] == "gpu":
+            self._enable_gpu()
         self._import_stage()
         self._setup_render()
 
@@ -131,19 +158,30 @@ class Session:
             raise RuntimeError(f"render engine {s['engine']!r}: exact instance masks need the Cycles "
                                "object-index pass; use engine 'cycles'")
         cycles = scene.cycles
-        cycles.device = "CPU"
-        if s["device"] == "gpu" and self._enable_gpu():
-            cycles.device = "GPU"
+        # The GPU was enabled (or found missing) before the import; a .blend for camera design
+        # keeps the document's device without needing one here.
+        cycles.device = "GPU" if s["device"] == "gpu" else "CPU"
+        if self.rendering and s["device"] == "cpu" and s["denoise"] and s["denoiser"] == "optix":
+            raise DeviceError("render.denoiser 'optix' runs on an NVIDIA GPU only and render.device is 'cpu'; "
+                              "use denoiser 'openimagedenoise' or device 'gpu'")
         cycles.samples = int(s["samples"])
         cycles.use_adaptive_sampling = float(s["adaptive_threshold"]) > 0
         if cycles.use_adaptive_sampling:
             cycles.adaptive_threshold = float(s["adaptive_threshold"])
+            cycles.adaptive_min_samples = int(s["adaptive_min_samples"])
         cycles.use_denoising = bool(s["denoise"])
         if cycles.use_denoising:
             cycles.denoiser = "OPTIX" if s["denoiser"] == "optix" else "OPENIMAGEDENOISE"
             cycles.denoising_quality = str(s["denoising_quality"]).upper()
             cycles.denoising_prefilter = str(s["denoising_prefilter"]).upper()
-            cycles.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+            cycles.denoising_input_passes = str(s["denoising_input_passes"]).upper()
+        cycles.use_light_tree = bool(s["light_tree"])
+        cycles.sample_clamp_indirect = float(s["clamp_indirect"])
+        cycles.sampling_pattern = str(s["sampling_pattern"]).upper()
+        # Path guiding exists on the CPU only; Cycles ignores it on a GPU.
+        cycles.use_guiding = bool(s["path_guiding"])
+        cycles.use_surface_guiding = True
+        cycles.use_volume_guiding = False
         bounces = int(s["max_bounces"])
         cycles.max_bounces = bounces
         cycles.diffuse_bounces = bounces
@@ -182,21 +220,30 @@ class Session:
         scene.collection.objects.link(self.camera)
         scene.camera = self.camera
 
-    def _enable_gpu(self) -> bool:
+    def _enable_gpu(self) -> None:
+        """Let Cycles render on every GPU of the first backend that has one.
+
+        Raises:
+            DeviceError: no backend found a GPU; the message says which backends were tried
+                and what is missing (the NVIDIA driver library, or a device it accepts).
+        """
         prefs = self.bpy.context.preferences.addons["cycles"].preferences
-        for kind in ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"):
+        tried = []
+        for kind in GPU_BACKENDS:
             try:
                 prefs.compute_device_type = kind
-                prefs.refresh_devices()
-            except TypeError:
+            except TypeError:  # a backend this build of Blender lacks
                 continue
+            tried.append(kind)
+            prefs.refresh_devices()
             devices = [d for d in prefs.devices if d.type == kind]
             if devices:
-                for d in devices:
-                    d.use = True
-                return True
-        _emit({"event": "warning", "message": "no GPU found; rendering on the CPU"})
-        return False
+                for d in prefs.devices:
+                    # The CPU stays out: mixed CPU + GPU rendering is slower on small tiles.
+                    d.use = d.type == kind
+                _emit({"event": "device", "backend": kind, "devices": [d.name for d in devices]})
+                return
+        raise DeviceError(gpu_missing_message(self.bpy.app.version_string, tried))
 
     # ---------------------------------------------------------------------------------------
     def set_frame(self, frame: int) -> None:
@@ -602,6 +649,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         session = Session(job)
+    except DeviceError as exc:
+        _emit({"event": "error", "message": str(exc)})
+        return 1
     except Exception as exc:  # reported to the driver as one line, then exit non-zero
         _emit({"event": "error", "message": f"{type(exc).__name__}: {exc}"})
         return 1
