@@ -140,6 +140,17 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
         settings[key] = str(settings[key]).lower()
         if settings[key] not in allowed:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
+    from usdscene.converters.openlabel_metadata import DENOISING_INPUT_PASSES, SAMPLING_PATTERNS
+
+    for key, allowed in (("denoising_input_passes", DENOISING_INPUT_PASSES), ("sampling_pattern", SAMPLING_PATTERNS)):
+        if settings[key] not in allowed:
+            problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
+    for key in ("clamp_indirect", "adaptive_min_samples"):
+        if not isinstance(settings[key], (int, float)) or isinstance(settings[key], bool) or settings[key] < 0:
+            problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} must be a number >= 0"))
+    for key in ("light_tree", "path_guiding"):
+        if not isinstance(settings[key], bool):
+            problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} must be true or false"))
     if not 0 < float(settings["resolution_scale"]) <= 4:
         problems.append(Problem("render.resolution_scale",
                                 f"resolution_scale {settings['resolution_scale']!r} must be in (0, 4]"))
