@@ -31,6 +31,7 @@ Visibility:
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 from typing import Collection, Iterable, Iterator, Mapping, Sequence
@@ -193,25 +194,39 @@ class Annotations:
 
 
 def _boxes_of_ids(mask: np.ndarray, ids: np.ndarray) -> dict[int, PixelBox]:
-    """Tight boxes of every id in ``ids`` present in ``mask`` in two passes over the image
-    (per-column and per-row presence tables) instead of one full-image pass per object."""
-    height, width = mask.shape
-    top = int(mask.max()) + 1
-    cols = np.zeros((top, width), dtype=bool)
-    cols[mask, np.arange(width)[None, :]] = True
-    rows = np.zeros((top, height), dtype=bool)
-    rows[mask, np.arange(height)[:, None]] = True
-    boxes = {}
-    for i in ids.tolist():
-        c, r = cols[i], rows[i]
-        if not c.any():
-            continue
-        x0 = int(np.argmax(c))
-        x1 = width - 1 - int(np.argmax(c[::-1]))
-        y0 = int(np.argmax(r))
-        y1 = height - 1 - int(np.argmax(r[::-1]))
-        boxes[i] = PixelBox(x0, y0, x1, y1)
-    return boxes
+    """Tight boxes of every id in ``ids`` present in ``mask``, in one compiled pass over the
+    image instead of one full-image pass per object."""
+    lo_x, lo_y, hi_x, hi_y = _id_bounds_kernel()(np.ascontiguousarray(mask), int(mask.max()) + 1)
+    return {i: PixelBox(int(lo_x[i]), int(lo_y[i]), int(hi_x[i]), int(hi_y[i]))
+            for i in ids.tolist() if hi_x[i] >= 0}
+
+
+@functools.cache
+def _id_bounds_kernel():
+    """Compiled (numba, cached on disk): per id of a (H, W) integer mask, the first and last
+    column and row holding it (``hi_x = -1`` for absent ids)."""
+    import numba
+
+    @numba.njit(cache=True, nogil=True)
+    def id_bounds(mask, count):
+        height, width = mask.shape
+        lo_x = np.full(count, width, dtype=np.int64)
+        lo_y = np.full(count, height, dtype=np.int64)
+        hi_x = np.full(count, -1, dtype=np.int64)
+        hi_y = np.full(count, -1, dtype=np.int64)
+        for y in range(height):
+            for x in range(width):
+                i = mask[y, x]
+                if x < lo_x[i]:
+                    lo_x[i] = x
+                if x > hi_x[i]:
+                    hi_x[i] = x
+                if y < lo_y[i]:
+                    lo_y[i] = y
+                hi_y[i] = y
+        return lo_x, lo_y, hi_x, hi_y
+
+    return id_bounds
 
 
 def box_of(mask: np.ndarray) -> PixelBox | None:
