@@ -86,8 +86,8 @@ def executor_for(args: argparse.Namespace):
                          task_cpus=args.task_cpus)
 
 
-def non_negative_int(text: str) -> int:
-    """argparse type of ``--seed``: a whole number >= 0 (numpy seeds are unsigned).
+def _whole_number(text: str, minimum: int, meaning: str) -> int:
+    """``text`` as a whole number >= ``minimum``.
 
     Raises:
         argparse.ArgumentTypeError: naming the bad text (argparse exits 2 with it).
@@ -96,9 +96,19 @@ def non_negative_int(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{text!r} is negative; a seed is a whole number >= 0")
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"{text!r} is too small; {meaning}")
     return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type of ``--seed``: a whole number >= 0 (numpy seeds are unsigned)."""
+    return _whole_number(text, 0, "a seed is a whole number >= 0")
+
+
+def positive_int(text: str) -> int:
+    """argparse type of counts (``--frames N``): a whole number >= 1."""
+    return _whole_number(text, 1, "expected a positive whole number")
 
 
 def output_path(text: str) -> str:

@@ -22,18 +22,8 @@ def _fraction(text: str) -> float:
     return value
 
 
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from usdscene.commands._arguments import non_negative_int, output_path
+    from usdscene.commands._arguments import non_negative_int, output_path, positive_int
 
     parser.add_argument("strategy", choices=_STRATEGIES,
                         help="single-class: one class in one relation at every place it fits, per frame; "
@@ -43,9 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="setup document: environment, cameras, lights, render settings, fixed objects")
     parser.add_argument("-o", "--output", type=output_path, metavar="DOC", required=True,
                         help="sequence document to write; the balance report goes to DOC.report.json")
-    parser.add_argument("--frames", type=_positive, default=None,
+    parser.add_argument("--frames", type=positive_int, default=None,
                         help="sequence length (balanced, appearance); default: what full coverage needs")
-    parser.add_argument("--objects-per-frame", type=_positive, default=None,
+    parser.add_argument("--objects-per-frame", type=positive_int, default=None,
                         help="generated objects per frame (balanced, appearance); default: the class count, "
                              "or what coverage within --frames needs")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
