@@ -33,9 +33,9 @@ def test_every_package_folder_is_listed_and_mapped_inside_usdscene():
     assert mapping["usdscene.converters"] == "converters"
 
 
-def test_every_asset_and_layer_file_is_package_data():
+def test_every_data_file_is_package_data():
     data = SETUPTOOLS["package-data"]
-    for package, folder in (("usdscene.assets", "assets"), ("usdscene.layers", "layers")):
+    for package, folder in (("usdscene.assets", "assets"), ("usdscene.layers", "layers"), ("usdscene", "usdscene")):
         patterns = data[package]
         files = [p for p in (REPO / folder).rglob("*") if p.is_file() and p.suffix != ".py"
                  and "__pycache__" not in p.parts]
