@@ -298,3 +298,63 @@ def test_dcc_environment_to_labels_of_objects_resting_on_their_places(workdir, s
         assert np.all(np.abs(centre) <= np.array(region.size_m[:2]) / 2 + 1e-6), (prim.GetPath(), centre)
         checked += 1
     assert checked == 3
+
+
+BLEND_SCENE = """
+import sys
+import bpy
+
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.mesh.primitive_plane_add(size=10, location=(0, 0, 0))
+bpy.context.active_object.name = "floor"
+# a box named by the convention: 2.4 x 5.0 x 0.5 m, bottom face on the floor
+bpy.ops.mesh.primitive_cube_add(size=2, location=(1, 2, 0.25))
+box = bpy.context.active_object
+box.name = "place.bay_01.on"
+box.scale = (1.2, 2.5, 0.25)
+# an empty marked by the custom property instead of its name: the 1 m cube around it
+bpy.ops.object.empty_add(type="CUBE", location=(-3, 0, 0.5))
+empty = bpy.context.active_object
+empty.name = "marker"
+empty.scale = (0.5, 0.5, 0.5)
+empty["usdscene_place"] = "kerb_01.on"
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
+"""
+
+
+@pytest.mark.blender
+def test_places_from_a_blend_file(tmp_path):
+    """A Blender project goes through Blender's USD export in a worker process, then the USD
+    path: a named box and a property-marked empty become places, in metres, Z up."""
+    import subprocess
+    import sys
+
+    from usdscene.asset_import import ImportOptions, import_asset
+
+    blend = tmp_path / "garage.blend"
+    subprocess.run([sys.executable, "-c", BLEND_SCENE, str(blend)], check=True, capture_output=True)
+    entry = import_asset(blend, "garage", tmp_path / "catalog", ImportOptions(kind="environment"),
+                         allowed_roots=[tmp_path])
+    assert sorted(entry.places) == ["bay_01", "kerb_01"]
+    bay = entry.places["bay_01"].regions["is_on"]
+    assert np.allclose(bay.size_m, (2.4, 5.0, 0.5), atol=1e-6)
+    assert np.allclose(bay.pose.as_array()[:3, 3], (1.0, 2.0, 0.0), atol=1e-6)
+    kerb = entry.places["kerb_01"].regions["is_on"]
+    assert np.allclose(kerb.size_m, (1.0, 1.0, 1.0), atol=1e-6)
+    assert np.allclose(entry.extent_max_m[:2], (5.0, 5.0), atol=1e-6)  # the floor, not the markers
+    assert (tmp_path / "catalog" / "imported" / "garage.blend.usda").is_file()
+    assert not list((tmp_path / "catalog").rglob("*.partial.usda"))
+
+
+@pytest.mark.blender
+def test_a_broken_blend_file_is_one_error(tmp_path):
+    from usdscene.asset_import import ImportOptions, import_asset
+    from usdscene.errors import AssetError
+
+    broken = tmp_path / "broken.blend"
+    broken.write_text("not a Blender file")
+    with pytest.raises(AssetError) as error:
+        import_asset(broken, "broken", tmp_path / "catalog", ImportOptions(kind="environment"),
+                     allowed_roots=[tmp_path])
+    assert str(broken) in str(error.value)
+    assert not (tmp_path / "catalog" / "catalog.json").exists()

@@ -28,13 +28,15 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from usdscene.catalog import ASSET_KINDS, CATALOG_FILE, AssetEntry, _entry_from_json, entry_to_json
-from usdscene.errors import AssetError, OutputError
+from usdscene.errors import AssetError, OutputError, Problem
 from usdscene.files import dumps_json, resolve_inside, write_text_atomic
 
 log = logging.getLogger(__name__)
 
 MESH_FORMATS = {".obj": "obj", ".glb": "glb", ".gltf": "gltf", ".ply": "ply", ".stl": "stl"}
 USD_FORMATS = (".usd", ".usda", ".usdc", ".usdz")
+# Blender projects are exported to USD by a Blender worker process, then imported as USD.
+BLEND_FORMAT = ".blend"
 # Conventional up axis of each mesh format when the user does not say: glTF is Y up by its
 # specification and most OBJ exporters write Y up; STL and PLY come from CAD/scanners (Z up).
 DEFAULT_UP_AXIS = {"obj": "Y", "glb": "Y", "gltf": "Y", "ply": "Z", "stl": "Z"}
@@ -98,8 +100,8 @@ def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: Imp
     if not resolved.is_file():
         raise AssetError(f"asset file {str(source)!r} does not exist or is not a file", where=str(source))
     suffix = resolved.suffix.lower()
-    if suffix not in MESH_FORMATS and suffix not in USD_FORMATS:
-        known = ", ".join(sorted(MESH_FORMATS) + list(USD_FORMATS))
+    if suffix not in MESH_FORMATS and suffix not in USD_FORMATS and suffix != BLEND_FORMAT:
+        known = ", ".join(sorted(MESH_FORMATS) + list(USD_FORMATS) + [BLEND_FORMAT])
         raise AssetError(f"unknown asset format {suffix or '(no extension)'!r}; expected one of {known}",
                          where=str(source))
     catalog_path = catalog_dir / CATALOG_FILE
@@ -397,13 +399,36 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
     return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults)
 
 
+def _export_blend(blend: Path, usd_path: Path) -> Path:
+    """Export a .blend to ``usd_path`` (kept beside the wrapper, which references it) through
+    a Blender worker process; written under a temporary name and renamed when complete.
+
+    Raises:
+        AssetError: Blender could not open or export the file.
+    """
+    from usdscene.errors import RenderError
+    from usdscene.render.driver import run_job
+
+    usd_path.parent.mkdir(parents=True, exist_ok=True)
+    partial = usd_path.with_name(usd_path.name + ".partial.usda")
+    try:
+        run_job({"mode": "export_usd", "blend": str(blend), "usd": str(partial)}, "USD export of a .blend")
+        os.replace(partial, usd_path)
+    except RenderError as exc:
+        raise AssetError([Problem(str(blend), p.message) for p in exc.problems]) from None
+    finally:
+        partial.unlink(missing_ok=True)
+    return usd_path
+
+
 def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | os.PathLike,
                  options: ImportOptions = ImportOptions(),
                  allowed_roots: Sequence[str | os.PathLike] | None = None) -> AssetEntry:
     """Convert or reference ``source`` and register it as ``class_name`` in ``catalog_dir``.
 
     Args:
-        source: mesh file (OBJ, GLB/glTF, PLY, STL) or USD file (usd/usda/usdc/usdz).
+        source: mesh file (OBJ, GLB/glTF, PLY, STL), USD file (usd/usda/usdc/usdz) or Blender
+            project (.blend, exported to USD beside the catalog entry by a Blender worker).
         class_name: lower_snake_case class name (the OpenLABEL object type).
         catalog_dir: folder of the catalog (``catalog.json`` created when missing).
         options: kind, up axis, unit scale, description, replace.
@@ -440,6 +465,10 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)}
         written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()})
         fmt = MESH_FORMATS[suffix].upper()
+    elif suffix == BLEND_FORMAT:
+        exported = _export_blend(resolved, target.with_name(f"{class_name}.blend.usda"))
+        written = _write_usd_wrapper(exported, class_name, options, target, [*roots, exported.parent])
+        fmt = "Blender"
     else:
         written = _write_usd_wrapper(resolved, class_name, options, target, roots)
         fmt = "USD"

@@ -510,6 +510,20 @@ def camera_data_json(data) -> dict:
             "k1": round(data.fisheye_polynomial_k1, 9)}
 
 
+def export_blend_usd(job: dict) -> None:
+    """Export a .blend to a USD file (``job["usd"]``): Z up, metres, custom properties as
+    ``userProperties:*`` (where place markers keep their ``usdscene_place``), default prim
+    ``/root``; for ``usdscene assets add FILE.blend``."""
+    bpy = _import_bpy()
+    bpy.ops.wm.open_mainfile(filepath=job["blend"])
+    result = bpy.ops.wm.usd_export(filepath=job["usd"], export_custom_properties=True, export_materials=True,
+                                   export_cameras=False, export_lights=False, convert_orientation=False,
+                                   root_prim_path="/root", check_existing=False)
+    if "FINISHED" not in result:
+        raise RuntimeError(f"USD export of {job['blend']} failed: {result}")
+    _emit({"event": "exported"})
+
+
 def inspect_blend(job: dict) -> None:
     """Export a .blend to USD and dump its cameras (pose per frame, lens data, custom
     properties) as JSON: Blender's USD exporter writes only perspective cameras."""
@@ -640,9 +654,9 @@ def main(argv: list[str] | None = None) -> int:
     for o in job.get("objects", ()):
         o["_visible"] = set(o["visible_frames"])
     mode = job.get("mode", "render")
-    if mode in ("blend", "inspect_blend"):
+    if mode in ("blend", "inspect_blend", "export_usd"):
         try:
-            (build_blend if mode == "blend" else inspect_blend)(job)
+            {"blend": build_blend, "inspect_blend": inspect_blend, "export_usd": export_blend_usd}[mode](job)
         except Exception as exc:
             _emit({"event": "error", "message": f"{type(exc).__name__}: {exc}"})
             return 1
