@@ -14,11 +14,24 @@ with an empty ``type`` is valid OpenLABEL; only a catalog check refuses it.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from typing import Any, Mapping
 
+import numpy as np
+
 from usdscene.errors import ProblemCollector
-from usdscene.model import FrameInterval, Light, LightKind, PlaceRef, Randomization, SceneObject
+from usdscene.model import (
+    DeclaredRegion,
+    FrameInterval,
+    Light,
+    LightKind,
+    PlaceRef,
+    Pose,
+    Randomization,
+    SceneObject,
+    quaternion_to_rotation,
+)
 
 from usdscene.converters.openlabel_carry import OBJECT_KEYS, element_residue, frame_residues
 from usdscene.converters.openlabel_load import DocumentBody
@@ -48,6 +61,49 @@ OBJECT_DATA = {"appearance": "text", "color_rgb": "vec", "position_noise_m": "nu
                "rotation_noise_deg": "num", "random_color": "boolean", "random_appearance": "boolean",
                **POSE_DATA}
 DATA_KINDS = ("text", "num", "vec", "boolean")
+
+
+def _declared_regions(obj: Mapping, where: str, problems: ProblemCollector) -> tuple[DeclaredRegion, ...]:
+    """Regions a place object declares as OpenLABEL ``cuboid`` object data: name = placement
+    relation, val = ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]`` (centre in world metres, rotation
+    quaternion, full sizes in metres); the region's support surface is the cuboid's bottom face."""
+    from usdscene.converters.openlabel_relations import PLACEMENT_RELATIONS
+
+    data = obj.get("object_data")
+    cuboids = data.get("cuboid", []) if isinstance(data, dict) else []
+    if not isinstance(cuboids, list):
+        problems.add(f"{where}.object_data.cuboid", f"expected a list, got {describe(cuboids)}")
+        return ()
+    regions: list[DeclaredRegion] = []
+    for k, item in enumerate(cuboids):
+        at = f"{where}.object_data.cuboid[{k}]"
+        if not isinstance(item, dict):
+            problems.add(at, f"expected a JSON object, got {describe(item)}")
+            continue
+        relation = item.get("name")
+        if relation not in PLACEMENT_RELATIONS:
+            problems.add(f"{at}.name", f"a place's cuboid is named by the relation it serves, one of "
+                                       f"{sorted(PLACEMENT_RELATIONS)}; got {describe(relation)}")
+            continue
+        if any(r.relation == relation for r in regions):
+            problems.add(f"{at}.name", f"place has two {relation!r} cuboids")
+            continue
+        val = read_numbers(item.get("val"), f"{at}.val", problems, lengths=(10,),
+                           what="numbers (x, y, z, qx, qy, qz, qw, sx, sy, sz)")
+        if val is None:
+            continue
+        quaternion, size = val[3:7], val[7:10]
+        if min(size) <= 0:
+            problems.add(f"{at}.val", f"cuboid sizes must be positive, got {list(size)}")
+            continue
+        if abs(math.sqrt(sum(q * q for q in quaternion)) - 1.0) > 1e-3:
+            problems.add(f"{at}.val", f"the rotation quaternion {list(quaternion)} is not of unit length")
+            continue
+        rotation = quaternion_to_rotation(quaternion)
+        bottom = np.asarray(val[0:3]) - rotation @ np.array([0.0, 0.0, size[2] / 2.0])
+        regions.append(DeclaredRegion(relation, Pose.from_rotation_translation(rotation, bottom),
+                                      (float(size[0]), float(size[1]), float(size[2]))))
+    return tuple(regions)
 
 
 def read_objects(doc: DocumentBody) -> tuple[list[Light], list[PlaceRef], list[SceneObject], dict[str, str]]:
@@ -94,7 +150,7 @@ def read_objects(doc: DocumentBody) -> tuple[list[Light], list[PlaceRef], list[S
                 doc.add(f"{where}.name", f"place {name!r} is already object {place_names[name]}")
                 continue
             place_names[name] = uid
-            places.append(PlaceRef(uid=uid, name=name))
+            places.append(PlaceRef(uid=uid, name=name, regions=_declared_regions(obj, where, doc.problems)))
             if uid in frame_poses:
                 doc.add(frame_poses[uid][0][2], "places have no per-frame poses (their geometry is "
                                                 "in the environment asset)")

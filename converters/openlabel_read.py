@@ -138,9 +138,10 @@ def _check_catalog(doc: DocumentBody, catalog: Catalog, scene: dict) -> None:
         where = f"{R}.objects.{place.uid}.name"
         if environment is None:
             doc.add(where, f"place {place.name!r} needs metadata.usdscene.environment")
-        elif env_places is not None and place.name not in env_places:
+        elif env_places is not None and place.name not in env_places and not place.regions:
             doc.add(where, f"place {place.name!r} is not in environment {environment!r}"
-                           f"{suggest(place.name, env_places)}")
+                           f"{suggest(place.name, env_places)}; declare it with a cuboid per relation "
+                           "(docs/scene-format.md) if the asset lacks it")
     classes = {o.uid: o.class_name for o in scene["objects"]}
     placed = {rel.subject_uid for rel in scene["relations"] if rel.type in PLACEMENT_RELATIONS}
     unposed = {o.uid for o in scene["objects"] if o.pose is None and not o.frame_poses} - placed

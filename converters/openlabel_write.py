@@ -25,6 +25,8 @@ import logging
 import os
 from typing import Any, Iterable
 
+import numpy as np
+
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import (
     FISHEYE_LENSES,
@@ -34,6 +36,7 @@ from usdscene.model import (
     RenderSettings,
     SceneSpec,
     extra_data,
+    rotation_to_quaternion,
     union_intervals,
 )
 
@@ -130,6 +133,9 @@ def write_openlabel(scene: SceneSpec) -> dict:
     for place in scene.places:
         if claim(place.uid, f"places.{place.name}"):
             objects[uid_map[place.uid]] = {"name": place.name, "type": PLACE_TYPE}
+            if place.regions:  # declared in the document: cuboids named by their relation
+                objects[uid_map[place.uid]]["object_data"] = {"cuboid": [
+                    {"name": r.relation, "val": _declared_cuboid(r)} for r in place.regions]}
 
     for obj in scene.objects:
         if not claim(obj.uid, f"objects.{obj.uid}"):
@@ -350,6 +356,15 @@ def _merge_stream(stream: dict, text: str) -> None:
     stream["stream_properties"].update(
         {k: v for k, v in carried.pop("stream_properties", {}).items() if k not in stream["stream_properties"]})
     stream.update(carried)
+
+
+def _declared_cuboid(region) -> list[float]:
+    """OpenLABEL ``cuboid`` value ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]`` of a declared place
+    region (centre, rotation, sizes; the region's frame sits at the bottom-face centre)."""
+    m = region.pose.as_array()
+    centre = m[:3, 3] + m[:3, :3] @ np.array([0.0, 0.0, region.size_m[2] / 2.0])
+    return [*(float(v) for v in centre), *(float(v) for v in rotation_to_quaternion(m[:3, :3])),
+            *(float(v) for v in region.size_m)]
 
 
 def write_document(path: str | os.PathLike, document: dict):

@@ -44,7 +44,7 @@ import numpy as np
 from usdscene import __version__
 from usdscene import stage_schema as ss
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
+from usdscene.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
                             Provenance, Relation, RenderSettings, SceneObject, SceneSpec, usd_pose_to_cv_pose)
 
 log = logging.getLogger(__name__)
@@ -209,7 +209,10 @@ class _StageReader:
         cameras = self._cameras(render)
         lights = self._lights()
         objects = self._objects()
-        places = tuple(PlaceRef(uid=str(p["uid"]), name=str(p["name"])) for p in self._json("placesJson", []))
+        places = tuple(PlaceRef(uid=str(p["uid"]), name=str(p["name"]), regions=tuple(
+            DeclaredRegion(str(r["relation"]), Pose.from_matrix(r["matrix"]),
+                           tuple(float(v) for v in r["size_m"])) for r in p.get("regions", ())))
+            for p in self._json("placesJson", []))
         relations = tuple(
             Relation(uid=str(r["uid"]), type=str(r["type"]), subject_uid=str(r["subject"]),
                      object_uid=str(r["object"]),

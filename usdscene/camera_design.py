@@ -122,12 +122,12 @@ def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
 
 
 def _read_setup(document: Path):
-    from usdscene.catalog import load_catalog
+    from usdscene.catalog import load_catalog, scene_catalog
     from usdscene.converters.openlabel import read_openlabel
 
     setup = read_openlabel(document)
     catalog = load_catalog(setup.asset_paths, base_dir=document.resolve().parent)
-    return setup, catalog
+    return setup, scene_catalog(catalog, setup)
 
 
 def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,

@@ -28,6 +28,8 @@ object rests on a surface when its origin lies on it.
 
 from __future__ import annotations
 
+import dataclasses
+
 import functools
 import json
 import os
@@ -36,7 +38,7 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from usdscene.errors import AssetError, ProblemCollector
-from usdscene.model import Pose
+from usdscene.model import Pose, SceneSpec
 
 CATALOG_FILE = "catalog.json"
 ASSET_KINDS = ("environment", "object", "passenger")
@@ -314,3 +316,27 @@ def places_for_catalog(places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]
 def place_items(places: Mapping[str, Place]) -> list[tuple[str, Place]]:
     """Places sorted by name (stable output order)."""
     return sorted(places.items())
+
+
+def scene_catalog(catalog: Catalog, scene: SceneSpec) -> Catalog:
+    """``catalog`` with the places the scene declares itself (regions of its place objects)
+    merged into its environment's places; ``catalog`` itself when it declares none or the
+    environment is not in the catalog. A declared region replaces the asset's region of the
+    same place and relation.
+    """
+    declared = [p for p in scene.places if p.regions]
+    if not declared or scene.environment not in catalog:
+        return catalog
+    from usdscene.place_discovery import place_kind
+
+    entry = catalog[scene.environment]
+    places = dict(entry.places)
+    for ref in declared:
+        known = places.get(ref.name)
+        regions = dict(known.regions) if known is not None else {}
+        regions.update({r.relation: PlaceRegion(r.relation, r.pose, tuple(float(v) for v in r.size_m))
+                        for r in ref.regions})
+        places[ref.name] = Place(ref.name, known.kind if known is not None else place_kind(ref.name), regions)
+    entries = dict(catalog.entries)
+    entries[scene.environment] = dataclasses.replace(entry, places=places)
+    return dataclasses.replace(catalog, entries=entries)

@@ -119,6 +119,16 @@ class ComposeResult:
         return self.frame_end - self.frame_start + 1
 
 
+def _place_json(place) -> dict:
+    """A place as recorded in the root layer; declared regions only when it has some (the layer
+    of a document without them stays as it was)."""
+    out = {"uid": place.uid, "name": place.name}
+    if place.regions:
+        out["regions"] = [{"relation": r.relation, "matrix": r.pose.as_array().reshape(-1).tolist(),
+                           "size_m": list(r.size_m)} for r in place.regions]
+    return out
+
+
 def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike, *,
                   rng: np.random.Generator | None = None) -> ComposeResult:
     """Write the layered USD stage of ``scene`` into ``out_dir``.
@@ -139,6 +149,9 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
         CompositionError: unknown class, relation to a missing place, cyclic relations,
             over-full place, clashing prim names... (every problem names the element uid).
     """
+    from usdscene.catalog import scene_catalog
+
+    catalog = scene_catalog(catalog, scene)  # places the document declares itself
     from pxr import Sdf  # noqa: F401  (fail early with a clear ImportError if usd-core is absent)
 
     if rng is None:
@@ -398,7 +411,7 @@ def _root_layer(scene: SceneSpec) -> str:
         "assetPathsJson": json.dumps(list(scene.asset_paths)),
         "exportsJson": json.dumps(list(scene.exports)),
         "roiRulesJson": json.dumps(dict(scene.roi_rules)),
-        "placesJson": json.dumps([{"uid": p.uid, "name": p.name} for p in scene.places]),
+        "placesJson": json.dumps([_place_json(p) for p in scene.places]),
         "relationsJson": json.dumps([
             {"uid": r.uid, "type": r.type, "subject": r.subject_uid, "object": r.object_uid,
              "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals]}

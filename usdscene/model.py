@@ -409,17 +409,38 @@ class Randomization:
 
 
 @dataclass(frozen=True)
+class DeclaredRegion:
+    """A region of a place declared in the document itself (an OpenLABEL ``cuboid`` of the place
+    object), for environments whose asset has no such place: a bare mesh needs no round trip
+    through a modelling tool.
+
+    Attributes:
+        relation: placement relation the region serves (``is_on``, ``is_below``, ...).
+        pose: region frame → world: origin at the centre of the box's bottom face (the support
+            surface), +Z up out of it.
+        size_m: (x, y, z) size of the box in metres.
+    """
+
+    relation: str
+    pose: Pose
+    size_m: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
 class PlaceRef:
     """A place of the environment that the document names (an OpenLABEL object of type
-    ``place``). Its geometry lives in the environment asset, not in the document.
+    ``place``). Its geometry lives in the environment asset, or, for places the asset lacks, in
+    the document as declared regions.
 
     Attributes:
         uid: OpenLABEL object uid.
         name: place name in the environment, e.g. ``seat_03A``, ``bin_02L``, ``aisle_04``.
+        regions: regions declared in the document (they add to or replace the asset's).
     """
 
     uid: str
     name: str
+    regions: tuple[DeclaredRegion, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -256,6 +256,9 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
     Raises:
         CompositionError: every problem at once; each names the element uid.
     """
+    from usdscene.catalog import scene_catalog
+
+    catalog = scene_catalog(catalog, scene)  # places the document declares itself
     problems = ProblemCollector()
     objects = scene.object_by_uid()
     places = scene.place_by_uid()
@@ -429,6 +432,9 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
         CompositionError: unknown class, relation to a missing place/object, cyclic or
             unsupported relation, an object that does not fit its region, an over-full place.
     """
+    from usdscene.catalog import scene_catalog
+
+    catalog = scene_catalog(catalog, scene)  # places the document declares itself
     check_placement_inputs(scene, catalog)
     frame_start, n_frames = scene.frame_start, len(scene.frames)
     objects = scene.object_by_uid()

@@ -343,6 +343,9 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         DocumentError: bad options (unknown strategy, class or pattern, occupancy outside
             [0, 1]), a setup without environment.
     """
+    from usdscene.catalog import scene_catalog
+
+    catalog = scene_catalog(catalog, setup)  # places the setup declares itself
     classes, combos, passenger_classes = _check_options(setup, catalog, options)
     rng = np.random.default_rng(options.seed)
     n_places_regions = {c.region for c in combos}
