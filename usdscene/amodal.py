@@ -191,17 +191,6 @@ def _kernels():
                     crop[py - y_origin, px - x_origin] = True
 
     @numba.njit(cache=True, nogil=True)
-    def bounding_sphere(points):
-        """Centre (3,) and radius of the sphere around the bounding box of (P, 3) points."""
-        lo = points[0].copy()
-        hi = points[0].copy()
-        for j in range(1, points.shape[0]):
-            for k in range(3):
-                lo[k] = min(lo[k], points[j, k])
-                hi[k] = max(hi[k], points[j, k])
-        return (lo + hi) / 2.0, math.sqrt(((hi - lo) ** 2).sum()) / 2.0
-
-    @numba.njit(cache=True, nogil=True)
     def needs_split(uv, imaged, max_edge):
         """(T,) bool: imaged triangles of (T, 3, 2) uv with a projected edge longer than max_edge."""
         out = np.zeros(uv.shape[0], dtype=np.bool_)
@@ -217,8 +206,7 @@ def _kernels():
                     break
         return out
 
-    return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, bounding_sphere=bounding_sphere,
-                                 needs_split=needs_split)
+    return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, needs_split=needs_split)
 
 
 def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int | None = None, *,
@@ -261,22 +249,20 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     uids = list(triangles_world_m)
     empty = AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
     result = dict.fromkeys(uids, empty)
-    given = [triangles_world_m[uid] for uid in uids]
-    arrays = [np.ascontiguousarray(t, dtype=np.float64).reshape(-1, 3, 3) for t in given]
+    # Each vertex is projected once (a closed mesh has about half as many vertices as
+    # triangles, against three corners per triangle).
+    meshes = [_indexed_mesh(triangles_world_m[uid]) for uid in uids]
     pose = camera.pose_at(frame) if frame is not None else camera.pose
     m = pose.as_array()
     # Cull whole objects by their bounding spheres before touching their triangles.
-    in_view = _objects_in_view(intr, m, arrays)
-    visible = np.flatnonzero(in_view)
+    visible = np.flatnonzero(_objects_in_view(intr, m, meshes))
     if not visible.size:
         return result
-    # Each vertex is projected once (a closed mesh has about half as many vertices as
-    # triangles, against three corners per triangle).
-    indexed = [_indexed_mesh(given[i]) for i in visible]
-    offsets = np.cumsum([0] + [len(points) for points, _ in indexed])
-    points = np.concatenate([points for points, _ in indexed])
-    faces = np.concatenate([faces + offset for (_, faces), offset in zip(indexed, offsets)])
-    owner = np.repeat(visible, [len(faces) for _, faces in indexed])
+    indexed = [meshes[i] for i in visible]
+    offsets = np.cumsum([0] + [len(mesh.points) for mesh in indexed])
+    points = np.concatenate([mesh.points for mesh in indexed])
+    faces = np.concatenate([mesh.faces + offset for mesh, offset in zip(indexed, offsets)])
+    owner = np.repeat(visible, [len(mesh.faces) for mesh in indexed])
     # world → camera (OpenCV axes): R^T (p - t), written for row vectors.
     cam_points = (points - m[:3, 3]) @ m[:3, :3]
     cut = np.zeros(len(uids), dtype=bool)
@@ -343,25 +329,49 @@ def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray,
 
 # (id of a triangle array) → (weak reference to it, its vertices (P, 3), faces (T, 3)); the
 # triangle arrays of a stage are shared between the cameras of a frame and between frames.
-_INDEXED: dict[int, tuple[weakref.ref, np.ndarray, np.ndarray]] = {}
+@dataclass(frozen=True, eq=False)
+class _IndexedMesh:
+    """An object's triangles as unique vertices and faces, with its bounding sphere.
+
+    Attributes:
+        points: (P, 3) float64 unique vertices, world metres.
+        faces: (T, 3) int64 vertex indices.
+        centre: (3,) centre of the bounding box, world metres.
+        radius: radius of the sphere around that box, metres.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    centre: np.ndarray
+    radius: float
 
 
-def _indexed_mesh(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(T, 3, 3) triangles (the caller's array object) → (unique vertices (P, 3), faces (T, 3)
-    int64), remembered for as long as that array object lives."""
+# id of a triangle array → (weak reference to it, its indexed mesh); the triangle arrays of a
+# stage are shared between the cameras of a frame and between frames, so each is indexed once.
+_INDEXED: dict[int, tuple[weakref.ref, _IndexedMesh]] = {}
+
+
+def _indexed_mesh(triangles: np.ndarray) -> _IndexedMesh:
+    """(T, 3, 3) triangles (the caller's array object) → its :class:`_IndexedMesh`, remembered
+    for as long as that array object lives."""
     key = id(triangles)
     known = _INDEXED.get(key)
     if known is not None and known[0]() is triangles:
-        return known[1], known[2]
+        return known[1]
     corners = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
-    points, inverse = np.unique(corners, axis=0, return_inverse=True)
-    faces = inverse.reshape(-1, 3).astype(np.int64)
+    if len(corners):
+        points, inverse = np.unique(corners, axis=0, return_inverse=True)
+        lo, hi = points.min(axis=0), points.max(axis=0)
+    else:
+        points, inverse, lo, hi = corners, np.zeros(0, dtype=np.int64), np.zeros(3), np.zeros(3)
+    mesh = _IndexedMesh(points, inverse.reshape(-1, 3).astype(np.int64), (lo + hi) / 2.0,
+                        float(np.linalg.norm(hi - lo)) / 2.0)
     try:
         ref = weakref.ref(triangles, lambda _, key=key: _INDEXED.pop(key, None))
     except TypeError:  # not weak-referenceable: not remembered
-        return points, faces
-    _INDEXED[key] = (ref, points, faces)
-    return points, faces
+        return mesh
+    _INDEXED[key] = (ref, mesh)
+    return mesh
 
 
 def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,
@@ -378,10 +388,16 @@ def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,
     if all_in.all():
         return points_cam, faces, owner, np.zeros(0, dtype=np.int64)
     crossing = np.flatnonzero((corner_in[:, 0] | corner_in[:, 1] | corner_in[:, 2]) & ~all_in)
-    pieces, piece_owner, _ = _clip_triangles_near(points_cam[faces[crossing]], owner[crossing], near_m)
-    new_faces = len(points_cam) + np.arange(3 * len(pieces)).reshape(-1, 3)
-    return (np.concatenate([points_cam, pieces.reshape(-1, 3)]),
-            np.concatenate([faces[all_in], new_faces]), np.concatenate([owner[all_in], piece_owner]),
+    pieces, piece_owner = [np.zeros((0, 3, 3))], [np.zeros(0, dtype=owner.dtype)]
+    for index in crossing:
+        poly = _clip_polygon(points_cam[faces[index]], 2, near_m, True)
+        for k in range(1, len(poly) - 1):  # fan triangulation of the convex clipped polygon
+            pieces.append(np.stack([poly[0], poly[k], poly[k + 1]])[None])
+            piece_owner.append(owner[index:index + 1])
+    new = np.concatenate(pieces)
+    new_faces = len(points_cam) + np.arange(3 * len(new)).reshape(-1, 3)
+    return (np.concatenate([points_cam, new.reshape(-1, 3)]),
+            np.concatenate([faces[all_in], new_faces]), np.concatenate([owner[all_in], *piece_owner]),
             np.unique(owner[~all_in]))
 
 
@@ -434,23 +450,21 @@ def _view_half_angle_rad(intrinsics: Intrinsics) -> float:
 
 
 def _objects_in_view(intrinsics: Intrinsics, camera_to_world: np.ndarray,
-                     triangles_world: list[np.ndarray]) -> np.ndarray:
-    """(N,) bool per object: False when the object has no triangle or the bounding sphere of
-    its (T, 3, 3) world triangles lies wholly outside the camera's field of view
-    (conservative: True when unsure). ``camera_to_world`` is the (4, 4) camera pose."""
-    counts = np.array([len(t) for t in triangles_world], dtype=np.int64)
+                     meshes: list[_IndexedMesh]) -> np.ndarray:
+    """(N,) bool per object: False when the object has no triangle or its bounding sphere lies
+    wholly outside the camera's field of view (conservative: True when unsure).
+    ``camera_to_world`` is the (4, 4) camera pose."""
+    has_faces = np.array([len(mesh.faces) > 0 for mesh in meshes], dtype=bool)
     half_angle = _view_half_angle_rad(intrinsics)
-    if half_angle >= math.pi:
-        return counts > 0
-    spheres = [_kernels().bounding_sphere(t.reshape(-1, 3)) if len(t) else (np.zeros(3), 0.0)
-               for t in triangles_world]
-    centres = np.array([c for c, _ in spheres]).reshape(-1, 3)
-    radii = np.array([r for _, r in spheres])
+    if half_angle >= math.pi or not meshes:
+        return has_faces
+    centres = np.array([mesh.centre for mesh in meshes]).reshape(-1, 3)
+    radii = np.array([mesh.radius for mesh in meshes])
     centres = (centres - camera_to_world[:3, 3]) @ camera_to_world[:3, :3]
     distance = np.linalg.norm(centres, axis=1)
     off_axis = np.arctan2(np.hypot(centres[:, 0], centres[:, 1]), centres[:, 2])
     spread = np.arcsin(np.clip(radii / np.maximum(distance, 1e-300), 0.0, 1.0))
-    return (counts > 0) & ((distance <= radii) | (off_axis - spread <= half_angle))
+    return has_faces & ((distance <= radii) | (off_axis - spread <= half_angle))
 
 
 def _subdivide(tris: np.ndarray) -> np.ndarray:
@@ -475,25 +489,3 @@ def _clip_polygon(poly: np.ndarray, axis: int, bound: float, keep_greater: bool)
             t = (bound - a[axis]) / (b[axis] - a[axis])
             out.append(a + t * (b - a))
     return np.asarray(out).reshape(-1, poly.shape[1])
-
-
-def _clip_triangles_near(tris_cam: np.ndarray, owner: np.ndarray,
-                         near_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Clip (T, 3, 3) camera-frame triangles (OpenCV axes) to z >= near.
-
-    Returns:
-        ``(triangles (T', 3, 3), owner (T',), owners that were cut)``; ``owner`` is the (T,)
-        object index of each triangle, carried to the pieces.
-    """
-    inside = tris_cam[:, :, 2] >= near_m
-    all_in = inside[:, 0] & inside[:, 1] & inside[:, 2]
-    if all_in.all():
-        return tris_cam, owner, np.zeros(0, dtype=np.int64)
-    crossing = np.flatnonzero((inside[:, 0] | inside[:, 1] | inside[:, 2]) & ~all_in)
-    pieces, piece_owner = [tris_cam[all_in]], [owner[all_in]]
-    for index in crossing:
-        poly = _clip_polygon(tris_cam[index], 2, near_m, True)
-        for k in range(1, len(poly) - 1):  # fan triangulation of the convex clipped polygon
-            pieces.append(np.stack([poly[0], poly[k], poly[k + 1]])[None])
-            piece_owner.append(owner[index:index + 1])
-    return np.concatenate(pieces), np.concatenate(piece_owner), np.unique(owner[~all_in])
