@@ -20,13 +20,14 @@ from usdscene.validation import DEFAULT_SCHEMA
 def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.PathLike | None = None,
                       epsilon_px: float | None = None, min_visible_fraction: float = 0.0,
                       amodal: bool = True, progress: bool = False,
-                      schema: str | os.PathLike | None | Literal["default"] = DEFAULT_SCHEMA):
+                      schema: str | os.PathLike | None | Literal["default"] = DEFAULT_SCHEMA,
+                      labeller: ImageLabeller | None = None):
     """Label every mask of a rendered output folder and write ``OUT/annotations.openlabel.json``
     atomically, never a document that the official schema rejects.
 
     Args:
         out_dir: output folder of a render.
-        document_path, epsilon_px, min_visible_fraction, amodal, progress: as in
+        document_path, epsilon_px, min_visible_fraction, amodal, progress, labeller: as in
             :func:`annotate_output`.
         schema: official schema the written document must pass (see
             :func:`usdscene.validation.validate_document`); None: no schema check.
@@ -46,7 +47,7 @@ def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.Pat
 
     document, annotations = annotate_output(out_dir, document_path=document_path, epsilon_px=epsilon_px,
                                             min_visible_fraction=min_visible_fraction, amodal=amodal,
-                                            progress=progress)
+                                            progress=progress, labeller=labeller)
     schema_path = resolve_schema(schema)
     if schema_path is not None:
         problems = schema_problems(document, schema_path)
@@ -98,11 +99,10 @@ class ImageLabeller:
 
         from usdscene import __version__, layout
         from usdscene.errors import OutputError
-        from usdscene.labels import DEFAULT_EPSILON_PX
 
         self.out = Path(out_dir)
-        self.epsilon_px = DEFAULT_EPSILON_PX if epsilon_px is None else float(epsilon_px)
-        self.min_visible_fraction = float(min_visible_fraction)
+        self.settings = self.settings_key(epsilon_px, min_visible_fraction, amodal)
+        self.epsilon_px, self.min_visible_fraction, _ = self.settings
         id_file = self.out / layout.ID_MAP_FILE
         try:
             id_bytes = id_file.read_bytes()
@@ -131,6 +131,14 @@ class ImageLabeller:
                      "ids_sha256": hashlib.sha256(id_bytes).hexdigest(),
                      "stage_sha256": stage_hash.hexdigest() if amodal else None}
         self._triangles: tuple[int, dict] | None = None  # (frame, uid → triangles) of the last frame
+
+    @staticmethod
+    def settings_key(epsilon_px: float | None, min_visible_fraction: float, amodal: bool) -> tuple:
+        """``(epsilon_px, min_visible_fraction, amodal)`` with the defaults filled in."""
+        from usdscene.labels import DEFAULT_EPSILON_PX
+
+        return (DEFAULT_EPSILON_PX if epsilon_px is None else float(epsilon_px), float(min_visible_fraction),
+                bool(amodal))
 
     def labels(self, frame: int, camera: str):
         """The labels of one rendered image: kept ones when their key matches, else computed
@@ -207,6 +215,8 @@ class LabelsWhileRendering:
     Attributes:
         images: images labelled.
         seconds: wall seconds spent labelling.
+        labeller: the :class:`ImageLabeller` it opened (None before the first image or after a
+            failure), for the annotate step to reuse.
     """
 
     def __init__(self, out_dir: str | os.PathLike, **labeller_options) -> None:
@@ -214,7 +224,7 @@ class LabelsWhileRendering:
         self.options = labeller_options
         self.images = 0
         self.seconds = 0.0
-        self._labeller: ImageLabeller | None = None
+        self.labeller: ImageLabeller | None = None
         self._failed = False
 
     def __call__(self, event: dict) -> None:
@@ -227,12 +237,13 @@ class LabelsWhileRendering:
             return
         started = time.perf_counter()
         try:
-            if self._labeller is None:  # the id map exists once rendering has started
-                self._labeller = ImageLabeller(self.out, **self.options)
-            self._labeller.labels(int(event["frame"]), str(event["camera"]))
+            if self.labeller is None:  # the id map exists once rendering has started
+                self.labeller = ImageLabeller(self.out, **self.options)
+            self.labeller.labels(int(event["frame"]), str(event["camera"]))
             self.images += 1
         except (UsdSceneError, OSError) as exc:
             self._failed = True
+            self.labeller = None
             logging.getLogger(__name__).warning("labelling while rendering stopped (%s); the images "
                                                 "are labelled after rendering", exc)
         finally:
@@ -240,7 +251,8 @@ class LabelsWhileRendering:
 
 
 def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = None,
-                    min_visible_fraction: float = 0.0, amodal: bool = True, progress: bool = False):
+                    min_visible_fraction: float = 0.0, amodal: bool = True, progress: bool = False,
+                    labeller: ImageLabeller | None = None):
     """Label every mask of a rendered output folder (images labelled before, e.g. while they
     were rendered, are read back, see :class:`ImageLabeller`).
 
@@ -251,6 +263,9 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         min_visible_fraction: minimum-visibility filter.
         amodal: compute amodal boxes and visible fractions from the stage geometry.
         progress: show a ``rich`` progress bar on stderr.
+        labeller: an open :class:`ImageLabeller` of ``out_dir`` to reuse (its stage and geometry
+            stay loaded, e.g. the one that labelled while rendering); used only when its
+            settings are the ones asked for.
 
     Returns:
         ``(document, annotations)``: the annotated ``{"openlabel": ...}`` dict (not yet
@@ -272,8 +287,10 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
     pairs = sorted((int(p.stem), p.parent.name) for p in masks_dir.glob("*/*.png") if p.stem.isdigit())
     if not pairs:
         raise OutputError("no masks found; render the output first", where=str(masks_dir))
-    labeller = ImageLabeller(out, epsilon_px=epsilon_px, min_visible_fraction=min_visible_fraction,
-                             amodal=amodal)
+    wanted = ImageLabeller.settings_key(epsilon_px, min_visible_fraction, amodal)
+    if labeller is None or labeller.out != out or labeller.settings != wanted:
+        labeller = ImageLabeller(out, epsilon_px=epsilon_px, min_visible_fraction=min_visible_fraction,
+                                 amodal=amodal)
 
     if document_path is None and stage_path.is_file():
         document_path = _source_document(stage_path)

@@ -100,9 +100,9 @@ def stage_for_input(path: str | Path, out_dir: str | Path) -> Path:
 
 def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[int] | None = None,
                  cameras: Sequence[str] | None = None, exports: Sequence[str] | None = None,
-                 samples: int | None = None, workers: int = 1, progress: bool = True,
-                 on_step: Callable[[str], None] | None = None,
-                 render_options: Mapping[str, object] | None = None, split=None,
+                 samples: int | None = None, workers: int | None = None, executor="local",
+                 retries: int | None = None, progress: bool = True,
+                 on_step: Callable[[str], None] | None = None, split=None,
                  split_seed: int = 0) -> RunSummary:
     """Run the whole job for one scene document.
 
@@ -113,7 +113,9 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         cameras: camera names to render (default: all).
         exports: dataset formats (default: the document's ``metadata.usdscene.exports``).
         samples: override the document's samples per pixel.
-        workers: render worker processes side by side.
+        workers: render worker processes side by side (with an executor object: its own).
+        executor: ``"local"``, ``"ray"`` or an executor object (``usdscene.render.executors``).
+        retries: times a shard whose worker died is run again (None = the driver's default).
         progress: show progress bars on stderr.
         on_step: called with each step's name as it starts (for a status line).
         split: training split rule of the COCO/YOLO export (:mod:`usdscene.splits`); None = none.
@@ -156,13 +158,14 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     # Each image is labelled as soon as it is written, while the workers render the next ones.
     labelling = LabelsWhileRendering(out)
     report = render(composed.root_layer, out, frames=frames, cameras=cameras, settings_override=override,
-                    progress=progress, workers=workers, on_event=labelling, **(render_options or {}))
+                    progress=progress, workers=workers, executor=executor, on_event=labelling,
+                    **({} if retries is None else {"retries": retries}))
     seconds["render"] = time.perf_counter() - t
 
     t = step("annotate")
     # never writes an output document that the official schema rejects
     _, annotations = write_annotations(out, document_path=doc_path, progress=progress,
-                                       schema=checked.schema)
+                                       schema=checked.schema, labeller=labelling.labeller)
     seconds["annotate"] = time.perf_counter() - t
 
     formats = tuple(exports) if exports is not None else scene.exports

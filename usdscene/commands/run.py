@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.errors import DocumentError, Problem
     from usdscene.pipeline import run_pipeline, summary_text
 
+    executor = executor_for(args)  # bad executor options fail before any work
     if not Path(args.document).is_file():
         raise DocumentError(f"scene document {args.document!r} does not exist", where=args.document)
     try:
@@ -55,11 +56,9 @@ def run(args: argparse.Namespace) -> int:
     def show_step(name: str) -> None:
         print(f"usdscene: {name} ...", file=sys.stderr, flush=True)
 
-    executor = executor_for(args)
     summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras,
-                           exports=args.export, samples=args.samples, workers=args.workers or 1,
-                           progress=progress, on_step=show_step,
-                           render_options={"executor": executor, "retries": args.retries},
+                           exports=args.export, samples=args.samples, executor=executor,
+                           retries=args.retries, progress=progress, on_step=show_step,
                            split=args.split, split_seed=args.split_seed)
     print(summary_text(summary))
     return 0
