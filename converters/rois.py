@@ -140,7 +140,9 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
     if scene.environment is None or scene.environment not in catalog:
         raise AssetError(f"environment {scene.environment!r} is not in the asset catalog",
                          where="openlabel.metadata.usdscene.environment")
-    env_places = catalog.places(scene.environment)
+    from usdscene.catalog import scene_catalog
+
+    env_places = scene_catalog(catalog, scene).places(scene.environment)  # declared places too
     missing = [p.name for p in scene.places if p.name not in env_places]
     if missing:
         raise AssetError(f"places {missing} are not in environment {scene.environment!r}",

@@ -320,7 +320,9 @@ def place_items(places: Mapping[str, Place]) -> list[tuple[str, Place]]:
 
 def scene_catalog(catalog: Catalog, scene: SceneSpec) -> Catalog:
     """``catalog`` with the places the scene declares itself (regions of its place objects)
-    merged into its environment's places; ``catalog`` itself when it declares none or the
+    merged into its environment's places. The placement module merges on entry (so compose
+    and validation need not); code that reads ``catalog.places`` itself (the generator, camera
+    design, ROI crops) calls this first. Returns ``catalog`` itself when the scene declares none or the
     environment is not in the catalog. A declared region replaces the asset's region of the
     same place and relation.
     """

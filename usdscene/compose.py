@@ -149,9 +149,6 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
         CompositionError: unknown class, relation to a missing place, cyclic relations,
             over-full place, clashing prim names... (every problem names the element uid).
     """
-    from usdscene.catalog import scene_catalog
-
-    catalog = scene_catalog(catalog, scene)  # places the document declares itself
     from pxr import Sdf  # noqa: F401  (fail early with a clear ImportError if usd-core is absent)
 
     if rng is None:
