@@ -63,7 +63,7 @@ from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.coverage import DoriClass, load_dori
 from usdscene.cross_camera import CrossCameraRow, Densities, cross_camera_table
 from usdscene.labels import Annotations, ObjectLabel
-from usdscene.model import FrameInterval, RelationType, SceneSpec, in_intervals, union_intervals
+from usdscene.model import FrameInterval, RelationType, SceneSpec, union_intervals
 
 ANNOTATION_METADATA_KEY = "usdscene_annotations"
 FRAME_PROPERTIES_KEY = "usdscene"

@@ -41,7 +41,7 @@ from usdscene.converters.openlabel_annotations import image_records, resolve_pla
 from usdscene import layout
 from usdscene.catalog import Catalog, PlaceRegion
 from usdscene.errors import AssetError, DocumentError, OutputError
-from usdscene.files import write_bytes_atomic, write_text_atomic
+from usdscene.files import write_png_atomic, write_text_atomic
 from usdscene.model import Camera
 
 log = logging.getLogger(__name__)
@@ -210,10 +210,7 @@ def export_rois(document: dict, out_dir: str | os.PathLike, catalog: Catalog, *,
         pixels = loaded[uri][crop.y_min:crop.y_max + 1, crop.x_min:crop.x_max + 1]
         name = f"{crop.camera}_{layout.frame_file(crop.frame)[:-4]}_{crop.place}_{crop.relation}.png"
         relative = Path(crop.label) / name
-        ok, encoded = cv2.imencode(".png", pixels)
-        if not ok:
-            raise OutputError(f"cannot encode crop {name!r}", where=str(root / relative))
-        write_bytes_atomic(root / relative, encoded.tobytes())
+        write_png_atomic(root / relative, pixels)
         writer.writerow([relative.as_posix(), crop.label, crop.camera, crop.frame, crop.place,
                          crop.place_kind, crop.relation, ";".join(crop.objects), crop.x_min, crop.y_min,
                          crop.x_max - crop.x_min + 1, crop.y_max - crop.y_min + 1, uri])

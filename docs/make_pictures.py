@@ -26,16 +26,9 @@ from usdscene.converters.openlabel_annotations import image_records, labels_in
 from usdscene import layout
 from usdscene.contact_sheet import contact_sheet
 from usdscene.statistics import draw_chart, label_statistics
-from usdscene.files import write_bytes_atomic
+from usdscene.files import write_png_atomic
 
 IMG = Path(__file__).resolve().parent / "img"
-
-
-def write_png(path: Path, image: np.ndarray) -> None:
-    ok, encoded = cv2.imencode(".png", image)
-    if not ok:
-        raise RuntimeError(f"cannot encode {path}")
-    write_bytes_atomic(path, encoded.tobytes())
 
 
 def draw_labels(image: np.ndarray, labels: list[dict], scale: int = 2) -> np.ndarray:
@@ -81,11 +74,11 @@ def main(argv=None) -> int:
     records = [r for r in image_records(document) if r["frame"] == args.frame]
     tiles = [(r["camera"], cv2.imread(str(layout.image_path(args.output, r["camera"], args.frame))))
              for r in records]
-    write_png(IMG / "contact_sheet.png", contact_sheet(tiles, tile_width=180, columns=8))
+    write_png_atomic(IMG / "contact_sheet.png", contact_sheet(tiles, tile_width=180, columns=8))
 
     image = cv2.imread(str(layout.image_path(args.output, args.camera, args.frame)))
-    write_png(IMG / "labels.png", draw_labels(image, labels_in(document, args.frame, args.camera)))
-    write_png(IMG / "stats.png", draw_chart(label_statistics(document)))
+    write_png_atomic(IMG / "labels.png", draw_labels(image, labels_in(document, args.frame, args.camera)))
+    write_png_atomic(IMG / "stats.png", draw_chart(label_statistics(document)))
     print(f"wrote {IMG / 'contact_sheet.png'}, {IMG / 'labels.png'}, {IMG / 'stats.png'}")
     return 0
 

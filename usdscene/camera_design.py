@@ -165,7 +165,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
         OutputError: the output document fails the official OpenLABEL schema.
     """
     from usdscene.compose import compose_stage
-    from usdscene.files import write_bytes_atomic, write_json_atomic
+    from usdscene.files import write_json_atomic, write_png_atomic
 
     seconds: dict[str, float] = {}
     started = time.perf_counter()
@@ -238,7 +238,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
              f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori}, "
              f"{len(selection.uncoverable)} uncoverable by any candidate")
     picture = cov.plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
-    write_bytes_atomic(out / PLAN_PICTURE, _png(picture))
+    write_png_atomic(out / PLAN_PICTURE, picture)
     seconds["write"] = time.perf_counter() - t
     return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
                       seconds, occ.backend)
@@ -294,15 +294,6 @@ def _write_document(path: Path, scene: SceneSpec) -> None:
         if problems:
             raise OutputError(problems)
     write_json_atomic(path, document)
-
-
-def _png(image: np.ndarray) -> bytes:
-    import cv2
-
-    ok, data = cv2.imencode(".png", image)
-    if not ok:
-        raise OutputError("cannot encode the PNG image")
-    return data.tobytes()
 
 
 def _round(value: float, digits: int = 4) -> float:
@@ -474,7 +465,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
 
     from usdscene import layout
     from usdscene.compose import compose_stage
-    from usdscene.files import write_bytes_atomic, write_json_atomic
+    from usdscene.files import write_json_atomic, write_png_atomic
     from usdscene.render.driver import render, scale_intrinsics
 
     plan = Path(plan_dir)
@@ -548,7 +539,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     from usdscene.contact_sheet import contact_sheet
 
     tiles = [(name, image if image is not None else np.zeros((180, 240, 3), np.uint8)) for name, image in thumbs]
-    write_bytes_atomic(verify / "sheet.png", _png(contact_sheet(tiles, tile_width=240, columns=6)))
+    write_png_atomic(verify / "sheet.png", contact_sheet(tiles, tile_width=240, columns=6))
     seconds["compare"] = time.perf_counter() - t0
     return VerifyResult(pairs, agreeing, tolerance, points, points_ok, out, seconds)
 

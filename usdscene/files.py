@@ -137,6 +137,20 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     return target
 
 
+def write_png_atomic(path: str | os.PathLike, image) -> Path:
+    """Encode an (H, W[, C]) uint8/uint16 image (BGR channel order) as PNG and write it atomically.
+
+    Raises:
+        OutputError: the image cannot be encoded, or the file cannot be written.
+    """
+    import cv2
+
+    ok, encoded = cv2.imencode(".png", image)
+    if not ok:
+        raise OutputError(f"cannot encode a {getattr(image, 'shape', '?')} image as PNG", where=str(path))
+    return write_bytes_atomic(path, encoded.tobytes())
+
+
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     return write_bytes_atomic(path, text.encode("utf-8"))
 

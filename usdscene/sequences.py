@@ -51,7 +51,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 
 from usdscene.catalog import Catalog, place_items
-from usdscene.errors import CompositionError, DocumentError, ProblemCollector
+from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec
 from usdscene.placement import PLACEMENT_RELATIONS, fits_region
 

@@ -154,18 +154,3 @@ def draw_balance_chart(report: dict, width_px: int = 720) -> np.ndarray:
                    list(kinds), list(kinds.values()), width_px, (50, 90, 200)),
     ]
     return np.concatenate(panels, axis=0)
-
-
-def write_chart(path, image: np.ndarray):
-    """Write a (H, W, 3) uint8 BGR chart as PNG, atomically; returns the path.
-
-    Raises:
-        OutputError: the image cannot be encoded or the file cannot be written.
-    """
-    from usdscene.errors import OutputError
-    from usdscene.files import write_bytes_atomic
-
-    ok, encoded = cv2.imencode(".png", image)
-    if not ok:
-        raise OutputError("cannot encode the chart", where=str(path))
-    return write_bytes_atomic(path, encoded.tobytes())

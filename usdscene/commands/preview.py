@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.contact_sheet import contact_sheet
     from usdscene.pipeline import stage_for_input
     from usdscene.errors import RenderError
-    from usdscene.files import prepare_output_file, write_bytes_atomic
+    from usdscene.files import prepare_output_file, write_png_atomic
     from usdscene.render.driver import render
     from usdscene.render.stage_reader import read_stage_plan
 
@@ -51,7 +51,6 @@ def run(args: argparse.Namespace) -> int:
         tiles = [(c.name, cv2.imread(str(layout.image_path(Path(tmp) / "out", c.name, frame))))
                  for c in plan.cameras]
     sheet = contact_sheet(tiles, args.tile_width, args.columns)
-    ok, png = cv2.imencode(".png", sheet)
-    write_bytes_atomic(args.output, png.tobytes())
+    write_png_atomic(args.output, sheet)
     print(f"{len(tiles)} camera views of frame {frame} → {args.output}")
     return 0

@@ -40,7 +40,8 @@ def _document_stats(args: argparse.Namespace) -> int:
     from usdscene.catalog import load_catalog
     from usdscene.converters.openlabel import read_openlabel
     from usdscene.sequences import balance_report
-    from usdscene.statistics import draw_balance_chart, write_chart
+    from usdscene.files import write_png_atomic
+    from usdscene.statistics import draw_balance_chart
 
     path = Path(args.output)
     scene = read_openlabel(path)
@@ -62,7 +63,7 @@ def _document_stats(args: argparse.Namespace) -> int:
     for kind, count in report["place_kinds"].items():
         table.add_row(kind, str(count))
     console.print(table)
-    chart = write_chart(Path(args.chart) if args.chart else path.with_name(path.name + ".stats.png"),
+    chart = write_png_atomic(Path(args.chart) if args.chart else path.with_name(path.name + ".stats.png"),
                         draw_balance_chart(report))
     console.print(f"chart: {chart}")
     return 0
@@ -77,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
     from usdscene import layout
     from usdscene.converters.openlabel import load_document
     from usdscene.errors import OutputError
-    from usdscene.statistics import HISTOGRAM_BINS, dori_text, draw_chart, label_statistics, write_chart
+    from usdscene.files import write_png_atomic
+    from usdscene.statistics import HISTOGRAM_BINS, dori_text, draw_chart, label_statistics
 
     out = Path(args.output)
     if out.is_file():
@@ -123,6 +125,6 @@ def run(args: argparse.Namespace) -> int:
             table.add_row(name, str(c["object_frames"]), str(c["unseen"]), f"{c['median_cameras']:g}",
                           density, dori_text(c["best_dori"]))
         console.print(table)
-    chart = write_chart(Path(args.chart) if args.chart else out / "stats.png", draw_chart(stats))
+    chart = write_png_atomic(Path(args.chart) if args.chart else out / "stats.png", draw_chart(stats))
     console.print(f"chart: {chart}")
     return 0
