@@ -118,7 +118,7 @@ def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
 
     geometry = StageGeometry(stage_path)
     parts = [environment_triangles(geometry.stage, frame)] + list(geometry.triangles(frame).values())
-    return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+    return np.concatenate(parts)
 
 
 def _read_setup(document: Path):
@@ -473,6 +473,8 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     try:
         report = json.loads((plan / COVERAGE_FILE).read_text(encoding="utf-8"))
         request = report["request"]
+        occluders = str(request["occluders"])
+        table = [cov.DoriClass(c["name"], float(c["px_per_m"])) for c in request["dori_table"]]
         targets = [cov.Target(t["name"], t["place"], t["region"], np.asarray(t["points_m"], dtype=np.float64))
                    for t in report["targets"]]
     except (OSError, ValueError, KeyError, TypeError) as exc:
@@ -483,14 +485,15 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     planned, catalog = _read_setup(plan / CAMERAS_FILE)
     if not planned.cameras:
         raise DocumentError("the plan has no cameras to verify", where=str(plan / CAMERAS_FILE))
-    scene = occluder_scene(planned, catalog, request["occluders"])
+    scene = occluder_scene(planned, catalog, occluders)
     verify = plan / VERIFY_DIR
     composed = compose_stage(scene, catalog, verify / layout.STAGE_DIR)
     triangles = stage_triangles(composed.root_layer, scene.frame_start)
     occ = cov.Occluders(triangles)
     marker_file = composed.stage_dir / "markers.usda"
     first_id = max(layout.mask_ids(scene).values(), default=0) + 1
-    ids = write_marker_layer(targets, marker_file, radius_m=marker_radius_m, first_mask_id=first_id)
+    target_mask_ids = {t: mask_id for mask_id, t in
+                       write_marker_layer(targets, marker_file, radius_m=marker_radius_m, first_mask_id=first_id).items()}
     root = Sdf.Layer.FindOrOpen(str(composed.root_layer))
     root.subLayerPaths.append(marker_file.name)
     root.Save()
@@ -503,23 +506,22 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     seconds["render"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    table = [cov.DoriClass(c["name"], float(c["px_per_m"])) for c in request["dori_table"]]
     cameras = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
                for c in planned.cameras]
     predicted = cov.evaluate_visibility(cameras, targets, occ, table)
-    target_of_id = np.zeros(first_id + len(targets) + 1, dtype=np.int64) - 1
-    for mask_id, t in ids.items():
-        target_of_id[mask_id] = t
     rows, pairs, agreeing, points, points_ok = [], 0, 0, 0, 0
     thumbs = []
     for c, camera in enumerate(cameras):
-        mask = cv2.imread(str(layout.mask_path(verify, camera.name, frame)), cv2.IMREAD_UNCHANGED)
+        mask_file = layout.mask_path(verify, camera.name, frame)
+        mask = cv2.imread(str(mask_file), cv2.IMREAD_UNCHANGED)
+        if mask is None:
+            raise OutputError("the verification render wrote no readable mask", where=str(mask_file))
         image = cv2.imread(str(layout.image_path(verify, camera.name, frame)), cv2.IMREAD_COLOR)
         thumbs.append((camera.name, image))
         for t, target in enumerate(targets):
             if predicted.in_image[c, t] == 0:
                 continue
-            seen = _rendered_points(camera, target.points_m, mask, first_id + t, marker_radius_m)
+            seen = _rendered_points(camera, target.points_m, mask, target_mask_ids[t], marker_radius_m)
             pred = predicted.point_visible[t][c]
             rendered_fraction = float(seen.mean())
             predicted_fraction = float(predicted.visible[c, t])

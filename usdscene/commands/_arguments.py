@@ -102,8 +102,8 @@ def _whole_number(text: str, minimum: int, meaning: str) -> int:
 
 
 def non_negative_int(text: str) -> int:
-    """argparse type of ``--seed``: a whole number >= 0 (numpy seeds are unsigned)."""
-    return _whole_number(text, 0, "a seed is a whole number >= 0")
+    """argparse type of seeds (numpy seeds are unsigned) and counts that may be 0."""
+    return _whole_number(text, 0, "expected a whole number >= 0")
 
 
 def positive_int(text: str) -> int:

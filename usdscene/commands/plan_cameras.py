@@ -11,7 +11,7 @@ ORDER = 15
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from usdscene.commands._arguments import output_path
+    from usdscene.commands._arguments import non_negative_int, output_path, positive_int
 
     parser.add_argument("--setup", metavar="SETUP_DOC",
                         help="OpenLABEL setup document (environment, lights, render; its cameras with --mounts setup)")
@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--spacing", type=float, default=0.8, metavar="M", help="mount grid spacing in metres (0.8)")
     parser.add_argument("--lenses", metavar="FILE", help="lens catalog JSON extending the shipped one")
     parser.add_argument("--lens", nargs="+", metavar="NAME", help="catalog lenses to try (default: all)")
-    parser.add_argument("--k", type=int, default=1, help="cameras each target needs (1)")
+    parser.add_argument("--k", type=positive_int, default=1, help="cameras each target needs (1)")
     parser.add_argument("--dori", default="observe", metavar="CLASS",
                         help="required image-detail class (monitor, detect, observe, recognise, identify, inspect)")
     parser.add_argument("--dori-table", metavar="FILE", help="DORI table JSON replacing IEC 62676-4:2015's")
@@ -35,11 +35,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="what blocks the views: a passenger in every seat (worst-case) or the setup's objects")
     parser.add_argument("--min-visible", type=float, default=0.25, metavar="FRACTION",
                         help="fraction of a target's points a camera must see (0.25)")
-    parser.add_argument("--aims", type=int, default=4, help="target-cluster aims per mount (4)")
+    parser.add_argument("--aims", type=non_negative_int, default=4, help="target-cluster aims per mount (4)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="MILP time limit in seconds (60)")
     parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
                         help="render size of --verify relative to the cameras' resolution (0.5)")
-    parser.add_argument("--verify-samples", type=int, default=1, metavar="N", help="Cycles samples of --verify (1)")
+    parser.add_argument("--verify-samples", type=positive_int, default=1, metavar="N", help="Cycles samples of --verify (1)")
 
 
 def run(args: argparse.Namespace) -> int:
