@@ -102,13 +102,8 @@ def camera_for_image(camera: Camera, frame: int, width_px: int, height_px: int) 
     """The camera as it rendered one image: its pose at ``frame`` and its intrinsics scaled to
     the image's size (a render at a resolution scale; pixel centres at integers, so a position
     p maps to ``(p + 0.5) · s - 0.5`` per axis)."""
-    intr = camera.intrinsics
-    if (intr.width_px, intr.height_px) != (width_px, height_px):
-        sx, sy = width_px / intr.width_px, height_px / intr.height_px
-        intr = dataclasses.replace(intr, width_px=width_px, height_px=height_px, fx_px=intr.fx_px * sx,
-                                   fy_px=intr.fy_px * sy, cx_px=(intr.cx_px + 0.5) * sx - 0.5,
-                                   cy_px=(intr.cy_px + 0.5) * sy - 0.5)
-    return dataclasses.replace(camera, intrinsics=intr, pose=camera.pose_at(frame), frame_poses=())
+    return dataclasses.replace(camera, intrinsics=camera.intrinsics.resized(width_px, height_px),
+                               pose=camera.pose_at(frame), frame_poses=())
 
 
 def object_densities(annotations: Annotations, cameras: Mapping[str, Camera],

@@ -19,7 +19,7 @@ from __future__ import annotations
 import enum
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -274,6 +274,17 @@ class Intrinsics:
     def sensor_height_mm(self) -> float:
         """Sensor height matching the pixel aspect: square pixels when fx == fy."""
         return self.sensor_width_mm * self.height_px / self.width_px * (self.fx_px / self.fy_px)
+
+    def resized(self, width_px: int, height_px: int) -> "Intrinsics":
+        """The same lens imaging onto ``width_px`` × ``height_px`` pixels (a render at another
+        resolution). Pixel centres sit at integers, so a position p maps to ``(p + 0.5) · s - 0.5``
+        with s the per-axis size ratio."""
+        if (width_px, height_px) == (self.width_px, self.height_px):
+            return self
+        sx, sy = width_px / self.width_px, height_px / self.height_px
+        return replace(self, width_px=width_px, height_px=height_px, fx_px=self.fx_px * sx,
+                       fy_px=self.fy_px * sy, cx_px=(self.cx_px + 0.5) * sx - 0.5,
+                       cy_px=(self.cy_px + 0.5) * sy - 0.5)
 
     def camera_matrix(self) -> np.ndarray:
         """(3, 3) OpenCV camera matrix K."""

@@ -164,12 +164,7 @@ def scale_intrinsics(intr, scale: float):
     position p maps to ``(p + 0.5) · s' - 0.5`` with s' the exact per-axis size ratio)."""
     if scale == 1.0:
         return intr
-    w = max(1, round(intr.width_px * scale))
-    h = max(1, round(intr.height_px * scale))
-    sx, sy = w / intr.width_px, h / intr.height_px
-    return dataclasses.replace(intr, width_px=w, height_px=h, fx_px=intr.fx_px * sx, fy_px=intr.fy_px * sy,
-                               cx_px=(intr.cx_px + 0.5) * sx - 0.5, cy_px=(intr.cy_px + 0.5) * sy - 0.5,
-                               sensor_width_mm=intr.sensor_width_mm)
+    return intr.resized(max(1, round(intr.width_px * scale)), max(1, round(intr.height_px * scale)))
 
 
 def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = None,
