@@ -61,20 +61,16 @@ def _source_document(stage_path):
     import hashlib
     import logging
 
-    from pxr import Sdf
+    from usdscene.render.stage_reader import recorded_source
 
-    from usdscene import stage_schema
-
-    layer = Sdf.Layer.FindOrOpen(str(stage_path))
-    data = (layer.customLayerData or {}).get(stage_schema.LAYER_DATA_KEY, {}) if layer else {}
-    source, digest = data.get("source", ""), data.get("sourceSha256", "")
-    if not source or not Path(source).is_file():
+    source, digest = recorded_source(stage_path)
+    if source is None or not source.is_file():
         return None
-    if digest and hashlib.sha256(Path(source).read_bytes()).hexdigest() != digest:
+    if digest and hashlib.sha256(source.read_bytes()).hexdigest() != digest:
         logging.getLogger(__name__).warning("%s changed since the stage was composed; the labels go "
                                             "into the scene read back from the stage", source)
         return None
-    return Path(source)
+    return source
 
 
 class ImageLabeller:

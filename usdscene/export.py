@@ -28,24 +28,11 @@ FORMATS = ("coco", "yolo", "rois")
 
 def _source_folder(out_dir):
     """Folder of the stage's source document (asset paths are relative to it), else None."""
-    import json
-    import re
-    from pathlib import Path
-
     from usdscene import layout
+    from usdscene.render.stage_reader import recorded_source
 
-    root = layout.stage_root(out_dir)
-    if not root.is_file():
-        return None
-    try:
-        from pxr import Sdf
-    except ImportError:  # a text search of the root layer is enough for one string
-        match = re.search(r'string source = "((?:[^"\\]|\\.)*)"', root.read_text(encoding="utf-8"))
-        source = json.loads(f'"{match.group(1)}"') if match else ""
-    else:
-        layer = Sdf.Layer.FindOrOpen(str(root))
-        source = ((layer.customLayerData or {}).get("usdscene", {}) if layer else {}).get("source", "")
-    return Path(source).parent if source else None
+    source, _ = recorded_source(layout.stage_root(out_dir))
+    return source.parent if source is not None else None
 
 
 def load_export_catalog(document: dict, out_dir, extra_folders=()):

@@ -102,6 +102,21 @@ def read_stage_plan(stage_path: str | Path) -> StagePlan:
     return StagePlan(path, start, end, tuple(cameras), tuple(objects), settings, tuple(shared))
 
 
+def recorded_source(stage_path: str | Path) -> tuple[Path | None, str]:
+    """The scene document a composed stage was made from, as its root layer records it.
+
+    Returns:
+        ``(path or None when none is recorded, its sha256 at composition or "")``; the file may
+        have changed or gone since.
+    """
+    from pxr import Sdf
+
+    layer = Sdf.Layer.FindOrOpen(str(stage_path)) if Path(stage_path).is_file() else None
+    data = (layer.customLayerData or {}).get(names.LAYER_DATA_KEY, {}) if layer else {}
+    source = data.get("source", "")
+    return (Path(source) if source else None), str(data.get("sourceSha256", ""))
+
+
 def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
     """Every file a render of the stage reads: its layers, the layers they reference or
     sublayer (assets) and other assets they name (textures), found by following composition.
