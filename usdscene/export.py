@@ -119,21 +119,23 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         raise OutputError(f"unknown export format {unknown[0]!r}; expected one of {FORMATS}", where="exports")
     ordered = list(dict.fromkeys(formats))
     written = {}
+    # the document (which can be large) and the catalog are read once for every format
+    loaded = _load_annotated(out, extra_assets, need_catalog="rois" in ordered or not document_classes)
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR,
                                       extra_assets=extra_assets, document_classes=document_classes,
-                                      copy_images=copy_images, split=split, split_seed=split_seed))
+                                      copy_images=copy_images, split=split, split_seed=split_seed,
+                                      loaded=[loaded]))
     if "rois" in ordered:
         from usdscene.converters.rois import export_rois
 
-        document, catalog = _load_annotated(out, extra_assets, need_catalog=True)
-        written["rois"] = export_rois(document, out, catalog, min_size_px=min_roi_px)
+        written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=min_roi_px)
     return {fmt: written[fmt] for fmt in ordered}
 
 
 def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_classes: bool = False,
-                   copy_images: bool = False, split=None, split_seed: int = 0) -> dict:
+                   copy_images: bool = False, split=None, split_seed: int = 0, loaded=None) -> dict:
     """Export one COCO/YOLO dataset from one or more annotated output folders.
 
     Images are ordered by output folder (as given), then frame, then camera; image ids are
@@ -150,6 +152,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         copy_images: as in :func:`export_formats`.
         split: split rule text or :class:`usdscene.splits.SplitRule`; None = no split.
         split_seed: seed of a ``fractions`` rule.
+        loaded: ``(document, catalog or None)`` of each output folder when the caller has read
+            them already; None reads them here.
 
     Returns:
         format → what was written: ``coco/annotations.json`` without a split, else the
@@ -188,7 +192,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
     prefixes = [r.relative_to(base).as_posix() if r != base else "" for r in resolved]
     sources = [p or r.name for p, r in zip(prefixes, resolved)]
 
-    loaded = [_load_annotated(o, extra_assets, need_catalog=not document_classes) for o in outs]
+    if loaded is None:
+        loaded = [_load_annotated(o, extra_assets, need_catalog=not document_classes) for o in outs]
     names = sorted({n for document, catalog in loaded
                     for n in label_classes(document, _export_classes(document, catalog, document_classes))})
     records = [image_records(document) for document, _ in loaded]
