@@ -55,33 +55,23 @@ def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ray-address", metavar="ADDRESS",
                         help="Ray cluster to use (auto, HOST:6379 or ray://HOST:10001); default: start a "
                              "local Ray runtime")
-    parser.add_argument("--task-cpus", type=int, default=1, metavar="N",
+    parser.add_argument("--task-cpus", type=positive_int, default=1, metavar="N",
                         help="CPUs per Ray task = Cycles threads of its worker (default 1)")
-    parser.add_argument("--retries", type=int, default=3, metavar="N",
+    parser.add_argument("--retries", type=non_negative_int, default=3, metavar="N",
                         help="times a shard whose worker died (signal, OOM killer, lost node) is run "
                              "again for its unfinished images (default 3)")
 
 
 def executor_for(args: argparse.Namespace):
-    """The executor the arguments ask for (not yet entered).
+    """The executor the arguments ask for (not yet entered); the numbers are checked by their
+    argparse types, the combination by :func:`usdscene.render.executors.make_executor`.
 
     Raises:
-        RenderError: a bad combination or value, naming the option.
+        RenderError: a bad combination (``--ray-address`` without ``--executor ray``), or Ray
+            is not installed.
     """
-    from usdscene.errors import Problem, RenderError
     from usdscene.render.executors import make_executor
 
-    problems = []
-    if args.workers is not None and args.workers < 1:
-        problems.append(Problem("--workers", f"{args.workers} is not a positive number of workers"))
-    if args.retries < 0:
-        problems.append(Problem("--retries", f"{args.retries} must be 0 or more"))
-    if args.task_cpus < 1:
-        problems.append(Problem("--task-cpus", f"{args.task_cpus} is not a positive number of CPUs"))
-    if args.executor != "ray" and args.ray_address is not None:
-        problems.append(Problem("--ray-address", f"{args.ray_address!r} needs --executor ray"))
-    if problems:
-        raise RenderError(problems)
     return make_executor(args.executor, workers=args.workers, ray_address=args.ray_address,
                          task_cpus=args.task_cpus)
 

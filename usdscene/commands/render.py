@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from usdscene.commands._arguments import add_executor_arguments
+from usdscene.commands._arguments import add_executor_arguments, positive_int
 
 NAME = "render"
 HELP = ("render every camera of every frame with Blender Cycles: RGB images and exact uint16 "
@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="closed frame range A:B, a single frame N, or a list N,M,... (default: all)")
     parser.add_argument("--cameras", nargs="+", metavar="NAME", help="cameras to render (default: all)")
     parser.add_argument("--samples", type=int, metavar="N", help="path-tracing samples per pixel")
-    parser.add_argument("--workers", type=int, metavar="N",
+    parser.add_argument("--workers", type=positive_int, metavar="N",
                         help="worker processes side by side, each on a block of frames (default 1; with "
                              "--executor ray: at most N tasks in flight, default what the cluster holds)")
     add_executor_arguments(parser)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from usdscene.commands._arguments import add_executor_arguments, add_split_arguments
+from usdscene.commands._arguments import add_executor_arguments, add_split_arguments, positive_int
 
 from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
 
@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="dataset formats to export: coco, yolo, rois (default: the document's "
                              "metadata.usdscene.exports; give the flag alone for none)")
     parser.add_argument("--samples", type=int, metavar="N", help="override the samples per pixel")
-    parser.add_argument("--workers", type=int, metavar="N",
+    parser.add_argument("--workers", type=positive_int, metavar="N",
                         help="render worker processes side by side (default 1; with --executor ray: at "
                              "most N tasks in flight, default what the cluster holds)")
     add_split_arguments(parser)

@@ -344,7 +344,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                             if not outcome.ok:  # it died after its last image had arrived
                                 log.info("%s: %s after its last image", shard.describe(), outcome.message)
                             queue.finish()
-                        elif outcome.retryable and shard.attempt < queue.retries and left:
+                        elif outcome.retryable and shard.attempt < queue.retries:
                             log.warning("%s: %s; rendering its %d unfinished images again "
                                         "(retry %d of %d)", shard.describe(), outcome.message, len(left),
                                         shard.attempt + 1, queue.retries)
@@ -376,12 +376,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         manifest.save()
     return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
                         totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"],
-                        totals["render_cpu_s"], totals["worker_cpu_s"], executor_name(executor),
+                        totals["render_cpu_s"], totals["worker_cpu_s"], executor.name,
                         int(totals["retries"]), nodes)
-
-
-def executor_name(executor: str | Any) -> str:
-    return executor if isinstance(executor, str) else str(getattr(executor, "name", type(executor).__name__))
 
 
 def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict:

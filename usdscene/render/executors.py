@@ -26,7 +26,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -158,8 +157,7 @@ class LocalExecutor:
         job = dict(job, out_dir=str(Path(out_dir).resolve()), scratch_dir=str(self._scratch),
                    parent_pid=os.getpid())
         job_path.write_text(json.dumps(job))
-        started = time.perf_counter()
-        on_event({"event": "started", "node": self.node, "pid": os.getpid(), "started_s": started})
+        on_event({"event": "started", "node": self.node, "pid": os.getpid()})
         for event in iter_worker_events(job_path, job_path.with_suffix(".log")):
             if event["event"] == "exit":
                 job_path.unlink(missing_ok=True)

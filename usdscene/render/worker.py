@@ -663,11 +663,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         session = Session(job)
-    except DeviceError as exc:
-        _emit({"event": "error", "message": str(exc)})
-        return 1
     except Exception as exc:  # reported to the driver as one line, then exit non-zero
-        _emit({"event": "error", "message": f"{type(exc).__name__}: {exc}"})
+        # a missing GPU is the user's setting, not a crash: its message stands alone
+        message = str(exc) if isinstance(exc, DeviceError) else f"{type(exc).__name__}: {exc}"
+        _emit({"event": "error", "message": message})
         return 1
     if not render_pairs(session, job["pairs"]):
         return 1
