@@ -29,6 +29,7 @@ from usdscene.model import (
     PlaceRef,
     Pose,
     Randomization,
+    RelationType,
     SceneObject,
     quaternion_to_rotation,
 )
@@ -63,6 +64,10 @@ OBJECT_DATA = {"appearance": "text", "color_rgb": "vec", "position_noise_m": "nu
 DATA_KINDS = ("text", "num", "vec", "boolean")
 
 
+# A place's object data usdscene reads: one cuboid per placement relation (declared regions).
+PLACE_DATA = {relation.value: "cuboid" for relation in RelationType}
+
+
 def _declared_regions(obj: Mapping, where: str, problems: ProblemCollector) -> tuple[DeclaredRegion, ...]:
     """Regions a place object declares as OpenLABEL ``cuboid`` object data: name = placement
     relation, val = ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]`` (centre in world metres, rotation
@@ -82,9 +87,7 @@ def _declared_regions(obj: Mapping, where: str, problems: ProblemCollector) -> t
             continue
         relation = item.get("name")
         if relation not in PLACEMENT_RELATIONS:
-            problems.add(f"{at}.name", f"a place's cuboid is named by the relation it serves, one of "
-                                       f"{sorted(PLACEMENT_RELATIONS)}; got {describe(relation)}")
-            continue
+            continue  # another cuboid of the place (someone's 3D box): carried, not a region
         if any(r.relation == relation for r in regions):
             problems.add(f"{at}.name", f"place has two {relation!r} cuboids")
             continue
@@ -150,7 +153,8 @@ def read_objects(doc: DocumentBody) -> tuple[list[Light], list[PlaceRef], list[S
                 doc.add(f"{where}.name", f"place {name!r} is already object {place_names[name]}")
                 continue
             place_names[name] = uid
-            places.append(PlaceRef(uid=uid, name=name, regions=_declared_regions(obj, where, doc.problems)))
+            places.append(PlaceRef(uid=uid, name=name, regions=_declared_regions(obj, where, doc.problems),
+                                   extra=element_residue(obj, PLACE_DATA, OBJECT_KEYS)))
             if uid in frame_poses:
                 doc.add(frame_poses[uid][0][2], "places have no per-frame poses (their geometry is "
                                                 "in the environment asset)")

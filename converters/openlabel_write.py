@@ -136,6 +136,7 @@ def write_openlabel(scene: SceneSpec) -> dict:
             if place.regions:  # declared in the document: cuboids named by their relation
                 objects[uid_map[place.uid]]["object_data"] = {"cuboid": [
                     {"name": r.relation, "val": _declared_cuboid(r)} for r in place.regions]}
+            merge_element(objects[uid_map[place.uid]], place.extra)
 
     for obj in scene.objects:
         if not claim(obj.uid, f"objects.{obj.uid}"):

@@ -91,3 +91,21 @@ def test_an_undeclared_unknown_place_is_still_refused(tmp_path):
     with pytest.raises(DocumentError) as error:
         read_openlabel(document, catalog=load_catalog())
     assert "bench_01" in str(error.value) and "declare it with a cuboid" in str(error.value)
+
+
+def test_other_data_of_a_place_is_carried_not_refused(openlabel_schema_path):
+    """Someone's 3D box on a place (a cuboid not named by a relation) and other object data are
+    not regions: they are carried through and written back."""
+    document = _document()
+    place = document["openlabel"]["objects"]["90"]
+    place["object_data"]["cuboid"].append({"name": "annotated_box", "val": list(CUBOID)})
+    place["object_data"]["text"] = [{"name": "description", "val": "bench by the gate"}]
+    scene = read_openlabel(document)
+    bench = next(p for p in scene.places if p.name == "bench_01")
+    assert [r.relation for r in bench.regions] == ["is_on"]
+    written = write_openlabel(scene)
+    assert schema_problems(written, openlabel_schema_path) == []
+    out = next(o for o in written["openlabel"]["objects"].values() if o["name"] == "bench_01")
+    assert [c["name"] for c in out["object_data"]["cuboid"]] == ["is_on", "annotated_box"]
+    assert out["object_data"]["text"] == [{"name": "description", "val": "bench by the gate"}]
+    assert read_openlabel(written).places == scene.places

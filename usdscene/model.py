@@ -447,11 +447,14 @@ class PlaceRef:
         uid: OpenLABEL object uid.
         name: place name in the environment, e.g. ``seat_03A``, ``bin_02L``, ``aisle_04``.
         regions: regions declared in the document (they add to or replace the asset's).
+        extra: the element's content usdscene does not read (other object data, other keys),
+            canonical JSON ("" when none), written back unchanged.
     """
 
     uid: str
     name: str
     regions: tuple[DeclaredRegion, ...] = ()
+    extra: str = ""
 
 
 @dataclass(frozen=True)
