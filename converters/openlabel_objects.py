@@ -18,8 +18,6 @@ import math
 import re
 from typing import Any, Mapping
 
-import numpy as np
-
 from usdscene.errors import ProblemCollector
 from usdscene.model import (
     DeclaredRegion,
@@ -27,11 +25,9 @@ from usdscene.model import (
     Light,
     LightKind,
     PlaceRef,
-    Pose,
     Randomization,
     RelationType,
     SceneObject,
-    quaternion_to_rotation,
 )
 
 from usdscene.converters.openlabel_carry import OBJECT_KEYS, element_residue, frame_residues
@@ -102,10 +98,7 @@ def _declared_regions(obj: Mapping, where: str, problems: ProblemCollector) -> t
         if abs(math.sqrt(sum(q * q for q in quaternion)) - 1.0) > 1e-3:
             problems.add(f"{at}.val", f"the rotation quaternion {list(quaternion)} is not of unit length")
             continue
-        rotation = quaternion_to_rotation(quaternion)
-        bottom = np.asarray(val[0:3]) - rotation @ np.array([0.0, 0.0, size[2] / 2.0])
-        regions.append(DeclaredRegion(relation, Pose.from_rotation_translation(rotation, bottom),
-                                      (float(size[0]), float(size[1]), float(size[2]))))
+        regions.append(DeclaredRegion.from_cuboid(relation, val))
     return tuple(regions)
 
 

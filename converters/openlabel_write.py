@@ -25,8 +25,6 @@ import logging
 import os
 from typing import Any, Iterable
 
-import numpy as np
-
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.model import (
     FISHEYE_LENSES,
@@ -36,7 +34,6 @@ from usdscene.model import (
     RenderSettings,
     SceneSpec,
     extra_data,
-    rotation_to_quaternion,
     union_intervals,
 )
 
@@ -135,7 +132,7 @@ def write_openlabel(scene: SceneSpec) -> dict:
             objects[uid_map[place.uid]] = {"name": place.name, "type": PLACE_TYPE}
             if place.regions:  # declared in the document: cuboids named by their relation
                 objects[uid_map[place.uid]]["object_data"] = {"cuboid": [
-                    {"name": r.relation, "val": _declared_cuboid(r)} for r in place.regions]}
+                    {"name": r.relation, "val": r.to_cuboid()} for r in place.regions]}
             merge_element(objects[uid_map[place.uid]], place.extra)
 
     for obj in scene.objects:
@@ -357,15 +354,6 @@ def _merge_stream(stream: dict, text: str) -> None:
     stream["stream_properties"].update(
         {k: v for k, v in carried.pop("stream_properties", {}).items() if k not in stream["stream_properties"]})
     stream.update(carried)
-
-
-def _declared_cuboid(region) -> list[float]:
-    """OpenLABEL ``cuboid`` value ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]`` of a declared place
-    region (centre, rotation, sizes; the region's frame sits at the bottom-face centre)."""
-    m = region.pose.as_array()
-    centre = m[:3, 3] + m[:3, :3] @ np.array([0.0, 0.0, region.size_m[2] / 2.0])
-    return [*(float(v) for v in centre), *(float(v) for v in rotation_to_quaternion(m[:3, :3])),
-            *(float(v) for v in region.size_m)]
 
 
 def write_document(path: str | os.PathLike, document: dict):

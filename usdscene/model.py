@@ -436,6 +436,22 @@ class DeclaredRegion:
     pose: Pose
     size_m: tuple[float, float, float]
 
+    @staticmethod
+    def from_cuboid(relation: str, value: Sequence[float]) -> "DeclaredRegion":
+        """From an OpenLABEL ``cuboid`` value ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]`` (centre in
+        world metres, unit rotation quaternion, full sizes in metres)."""
+        rotation = quaternion_to_rotation(value[3:7])
+        size = tuple(float(v) for v in value[7:10])
+        bottom = np.asarray(value[0:3], dtype=np.float64) - rotation @ np.array([0.0, 0.0, size[2] / 2.0])
+        return DeclaredRegion(relation, Pose.from_rotation_translation(rotation, bottom), size)
+
+    def to_cuboid(self) -> list[float]:
+        """The OpenLABEL ``cuboid`` value of :meth:`from_cuboid`."""
+        m = self.pose.as_array()
+        centre = m[:3, 3] + m[:3, :3] @ np.array([0.0, 0.0, self.size_m[2] / 2.0])
+        return [*(float(v) for v in centre), *(float(v) for v in rotation_to_quaternion(m[:3, :3])),
+                *(float(v) for v in self.size_m)]
+
 
 @dataclass(frozen=True)
 class PlaceRef:
