@@ -131,6 +131,14 @@ def scene_residue(body: Mapping, frames: Mapping[int, Mapping], cameras: Iterabl
     return canonical_json(out)
 
 
+def merge_stream(stream: dict, text: str) -> None:
+    """A camera stream's carried keys (``Camera.extra``) into the written stream."""
+    carried = extra_data(text)
+    stream["stream_properties"].update(
+        {k: v for k, v in carried.pop("stream_properties", {}).items() if k not in stream["stream_properties"]})
+    stream.update(carried)
+
+
 def frame_residues(frame_entries: Iterable[tuple[int, Mapping]], known_data: Mapping[str, str]
                    ) -> tuple[tuple[int, str], ...]:
     """``(frame, text)`` of :func:`element_residue` for an object's ``frames[f].objects[uid]``

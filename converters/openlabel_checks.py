@@ -71,7 +71,7 @@ def _validator(path: str):
                             where=path) from None
     try:
         fast = fastjsonschema.compile(schema)
-    except fastjsonschema.JsonSchemaDefinitionException:
+    except Exception:  # noqa: BLE001 - any schema it cannot compile: jsonschema alone decides
         fast = None
     return fast, jsonschema.Draft7Validator(schema)
 

@@ -37,7 +37,7 @@ from usdscene.model import (
     union_intervals,
 )
 
-from usdscene.converters.openlabel_carry import merge_element, merge_scene
+from usdscene.converters.openlabel_carry import merge_element, merge_scene, merge_stream
 from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
 from usdscene.converters.openlabel_load import SCHEMA_VERSION
 from usdscene.converters.openlabel_objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
@@ -91,7 +91,7 @@ def write_openlabel(scene: SceneSpec) -> dict:
             streams[cam.name] = {"type": "camera", "description": cam.description, "uri": "",
                                  "stream_properties": _calibration(cam, problems)}
             if cam.extra:
-                _merge_stream(streams[cam.name], cam.extra)
+                merge_stream(streams[cam.name], cam.extra)
             for frame, pose in cam.frame_poses:
                 if frame < 0:
                     problems.add(f"cameras.{cam.name}.frame_poses", f"frame {frame} is negative")
@@ -346,14 +346,6 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
         friendly["custom"] = dict(cam.custom)
     props["usdscene"] = friendly
     return props
-
-
-def _merge_stream(stream: dict, text: str) -> None:
-    """A camera stream's carried keys (``Camera.extra``) into the written stream."""
-    carried = extra_data(text)
-    stream["stream_properties"].update(
-        {k: v for k, v in carried.pop("stream_properties", {}).items() if k not in stream["stream_properties"]})
-    stream.update(carried)
 
 
 def write_document(path: str | os.PathLike, document: dict):
