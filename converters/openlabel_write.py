@@ -33,7 +33,6 @@ from usdscene.model import (
     Pose,
     RenderSettings,
     SceneSpec,
-    extra_data,
     union_intervals,
 )
 
