@@ -30,6 +30,7 @@ import numpy as np
 from usdscene.catalog import ASSET_KINDS, CATALOG_FILE, AssetEntry, _entry_from_json, entry_to_json
 from usdscene.errors import AssetError, OutputError, Problem
 from usdscene.files import dumps_json, resolve_inside, write_text_atomic
+from usdscene.place_discovery import file_to_world, up_axis_rotation
 
 log = logging.getLogger(__name__)
 
@@ -63,13 +64,6 @@ class ImportOptions:
     unit_scale_m: float | None = None
     description: str = ""
     replace: bool = False
-
-
-def up_axis_rotation(up_axis: str) -> np.ndarray:
-    """(3, 3) rotation taking a ``up_axis``-up frame to Z up (Y up: +90° about X)."""
-    if up_axis == "Z":
-        return np.eye(3)
-    return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: ImportOptions,
@@ -184,14 +178,6 @@ def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.where(length > 1e-20, normals / np.maximum(length, 1e-20), [0.0, 0.0, 1.0])
 
 
-def _normalised_points(points: np.ndarray, rotation: np.ndarray, scale: float, kind: str) -> np.ndarray:
-    pts = (np.asarray(points, dtype=np.float64) @ rotation.T) * scale
-    if kind == "object":
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        pts = pts - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]
-    return pts
-
-
 def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_axis: str, scale: float,
                       target: Path, places: Mapping | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Write the converted asset; an object is one recolourable mesh, an environment keeps one
@@ -227,7 +213,7 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
             # smooth a box into a cylinder, so every face gets its own vertices (flat normals).
             mesh = trimesh.Trimesh(mesh.vertices[mesh.faces].reshape(-1, 3),
                                    np.arange(3 * len(mesh.faces)).reshape(-1, 3), process=False)
-        points = _normalised_points(mesh.vertices, rotation, scale, "environment")
+        points = (np.asarray(mesh.vertices, dtype=np.float64) @ rotation.T) * scale  # Z up, metres
         all_points.append(points)
         flat.append(mesh)
     lo_all = np.min([p.min(axis=0) for p in all_points], axis=0)
@@ -375,8 +361,7 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
         relative = Sdf.Path(box.node).MakeRelativePath(default.GetPath())
         stage.OverridePrim(holder.GetPath().AppendPath(relative)).SetActive(False)
     variants, defaults = _lift_variants(default, root, holder.GetPrim(), source)
-    m = np.eye(4)
-    m[:3, :3] = up_axis_rotation(up_axis) * scale
+    m = file_to_world(up_axis, scale)
     op = holder.AddTransformOp()
     op.Set(Gf.Matrix4d(m.T.tolist()))
     lo, hi = bounds_of_stage(stage)

@@ -100,10 +100,15 @@ def place_kind(place: str) -> str:
     return _KIND_SUFFIX.sub("", place) or place
 
 
+def up_axis_rotation(up_axis: str) -> np.ndarray:
+    """(3, 3) rotation taking a ``up_axis``-up frame to Z up (Y up: +90° about X)."""
+    if up_axis == "Z":
+        return np.eye(3)
+    return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
 def file_to_world(up_axis: str, unit_scale_m: float) -> np.ndarray:
     """(4, 4) matrix taking file coordinates to the library's frame (Z up, metres)."""
-    from usdscene.asset_import import up_axis_rotation
-
     m = np.eye(4)
     m[:3, :3] = up_axis_rotation(up_axis) * unit_scale_m
     return m
@@ -120,8 +125,6 @@ def region_from_box(box: PlaceBox, up_axis: str, unit_scale_m: float) -> PlaceRe
     Raises:
         AssetError: the box is sheared, mirrored or flat (no usable size).
     """
-    from usdscene.asset_import import up_axis_rotation
-
     to_world = file_to_world(up_axis, unit_scale_m)
     up = np.eye(4)
     up[:3, :3] = up_axis_rotation(up_axis)
