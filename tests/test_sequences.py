@@ -305,3 +305,12 @@ def test_stats_on_a_scene_document(car_park, tmp_path, capsys, monkeypatch):
     assert "instance-frames" in out and "ladder" in out
     chart = cv2.imread(str(tmp_path / "seq.json.stats.png"))
     assert chart is not None and chart.shape[1] == 720 and chart.shape[0] > 200
+
+
+def test_the_command_offers_exactly_the_library_strategies():
+    """``usdscene generate`` keeps its own copy of the strategy names (its module imports only
+    the standard library, for a fast --help); it must not drift from the library's."""
+    from usdscene.commands import generate
+    from usdscene.sequences import STRATEGIES
+
+    assert generate._STRATEGIES == STRATEGIES

@@ -190,7 +190,7 @@ def region_conflicts(catalog: Catalog, environment: str,
     out = {}
     for i, region in enumerate(regions):
         hits = boxes_overlap(centres_a[i], axes_a[i], halves_a[i], centres_a, axes_a, halves_a,
-                             tolerance_m=REGION_TOUCH_M) if regions else np.zeros(0, bool)
+                             tolerance_m=REGION_TOUCH_M)
         out[region] = frozenset({regions[j] for j in np.flatnonzero(hits)} | {region})
     return out
 

@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 
 NAME = "assets"
-HELP = "list the asset catalog, add your own asset (OBJ/GLB/PLY/STL/USD), rebuild the library"
+HELP = "list the asset catalog, add your own asset (OBJ/GLB/PLY/STL/USD/.blend), rebuild the library"
 ORDER = 60
 
 
@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p_list.add_argument("--no-default", action="store_true", help="do not read the shipped library")
 
     p_add = sub.add_parser("add", help="convert or reference a file and register it as an asset class")
-    p_add.add_argument("file", type=Path, help="OBJ, GLB/glTF, PLY, STL or USD file")
+    p_add.add_argument("file", type=Path, help="OBJ, GLB/glTF, PLY, STL, USD file or Blender project (.blend)")
     p_add.add_argument("--class", dest="class_name", required=True, help="class name (lower_snake_case)")
     p_add.add_argument("--catalog", type=Path, default=None, metavar="DIR",
                        help="catalog folder to register into (default: the shipped library)")
