@@ -310,7 +310,11 @@ def test_stats_on_a_scene_document(car_park, tmp_path, capsys, monkeypatch):
 def test_the_command_offers_exactly_the_library_strategies():
     """``usdscene generate`` keeps its own copy of the strategy names (its module imports only
     the standard library, for a fast --help); it must not drift from the library's."""
-    from usdscene.commands import generate
+    import argparse
+
+    from usdscene.cli import build_parser
     from usdscene.sequences import STRATEGIES
 
-    assert generate._STRATEGIES == STRATEGIES
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    strategy = next(a for a in commands.choices["generate"]._actions if a.dest == "strategy")
+    assert tuple(strategy.choices) == STRATEGIES
