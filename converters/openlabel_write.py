@@ -347,14 +347,29 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
     return props
 
 
-def write_document(path: str | os.PathLike, document: dict):
+def write_document(path: str | os.PathLike, document: dict, *, schema: str | os.PathLike | None = None):
     """Write a document atomically as canonical JSON (2-space indent, no NaN/Infinity).
 
+    Args:
+        path: the file.
+        document: the ``{"openlabel": ...}`` document.
+        schema: official schema file the document must pass first (None: no check); usdscene
+            never writes an output document that the official schema rejects.
+
     Raises:
-        DocumentError: the document holds a non-finite number or a value JSON cannot hold
-            (nothing is written then).
+        DocumentError: the document holds a non-finite number or a value JSON cannot hold.
+        OutputError: the document fails ``schema`` (every violation listed).
+        Nothing is written in either case.
     """
+    from usdscene.errors import OutputError
     from usdscene.files import write_json_atomic
+
+    if schema is not None:
+        from usdscene.converters.openlabel_checks import schema_problems
+
+        problems = schema_problems(document, schema)
+        if problems:
+            raise OutputError(problems)
 
     try:
         return write_json_atomic(path, document)

@@ -40,20 +40,14 @@ def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.Pat
             is written then). DocumentError: the document does not match the render.
     """
     from usdscene import layout
-    from usdscene.converters.openlabel import schema_problems
-    from usdscene.errors import OutputError
-    from usdscene.files import write_json_atomic
+    from usdscene.converters.openlabel import write_document
     from usdscene.validation import resolve_schema
 
     document, annotations = annotate_output(out_dir, document_path=document_path, epsilon_px=epsilon_px,
                                             min_visible_fraction=min_visible_fraction, amodal=amodal,
                                             progress=progress, labeller=labeller)
-    schema_path = resolve_schema(schema)
-    if schema_path is not None:
-        problems = schema_problems(document, schema_path)
-        if problems:
-            raise OutputError(problems)
-    return write_json_atomic(Path(out_dir) / layout.ANNOTATIONS_FILE, document), annotations
+    path = write_document(Path(out_dir) / layout.ANNOTATIONS_FILE, document, schema=resolve_schema(schema))
+    return path, annotations
 
 
 def _source_document(stage_path):

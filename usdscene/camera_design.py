@@ -165,6 +165,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
         OutputError: the output document fails the official OpenLABEL schema.
     """
     from usdscene.compose import compose_stage
+    from usdscene.converters.openlabel import default_schema_path, write_document, write_openlabel
     from usdscene.files import write_json_atomic, write_png_atomic
 
     seconds: dict[str, float] = {}
@@ -228,7 +229,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
     report = coverage_report(request, target_list, candidates, chosen, selection, visibility, cover, table,
                              mount_count)
     out.mkdir(parents=True, exist_ok=True)
-    _write_document(out / CAMERAS_FILE, planned)
+    write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
     picked = list(selection.chosen)
     counts = cover[picked].sum(axis=0) if picked else np.zeros(len(target_list), int)
@@ -281,19 +282,6 @@ def _named_cameras(cameras: Sequence[Camera], *, keep_names: bool) -> list[Camer
                         f"candidate {cam.name}",
             custom={}))
     return out
-
-
-def _write_document(path: Path, scene: SceneSpec) -> None:
-    from usdscene.converters.openlabel import default_schema_path, schema_problems, write_openlabel
-    from usdscene.files import write_json_atomic
-
-    document = write_openlabel(scene)
-    schema = default_schema_path()
-    if schema is not None:  # never write a document the official schema rejects
-        problems = schema_problems(document, schema)
-        if problems:
-            raise OutputError(problems)
-    write_json_atomic(path, document)
 
 
 def _round(value: float, digits: int = 4) -> float:

@@ -21,17 +21,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from usdscene.commands._arguments import validate_from_arguments
-    from usdscene.converters.openlabel import schema_problems, write_document, write_openlabel
-    from usdscene.errors import DocumentError
+    from usdscene.converters.openlabel import write_document, write_openlabel
 
     checked = validate_from_arguments(args)
-    scene, schema = checked.scene, checked.schema
+    scene = checked.scene
     document = write_openlabel(scene)
-    if schema is not None:
-        problems = schema_problems(document, schema)
-        if problems:  # a writer bug; never leave an invalid file behind
-            raise DocumentError([*problems])
-    path = write_document(args.output, document)
+    path = write_document(args.output, document, schema=checked.schema)
     print(f"{args.document} → {path}: OpenLABEL {document['openlabel']['metadata']['schema_version']}, "
           f"{len(scene.cameras)} cameras, {len(scene.objects)} objects", file=sys.stdout)
     return 0
