@@ -117,6 +117,21 @@ class AssetEntry:
     def size_m(self) -> tuple[float, float, float]:
         return tuple(hi - lo for lo, hi in zip(self.extent_min_m, self.extent_max_m))  # type: ignore[return-value]
 
+    @property
+    def appearances(self) -> tuple[str, ...]:
+        """The variants of the ``appearance`` variant set (empty when it has none)."""
+        from usdscene.stage_schema import VARIANT_SET_APPEARANCE
+
+        return tuple(self.variants.get(VARIANT_SET_APPEARANCE, ()))
+
+    @property
+    def default_appearance(self) -> str | None:
+        """The appearance an object gets when nothing chooses one (None without variants)."""
+        from usdscene.stage_schema import VARIANT_SET_APPEARANCE
+
+        variants = self.appearances
+        return self.default_variants.get(VARIANT_SET_APPEARANCE, variants[0]) if variants else None
+
 
 @dataclass(frozen=True)
 class Catalog:

@@ -223,12 +223,12 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
     out = {}
     for obj in scene.objects:
         entry = catalog[obj.class_name]
-        variants = entry.variants.get(ss.VARIANT_SET_APPEARANCE, ())
+        variants = entry.appearances
         appearance = obj.appearance
         if appearance is None and obj.randomization.random_appearance and variants:
             appearance = variants[int(rng.integers(len(variants)))]
-        if appearance is None and variants:
-            appearance = entry.default_variants.get(ss.VARIANT_SET_APPEARANCE, variants[0])
+        if appearance is None:
+            appearance = entry.default_appearance
         color = obj.color_rgb
         if color is None and obj.randomization.random_color:
             color = tuple(float(v) for v in rng.random(3))

@@ -199,8 +199,7 @@ def frames_for_coverage(combinations: Iterable[Combination], classes: Sequence[s
                         objects_per_frame: int) -> int:
     """Frames that ``balanced`` needs for every combination to occur once: the class with the
     most combinations needs that many instance-frames, and so does every other class."""
-    per_class = collections.Counter(c.class_name for c in combinations)
-    most = max((per_class[c] for c in classes), default=0)
+    most = _most_combinations(list(combinations), classes)
     return max(1, math.ceil(len(classes) * most / max(objects_per_frame, 1)))
 
 
@@ -369,9 +368,10 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         taken = [_taken_at(fixed_taken, f) for f in range(n_frames)]
         plan = plan_balanced(combos, classes, n_frames, per_frame, taken, conflicts, rng)
 
-    looks = _draw_looks(plan, catalog, options, rng)
+    slots = _pool_indices(plan, options.strategy)
+    looks = _draw_looks(plan, slots, catalog, options, rng)
     seats = _seat_passengers(plan, setup, catalog, passenger_classes, options, fixed_taken, conflicts, rng)
-    scene = _sequence_scene(setup, plan, looks, seats, options)
+    scene = _sequence_scene(setup, plan, slots, looks, seats, options)
     covered = {c for frame in plan for c in frame}
     uncovered = sorted(set(combos) - covered)
     report = balance_report(scene, catalog)
@@ -458,21 +458,19 @@ def _random_color(rng: np.random.Generator) -> tuple[float, float, float]:
     return tuple(round(float(v), COLOR_DECIMALS) for v in rng.random(3))  # type: ignore[return-value]
 
 
-def _draw_looks(plan: list[list[Combination]], catalog: Catalog, options: GenerateOptions,
-                rng: np.random.Generator) -> list[list[tuple[str | None, tuple[float, float, float] | None]]]:
+def _draw_looks(plan: list[list[Combination]], slots: list[list[int]], catalog: Catalog,
+                options: GenerateOptions, rng: np.random.Generator) -> list[list[tuple[str | None, tuple[float, float, float] | None]]]:
     """Per frame and instance: (appearance variant, colour). ``appearance`` draws one per
-    object of the pool (see :func:`_pool_indices`), the others use the class default."""
-    slots = _pool_indices(plan, options.strategy)
+    object of the pool (``slots``, see :func:`_pool_indices`), the others use the class default."""
     drawn: dict[tuple[str, int], tuple] = {}
     out = []
     for frame, combos in enumerate(plan):
         row = []
         for combo, slot in zip(combos, slots[frame]):
             entry = catalog[combo.class_name]
-            variants = entry.variants.get("appearance", ())
-            default = entry.default_variants.get("appearance", variants[0]) if variants else None
+            variants = entry.appearances
             if options.strategy != "appearance":
-                row.append((default, None))
+                row.append((entry.default_appearance, None))
                 continue
             key = (combo.class_name, slot)
             if key not in drawn:
@@ -560,14 +558,14 @@ def _seat_passengers(plan: list[list[Combination]], setup: SceneSpec, catalog: C
             slot = dealt[class_name]
             dealt[class_name] += 1
             if (class_name, slot) not in looks:
-                variants = catalog[class_name].variants.get("appearance", ())
+                variants = catalog[class_name].appearances
                 looks[(class_name, slot)] = variants[int(rng.integers(len(variants)))] if variants else None
             row.append((class_name, slot, seat, looks[(class_name, slot)]))
         out.append(row)
     return out
 
 
-def _sequence_scene(setup: SceneSpec, plan: list[list[Combination]], looks, seats,
+def _sequence_scene(setup: SceneSpec, plan: list[list[Combination]], slots: list[list[int]], looks, seats,
                     options: GenerateOptions) -> SceneSpec:
     """The setup plus pooled objects, their per-frame relations and the frame range."""
     int_uids = [int(u) for u in (*(o.uid for o in setup.objects), *(p.uid for p in setup.places),
@@ -590,7 +588,6 @@ def _sequence_scene(setup: SceneSpec, plan: list[list[Combination]], looks, seat
     uses: dict[tuple[str, int], list[int]] = collections.defaultdict(list)
     look_of: dict[tuple[str, int], tuple] = {}
     per_frame: list[list[tuple[tuple[str, int], str, str]]] = []
-    slots = _pool_indices(plan, options.strategy)
     for frame, combos in enumerate(plan):
         row = []
         for combo, slot, look in zip(combos, slots[frame], looks[frame]):
