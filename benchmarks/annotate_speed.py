@@ -7,7 +7,11 @@ projections of 60 objects of 960 triangles each (UV spheres) through a perspecti
 OpenCV pinhole (distorted) and an equisolid fisheye camera, and the labels from the instance
 mask (boxes, polygons, visible fractions).
 
-    python benchmarks/annotate_speed.py [--repeat 50] [--objects 60] [--stage-frames 500]
+    python benchmarks/annotate_speed.py [--repeat 50] [--objects 60] [--stage-frames 500] [--output OUT]
+
+With ``--output OUT`` (a rendered output folder, e.g. of ``usdscene run`` on the cabin example)
+it labels every image of it anew with :class:`usdscene.annotation.ImageLabeller` (as ``usdscene
+run`` does while rendering, its kept labels ignored) and reports the time per image.
 
 With ``--stage-frames N`` (needs usd-core) it also times reading world triangles from a
 synthetic composed-layout stage of N frames (half the objects static, half moving), first
@@ -104,7 +108,10 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=50)
     parser.add_argument("--objects", type=int, default=60)
     parser.add_argument("--stage-frames", type=int, default=0, metavar="N")
+    parser.add_argument("--output", metavar="OUT", help="also label every image of this rendered output")
     args = parser.parse_args()
+    if args.output:
+        output_benchmark(args.output)
     mask, ids, amodal = synthetic_image(args.objects)
     visible = sum(1 for k in ids if (mask == k).any())
     print(f"image {W}x{H}, {args.objects} objects ({visible} visible), repeat {args.repeat}; "
@@ -139,6 +146,40 @@ def main() -> None:
               f"{seen} objects in view)")
     if args.stage_frames:
         stage_benchmark(args.objects, args.stage_frames, camera)
+
+
+def output_benchmark(out: str) -> None:
+    """Label every image of a rendered output anew (its kept labels are not read or changed)."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from usdscene import layout
+    from usdscene.annotation import ImageLabeller
+
+    # A copy without out/labels, so nothing is read back; beside the original (same depth), so
+    # that the stage's relative asset paths resolve the same.
+    copy = Path(tempfile.mkdtemp(prefix="annotate-speed-", dir=Path(out).resolve().parent))
+    try:
+        shutil.copytree(out, copy, dirs_exist_ok=True,
+                        ignore=shutil.ignore_patterns(layout.LABELS_DIR, layout.EXPORTS_DIR))
+        pairs = sorted((int(p.stem), p.parent.name) for p in (copy / layout.MASKS_DIR).glob("*/*.png"))
+        t0 = time.perf_counter()
+        labeller = ImageLabeller(copy)
+        opened = time.perf_counter() - t0
+        times = []
+        for frame, camera in pairs:
+            t0 = time.perf_counter()
+            labeller.labels(frame, camera)
+            times.append(time.perf_counter() - t0)
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
+    first_of_frame = {f: i for i, (f, _) in reversed(list(enumerate(pairs)))}.values()
+    later = [t for i, t in enumerate(times) if i not in set(first_of_frame)]
+    print(f"{out}: {len(pairs)} images; labeller opened in {opened * 1e3:.0f} ms; per image median "
+          f"{statistics.median(times) * 1e3:.1f} ms, mean {statistics.mean(later) * 1e3:.1f} ms without "
+          f"the first image of each frame (which reads the frame's triangles: "
+          f"{statistics.mean([times[i] for i in first_of_frame]) * 1e3:.0f} ms)")
 
 
 def stage_benchmark(objects: int, frames: int, camera: Camera) -> None:
