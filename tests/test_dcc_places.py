@@ -195,11 +195,13 @@ def test_bad_place_boxes_are_named_and_nothing_is_written(workdir, capsys):
     scene = trimesh.Scene()
     scene.add_geometry(trimesh.creation.box([4.0, 0.1, 4.0]), node_name="floor", geom_name="floor")
     scene.add_geometry(trimesh.creation.box([1.0, 1.0, 1.0]), node_name="place.bay_01.onn", geom_name="typo")
+    scene.add_geometry(trimesh.creation.box([1.0, 1.0, 1.0]), node_name="place.bay_02.undr", geom_name="typo2")
     (workdir / "typo.glb").write_bytes(scene.export(file_type="glb"))
     assert main(["assets", "add", "typo.glb", "--class", "typo", "--kind", "environment",
                  "--catalog", "assets"]) == 1
     err = capsys.readouterr().err
     assert "usdscene: error:" in err and "place.bay_01.onn" in err and "in_front" in err
+    assert "place.bay_02.undr" in err  # every misspelt place at once, not the first only
     assert not (workdir / "assets" / "catalog.json").exists()
 
     scene = trimesh.Scene()

@@ -128,7 +128,7 @@ def _load_parts(path: Path, discover_places: bool) -> tuple[list, list]:
         loaded = trimesh.load(str(path), file_type=fmt, force="scene", **extra)
     except Exception as exc:  # trimesh raises many types for corrupt files
         raise AssetError(f"cannot read mesh file: {type(exc).__name__}: {exc}", where=str(path)) from exc
-    parts, boxes = [], []
+    parts, boxes, problems = [], [], []
     graph = loaded.graph
     for node in sorted(graph.nodes, key=str):
         if node == graph.base_frame:
@@ -137,7 +137,11 @@ def _load_parts(path: Path, discover_places: bool) -> tuple[list, list]:
         geom = loaded.geometry.get(geom_name) if geom_name is not None else None
         # OBJ objects become geometries named after the object under a generated node name.
         label = str(geom_name) if fmt == "obj" and geom_name is not None else str(node)
-        named = parse_place_name(label, where=f"{path}:{label}") if discover_places else None
+        try:
+            named = parse_place_name(label, where=f"{path}:{label}") if discover_places else None
+        except AssetError as exc:  # every malformed place name is reported at once
+            problems.extend(exc.problems)
+            continue
         if named is not None:
             if isinstance(geom, trimesh.Trimesh) and len(geom.vertices):
                 lo, hi = geom.vertices.min(axis=0), geom.vertices.max(axis=0)
@@ -147,6 +151,8 @@ def _load_parts(path: Path, discover_places: bool) -> tuple[list, list]:
                                   local_min=np.asarray(lo, float), local_max=np.asarray(hi, float)))
         elif isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0:
             parts.append((label, geom.copy().apply_transform(matrix)))
+    if problems:
+        raise AssetError(problems)
     if not parts:
         raise AssetError("the file holds no triangle mesh (empty or unreadable geometry)", where=str(path))
     for label, mesh in parts:
@@ -267,7 +273,7 @@ def _usd_place_boxes(stage, default, source: Path) -> list:
                                                          UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide],
                                useExtentsHint=False)
     parent = np.array(xforms.GetLocalToWorldTransform(default.GetParent())).T if default.GetParent() else np.eye(4)
-    boxes = []
+    boxes, problems = [], []
     prims = iter(Usd.PrimRange(default))
     for prim in prims:
         value = None
@@ -275,7 +281,11 @@ def _usd_place_boxes(stage, default, source: Path) -> list:
             attr = prim.GetAttribute(attr_name)
             if attr and attr.HasAuthoredValue():
                 value = attr.Get()
-        named = parse_place_name(prim.GetName(), value, where=f"{source}:{prim.GetPath()}")
+        try:
+            named = parse_place_name(prim.GetName(), value, where=f"{source}:{prim.GetPath()}")
+        except AssetError as exc:  # every malformed place marker is reported at once
+            problems.extend(exc.problems)
+            continue
         if named is None:
             continue
         prims.PruneChildren()  # a box's own children belong to the box
@@ -287,6 +297,8 @@ def _usd_place_boxes(stage, default, source: Path) -> list:
         world = np.linalg.inv(parent) @ np.array(xforms.GetLocalToWorldTransform(prim)).T
         boxes.append(PlaceBox(node=str(prim.GetPath()), place=named[0], region=named[1], matrix=world,
                               local_min=lo, local_max=hi))
+    if problems:
+        raise AssetError(problems)
     return boxes
 
 
