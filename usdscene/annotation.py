@@ -106,20 +106,17 @@ class ImageLabeller:
         self.cameras: dict = {}
         self.geometry = None
         stage_path = layout.stage_root(self.out)
-        stage_hash = hashlib.sha256()
         if amodal:
-            from usdscene.render.stage_reader import read_stage_plan
+            from usdscene.render.stage_reader import read_stage_plan, stage_digest
             from usdscene.stage_geometry import StageGeometry
 
             # The cameras exactly as rendered (per-frame poses from the stage).
             self.cameras = {c.name: c for c in read_stage_plan(stage_path).cameras}
             self.geometry = StageGeometry(stage_path)
-            for layer in sorted(stage_path.parent.glob("*.usd*")):
-                stage_hash.update(layer.name.encode() + b"\0" + layer.read_bytes())
         self._key = {"usdscene": __version__, "epsilon_px": self.epsilon_px,
                      "min_visible_fraction": self.min_visible_fraction, "amodal": bool(amodal),
                      "ids_sha256": hashlib.sha256(id_bytes).hexdigest(),
-                     "stage_sha256": stage_hash.hexdigest() if amodal else None}
+                     "stage_sha256": stage_digest(stage_path) if amodal else None}
         self._triangles: tuple[int, dict] | None = None  # (frame, uid → triangles) of the last frame
 
     @staticmethod

@@ -208,7 +208,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     """
     from usdscene.render.executors import make_executor
     from usdscene.render.scratch import remove_stale_scratch
-    from usdscene.render.stage_reader import read_stage_plan
+    from usdscene.render.stage_reader import read_stage_plan, stage_digest
 
     started = time.perf_counter()
     out_dir = Path(out_dir)
@@ -239,7 +239,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
     print_settings = {k: v for k, v in settings.items() if k != "device"}
     manifest = Manifest.load(out_dir, fingerprint({
-        "stage": _stage_digest(plan.stage_path), "settings": print_settings,
+        "stage": stage_digest(plan.stage_path), "settings": print_settings,
         "cameras": {n: {k: v for k, v in c.items()} for n, c in cam_json.items()},
         "objects": [dataclasses.asdict(o) for o in plan.objects],
     }))
@@ -439,18 +439,6 @@ def _remove_stale_temporaries(out_dir: Path, cameras: Sequence[str]) -> None:
             if folder.is_dir():
                 for tmp in folder.glob(".*.tmp"):
                     tmp.unlink(missing_ok=True)
-
-
-def _stage_digest(stage_path: Path) -> str:
-    """Digest of every USD layer file beside the root layer (the composed stage's layers)."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    folder = Path(stage_path).parent
-    for path in sorted(folder.glob("*.usd*")):
-        digest.update(path.name.encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
 
 
 def _seconds_per_image(manifest: Manifest) -> float | None:

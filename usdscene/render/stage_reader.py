@@ -136,6 +136,18 @@ def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
     return files, [str(u) for u in unresolved]
 
 
+def stage_digest(stage_path: str | Path) -> str:
+    """sha256 over every file a render of the stage reads (:func:`stage_dependencies`: its
+    layers, the asset layers they reference, textures), names and bytes in composition order:
+    an edited asset changes it, a moved output folder does not."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for path in stage_dependencies(stage_path)[0]:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
 def _read_settings(stage, problems: list[Problem]) -> RenderSettings:
     settings = RenderSettings()
     prim = stage.GetPrimAtPath(names.RENDER_SETTINGS)
