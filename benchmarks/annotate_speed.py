@@ -56,12 +56,16 @@ def synthetic_image(objects: int, seed: int = 0) -> tuple[np.ndarray, dict[int, 
 
 
 def uv_sphere(radius_m: float, rings: int = 16, segments: int = 32) -> np.ndarray:
-    """(T, 3, 3) triangles of a UV sphere; T = 2 * segments * (rings - 1)."""
+    """(T, 3, 3) triangles of a closed UV sphere, wound counter-clockwise seen from outside;
+    T = 2 * segments * (rings - 1)."""
     theta = np.linspace(0, np.pi, rings + 1)
     phi = np.linspace(0, 2 * np.pi, segments + 1)
     p = radius_m * np.stack([np.sin(theta)[:, None] * np.cos(phi)[None, :],
                              np.sin(theta)[:, None] * np.sin(phi)[None, :],
                              np.cos(theta)[:, None] * np.ones_like(phi)[None, :]], axis=-1)
+    # One vertex per seam point and per pole, as a mesh shares them (sin π, sin 2π are not 0).
+    p[:, -1] = p[:, 0]
+    p[0], p[-1] = (0.0, 0.0, radius_m), (0.0, 0.0, -radius_m)
     tris = []
     for i in range(rings):
         for j in range(segments):

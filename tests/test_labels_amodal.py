@@ -79,3 +79,68 @@ def test_amodal_projection_feeds_visible_fraction():
     labels = label_image(mask, {1: "bag", 2: "seat"}, {"bag": bag_proj, "seat": seat_proj})
     bag_label = next(o for o in labels.objects if o.uid == "bag")
     assert bag_label.visible_fraction == pytest.approx(0.5, abs=0.05)
+
+
+def _box_mesh(lo, hi) -> np.ndarray:
+    """(12, 3, 3) triangles of a closed axis-aligned box, wound counter-clockwise from outside."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    v = np.array([(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+                  (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], dtype=np.float64)
+    quads = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (2, 3, 7, 6), (1, 2, 6, 5), (0, 4, 7, 3)]
+    return np.array([v[[a, b, c]] for a, b, c, d in quads] + [v[[a, c, d]] for a, b, c, d in quads])
+
+
+def test_closed_meshes_are_recognised():
+    from usdscene.amodal import _indexed_mesh
+
+    box = _box_mesh((-0.3, -0.2, 2.0), (0.4, 0.3, 2.5))
+    assert _indexed_mesh(box).closed
+    assert not _indexed_mesh(box[1:].copy()).closed  # a face missing
+    flipped = box.copy()
+    flipped[0] = flipped[0, ::-1]  # one face wound the other way
+    assert not _indexed_mesh(flipped).closed
+    assert not _indexed_mesh(np.concatenate([box, box[:1]])).closed  # an edge used three times
+    assert _indexed_mesh(box[:, ::-1].copy()).closed  # wound inwards everywhere: still closed
+
+
+@pytest.mark.parametrize("lens, distortion, fov", [
+    (LensModel.PERSPECTIVE, (), None),
+    (LensModel.OPENCV_PINHOLE, (-0.3, 0.1, 0.0, 0.0, 0.0), None),
+    (LensModel.FISHEYE_EQUISOLID, (), 150.0),
+])
+@pytest.mark.parametrize("inwards", [False, True])
+def test_one_facing_of_a_closed_mesh_covers_what_every_face_covers(lens, distortion, fov, inwards):
+    from usdscene import amodal
+
+    camera = _camera(lens, distortion, fov)
+    # Boxes seen from several sides, one of them cut by the image border.
+    meshes = {"a": _box_mesh((-0.3, -0.2, 1.5), (0.2, 0.3, 2.5)),
+              "b": _box_mesh((0.5, 0.1, 1.0), (1.6, 0.6, 1.8)),
+              "c": _box_mesh((-1.2, -0.9, 0.8), (-0.6, -0.5, 1.4))}
+    if inwards:
+        meshes = {uid: tris[:, ::-1].copy() for uid, tris in meshes.items()}
+    fast = amodal.amodal_projections(camera, meshes)
+    assert all(amodal._indexed_mesh(tris).closed for tris in meshes.values())
+    # Every face, as for an open mesh: the same triangles with the closing test defeated.
+    open_meshes = {uid: np.concatenate([tris, tris[:1]]) for uid, tris in meshes.items()}
+    full = amodal.amodal_projections(camera, open_meshes)
+    for uid in meshes:
+        assert fast[uid].pixel_count > 0 and fast[uid].truncated == full[uid].truncated
+        if lens is LensModel.PERSPECTIVE:  # straight edges: exactly the same pixels
+            assert np.array_equal(fast[uid].mask, full[uid].mask), uid
+            assert fast[uid].box == full[uid].box
+        else:
+            # Curved edges are split to within MAX_PROJECTED_EDGE_PX: a silhouette edge can be
+            # split differently in the face kept and in the face dropped, so pixel centres
+            # within a fraction of a pixel of the curve may differ.
+            assert np.count_nonzero(fast[uid].mask ^ full[uid].mask) <= 0.01 * full[uid].pixel_count, uid
+            a, b = fast[uid].box, full[uid].box
+            assert max(abs(a.x_min - b.x_min), abs(a.y_min - b.y_min), abs(a.x_max - b.x_max),
+                       abs(a.y_max - b.y_max)) <= 1, uid
+
+
+def test_camera_inside_a_closed_mesh_sees_it_everywhere():
+    # A room around the camera: every ray leaves it through a face that turns away from the
+    # camera, so it must not be filled from one facing.
+    proj = amodal_projection(_camera(), _box_mesh((-3.0, -3.0, -3.0), (3.0, 3.0, 3.0)))
+    assert proj.pixel_count == W * H

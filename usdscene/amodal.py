@@ -17,10 +17,15 @@ Exactness, per lens:
 * fisheye lenses with a field of view (``fov_deg``): the image is empty beyond the image circle.
   A vertex outside the field of view is moved along its azimuth onto the circle's cone, and
   triangles that cross the circle are split like curved ones, so an object cut by the circle
-  keeps the part inside it (instead of losing every triangle with a vertex outside).
+  keeps the part inside it (instead of losing every triangle with a vertex outside); those
+  crossing triangles are split until their projected edges are at most
+  :data:`MAX_CUT_EDGE_PX` long (on the cabin's 39 fisheyes, 702 of 703 boxes lie within 1 px
+  of those of a 16 times finer split, the last within 2 px).
 
 Objects whose bounding sphere lies outside a camera's field of view are culled before any
-triangle is projected.
+triangle is projected; closed meshes are filled from the faces of one facing only (exact, see
+:func:`amodal_projections`). All objects of a camera are projected together and filled in one
+compiled pass (:mod:`usdscene.amodal_kernels`), each into a crop trimmed to its pixels.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from __future__ import annotations
 import functools
 import math
 import weakref
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
@@ -37,10 +42,20 @@ if TYPE_CHECKING:
     from usdscene.labels import PixelBox
     from usdscene.model import Camera, Intrinsics
 
+# Revision of the rasterisation rules; kept labels computed under another revision are
+# computed anew (:class:`usdscene.annotation.ImageLabeller`). Raise it whenever a change can
+# move a projection's pixels.
+RASTER_REVISION = 2
+
 # Projected triangle edges of distorting lenses are curves; triangles are split until their
 # projected edges are at most this long (pixels), so the straight-edge raster stays within a
 # fraction of a pixel of the curved one.
 MAX_PROJECTED_EDGE_PX = 8.0
+# Triangles that cross a fisheye's image circle have their outside corners moved onto the
+# circle's cone, which smears them along the circle; they are split further, until their
+# projected edges are at most this long (pixels), which keeps the projection's box within a
+# pixel of the exact one there.
+MAX_CUT_EDGE_PX = 1.0
 _MAX_SUBDIVISIONS = 5
 # Vertices outside a fisheye's field of view are moved to just inside its cone (radians), so
 # that the lens model still counts them as imaged.
@@ -114,99 +129,50 @@ def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
         AmodalProjection; truncated = some vertex lies outside the image area
         ``[-0.5, W - 0.5] × [-0.5, H - 0.5]`` or was invalid.
     """
-    uv = np.ascontiguousarray(uv_px, dtype=np.float64).reshape(-1, 3, 2)
+    uv = np.ascontiguousarray(uv_px, dtype=np.float64).reshape(-1, 2)
     imaged = (np.ones(len(uv), dtype=np.bool_) if valid is None
-              else np.ascontiguousarray(valid, dtype=np.bool_).reshape(-1, 3))
-    if valid is not None:
-        imaged = imaged[:, 0] & imaged[:, 1] & imaged[:, 2]
-    kernels = _kernels()
-    x0, y0, x1, y1, truncated = kernels.crop_bounds(uv, imaged, width_px, height_px)
-    if x1 < x0 or y1 < y0:
-        return AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), (width_px, height_px), bool(truncated))
-    crop = np.zeros((y1 - y0 + 1, x1 - x0 + 1), dtype=np.bool_)
-    kernels.fill(uv, imaged, x0, y0, crop)
-    return AmodalProjection(crop, (int(x0), int(y0)), (width_px, height_px), bool(truncated))
+              else np.ascontiguousarray(valid, dtype=np.bool_).reshape(-1))
+    faces = np.arange(len(uv), dtype=np.int64).reshape(-1, 3)
+    owner = np.zeros(len(faces), dtype=np.int64)
+    inside = np.ones(len(uv), dtype=np.bool_)
+    return _rasterize_objects(uv, imaged, inside, faces, owner, 1, width_px, height_px,
+                              np.zeros(1, dtype=bool))[0]
 
 
-@functools.cache
-def _kernels():
-    """The compiled triangle loops (compiled on first use, cached on disk by numba)."""
-    import types
+def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, faces: np.ndarray,
+                       owner: np.ndarray, n_objects: int, width_px: int, height_px: int,
+                       cut: np.ndarray) -> list[AmodalProjection]:
+    """Rasterise the faces of ``n_objects`` objects in one compiled pass (arguments as in
+    :func:`usdscene.amodal_kernels.rasterize_objects`; ``cut`` (N,) bool: objects already
+    known to be truncated, e.g. by the near plane).
 
-    import numba
+    Returns:
+        One AmodalProjection per object index, its crop trimmed to the covered pixels; it is
+        truncated when ``cut`` says so, when a vertex leaves the image or the lens, or when a
+        face leaves a fisheye's cone.
+    """
+    from usdscene.amodal_kernels import rasterize_objects
+    from usdscene.labels import PixelBox
 
-    @numba.njit(cache=True, nogil=True)
-    def crop_bounds(uv, imaged, width, height):
-        """Pixel-centre box (x0, y0, x1, y1) covered by the imaged, finite triangles' boxes
-        inside the image (empty: x1 < x0), and whether the projection is truncated."""
-        x0, y0, x1, y1 = width, height, -1, -1
-        truncated = False
-        for t in range(uv.shape[0]):
-            if not imaged[t]:
-                truncated = True
-                continue
-            lo_x = min(uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0])
-            hi_x = max(uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0])
-            lo_y = min(uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
-            hi_y = max(uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
-            if not (math.isfinite(lo_x) and math.isfinite(hi_x) and math.isfinite(lo_y)
-                    and math.isfinite(hi_y)):
-                truncated = True
-                continue
-            if lo_x < -0.5 or lo_y < -0.5 or hi_x > width - 0.5 or hi_y > height - 0.5:
-                truncated = True
-            x0 = min(x0, max(0, int(math.ceil(lo_x))))
-            y0 = min(y0, max(0, int(math.ceil(lo_y))))
-            x1 = max(x1, min(width - 1, int(math.floor(hi_x))))
-            y1 = max(y1, min(height - 1, int(math.floor(hi_y))))
-        return x0, y0, x1, y1, truncated
-
-    @numba.njit(cache=True, nogil=True)
-    def fill(uv, imaged, x_origin, y_origin, crop):
-        """Set the crop's pixels whose centre lies inside or on an imaged triangle."""
-        height, width = crop.shape
-        for t in range(uv.shape[0]):
-            if not imaged[t]:
-                continue
-            ax, ay = uv[t, 0, 0], uv[t, 0, 1]
-            bx, by = uv[t, 1, 0], uv[t, 1, 1]
-            cx, cy = uv[t, 2, 0], uv[t, 2, 1]
-            area2 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-            if not math.isfinite(area2) or area2 == 0.0:
-                continue
-            sign = 1.0 if area2 > 0.0 else -1.0
-            px0 = max(int(math.ceil(min(ax, bx, cx))), x_origin)
-            px1 = min(int(math.floor(max(ax, bx, cx))), x_origin + width - 1)
-            py0 = max(int(math.ceil(min(ay, by, cy))), y_origin)
-            py1 = min(int(math.floor(max(ay, by, cy))), y_origin + height - 1)
-            for py in range(py0, py1 + 1):
-                for px in range(px0, px1 + 1):
-                    # Edge functions at the pixel centre, oriented so the interior is >= 0.
-                    if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
-                        continue
-                    if ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0:
-                        continue
-                    if ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0:
-                        continue
-                    crop[py - y_origin, px - x_origin] = True
-
-    @numba.njit(cache=True, nogil=True)
-    def needs_split(uv, imaged, max_edge):
-        """(T,) bool: imaged triangles of (T, 3, 2) uv with a projected edge longer than max_edge."""
-        out = np.zeros(uv.shape[0], dtype=np.bool_)
-        limit = max_edge * max_edge
-        for t in range(uv.shape[0]):
-            if not (imaged[t, 0] and imaged[t, 1] and imaged[t, 2]):
-                continue
-            for k in range(3):
-                dx = uv[t, k, 0] - uv[t, (k + 1) % 3, 0]
-                dy = uv[t, k, 1] - uv[t, (k + 1) % 3, 1]
-                if dx * dx + dy * dy > limit:
-                    out[t] = True
-                    break
-        return out
-
-    return types.SimpleNamespace(crop_bounds=crop_bounds, fill=fill, needs_split=needs_split)
+    crops, offsets, origin, tight, counts, truncated, cone_cut = rasterize_objects(
+        uv, imaged, inside, faces, owner, n_objects, width_px, height_px)
+    size = (width_px, height_px)
+    projections = []
+    for o in range(n_objects):
+        is_truncated = bool(truncated[o] or cone_cut[o] or cut[o])
+        if not counts[o]:
+            projection = AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, is_truncated)
+            projection.__dict__.update(pixel_count=0, box=None)
+            projections.append(projection)
+            continue
+        x0, y0, w, h = (int(v) for v in origin[o])
+        x_min, y_min, x_max, y_max = (int(v) for v in tight[o])
+        crop = crops[offsets[o]:offsets[o + 1]].reshape(h, w)[y_min - y0:y_max - y0 + 1, x_min - x0:x_max - x0 + 1]
+        projection = AmodalProjection(crop, (x_min, y_min), size, is_truncated)
+        # Known from the fill: spare the cached properties their pass over the crop.
+        projection.__dict__.update(pixel_count=int(counts[o]), box=PixelBox(x_min, y_min, x_max, y_max))
+        projections.append(projection)
+    return projections
 
 
 def amodal_projection(camera: Camera, triangles_world_m: np.ndarray, frame: int | None = None, *,
@@ -232,6 +198,13 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     """Rasterise every object's world-space triangles through one camera, all objects in one
     vectorised pass (see the module docstring for what is exact on each lens model).
 
+    Closed meshes (every edge shared by exactly two faces of opposite winding, after merging
+    equal vertices) are filled from the faces of one facing only when the camera lies outside
+    the object's bounding sphere (and beyond the near plane): a ray from the camera that meets
+    a closed surface enters it through a face of one facing and leaves it through a face of
+    the other, so either facing alone covers the pixels the whole mesh covers, with half the
+    triangles. Open meshes use every face.
+
     Args:
         camera: the camera (intrinsics + pose at ``frame``).
         triangles_world_m: object uid → (T, 3, 3) float world coordinates in metres.
@@ -242,6 +215,7 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         uid → AmodalProjection of the image size, for every uid given (empty when the object
         is out of view).
     """
+    from usdscene.amodal_kernels import facing_kept
     from usdscene.model import LensModel
 
     intr = camera.intrinsics
@@ -254,64 +228,83 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     meshes = [_indexed_mesh(triangles_world_m[uid]) for uid in uids]
     pose = camera.pose_at(frame) if frame is not None else camera.pose
     m = pose.as_array()
+    near_m = max(camera.clip_near_m, 1e-6)
     # Cull whole objects by their bounding spheres before touching their triangles.
-    visible = np.flatnonzero(_objects_in_view(intr, m, meshes))
+    in_view, camera_clear = _objects_in_view(intr, m, meshes, near_m)
+    visible = np.flatnonzero(in_view)
     if not visible.size:
         return result
     indexed = [meshes[i] for i in visible]
     offsets = np.cumsum([0] + [len(mesh.points) for mesh in indexed])
     points = np.concatenate([mesh.points for mesh in indexed])
     faces = np.concatenate([mesh.faces + offset for mesh, offset in zip(indexed, offsets)])
-    owner = np.repeat(visible, [len(mesh.faces) for mesh in indexed])
+    # Objects by their position among the visible ones.
+    owner = np.repeat(np.arange(len(visible)), [len(mesh.faces) for mesh in indexed])
     # world → camera (OpenCV axes): R^T (p - t), written for row vectors.
-    cam_points = (points - m[:3, 3]) @ m[:3, :3]
-    cut = np.zeros(len(uids), dtype=bool)
+    cam_points = np.ascontiguousarray((points - m[:3, 3]) @ m[:3, :3])
+    near_cut = np.zeros(len(visible), dtype=bool)
     if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-        cam_points, faces, owner, clipped = _clip_near(cam_points, faces, owner, max(camera.clip_near_m, 1e-6))
-        cut[clipped] = True
+        cam_points, faces, owner, clipped = _clip_near(cam_points, faces, owner, near_m)
+        near_cut[clipped] = True
+    single_facing = (np.array([mesh.closed for mesh in indexed], dtype=bool) & camera_clear[visible]
+                     & ~near_cut & (intr.lens is not LensModel.ORTHOGRAPHIC))
+    if single_facing.any():
+        kept = facing_kept(cam_points, faces, owner, single_facing)
+        faces, owner = faces[kept], owner[kept]
     cone = _fisheye_cone_rad(intr)
-    curved = intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion)
-
-    def project(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(T, 3, 3) camera-frame triangles → uv (T, 3, 2), imaged (T, 3), inside the view (T, 3)."""
-        uv, ok, inside = _project_points(intr, t.reshape(-1, 3), cone)
-        return uv.reshape(-1, 3, 2), ok.reshape(-1, 3), inside.reshape(-1, 3)
-
-    uv_p, ok_p, inside_p = _project_points(intr, cam_points, cone)
-    uv, ok, inside = uv_p[faces], ok_p[faces], inside_p[faces]
-    if curved:
-        cam = None  # camera-frame triangles once subdividing (the first pass is indexed)
-        done = []
-        for _ in range(_MAX_SUBDIVISIONS):
-            split = _kernels().needs_split(np.ascontiguousarray(uv), np.ascontiguousarray(ok), float(max_edge_px))
-            if not split.any():
-                done.append((uv, ok, inside, owner))
-                break
-            done.append((uv[~split], ok[~split], inside[~split], owner[~split]))
-            cam = _subdivide(cam_points[faces[split]] if cam is None else cam[split])
-            owner = np.tile(owner[split], 4)
-            uv, ok, inside = project(cam)
-        else:
-            done.append((uv, ok, inside, owner))
-        uv, ok, inside, owner = (np.concatenate(parts) for parts in zip(*done))
-    if cone is not None:
-        # Pieces entirely beyond the image circle are not imaged: drop them.
-        outside = ~(inside[:, 0] & inside[:, 1] & inside[:, 2])
-        cut[np.unique(owner[outside])] = True
-        beyond = ~(inside[:, 0] | inside[:, 1] | inside[:, 2])
-        uv, ok, owner = uv[~beyond], ok[~beyond], owner[~beyond]
-    if len(owner) > 1 and (owner[1:] < owner[:-1]).any():  # subdivision appended pieces
-        order = np.argsort(owner, kind="stable")
-        uv, ok, owner = np.ascontiguousarray(uv[order]), ok[order], owner[order]
-    bounds = np.searchsorted(owner, np.arange(len(uids) + 1))
-    for index in visible:
-        lo, hi = bounds[index], bounds[index + 1]
-        if lo == hi:
-            result[uids[index]] = replace(empty, truncated=bool(cut[index]))
-            continue
-        projection = rasterize_triangles(uv[lo:hi], intr.width_px, intr.height_px, ok[lo:hi])
-        result[uids[index]] = replace(projection, truncated=projection.truncated or bool(cut[index]))
+    uv, ok, inside = _project_points(intr, cam_points, cone)
+    if intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion):
+        uv, ok, inside, faces, owner = _split_curved(intr, cone, cam_points, uv, ok, inside, faces, owner,
+                                                     float(max_edge_px))
+    projections = _rasterize_objects(uv, ok, inside, faces, owner, len(visible), intr.width_px,
+                                     intr.height_px, near_cut)
+    for index, projection in zip(visible, projections):
+        result[uids[index]] = projection
     return result
+
+
+def _split_curved(intrinsics: Intrinsics, cone: float | None, points_cam: np.ndarray, uv: np.ndarray,
+                  imaged: np.ndarray, inside: np.ndarray, faces: np.ndarray, owner: np.ndarray,
+                  max_edge_px: float) -> tuple[np.ndarray, ...]:
+    """Split the faces of a distorting lens whose projected edges are longer than
+    ``max_edge_px`` at their edge midpoints, up to :data:`_MAX_SUBDIVISIONS` times.
+
+    Args:
+        intrinsics, cone: the lens and its fisheye cone (radians, or None).
+        points_cam: (P, 3) camera-frame vertices; ``uv`` (P, 2), ``imaged`` (P,) and
+            ``inside`` (P,) their projection; ``faces`` (T, 3) and ``owner`` (T,) the faces
+            to draw.
+
+    Returns:
+        ``(uv, imaged, inside, faces, owner)`` with the split faces replaced by their pieces
+        (the pieces' vertices appended after the given ones).
+    """
+    from usdscene.amodal_kernels import needs_split
+
+    split = needs_split(uv, imaged, inside, faces, max_edge_px, MAX_CUT_EDGE_PX)
+    if not split.any():
+        return uv, imaged, inside, faces, owner
+    vertices = [(uv, imaged, inside)]
+    face_parts, owner_parts = [faces[~split]], [owner[~split]]
+    count = len(uv)
+    pieces, piece_owner = points_cam[faces[split]], owner[split]
+    for level in range(_MAX_SUBDIVISIONS):
+        pieces = _subdivide(pieces)
+        piece_owner = np.tile(piece_owner, 4)
+        piece_uv, piece_ok, piece_inside = _project_points(intrinsics, pieces.reshape(-1, 3), cone)
+        local_faces = np.arange(3 * len(pieces), dtype=np.int64).reshape(-1, 3)
+        vertices.append((piece_uv, piece_ok, piece_inside))
+        # The last level keeps every piece, long or not.
+        again = (needs_split(piece_uv, piece_ok, piece_inside, local_faces, max_edge_px, MAX_CUT_EDGE_PX)
+                 if level < _MAX_SUBDIVISIONS - 1 else np.zeros(len(pieces), dtype=bool))
+        face_parts.append(local_faces[~again] + count)
+        owner_parts.append(piece_owner[~again])
+        count += len(piece_uv)
+        if not again.any():
+            break
+        pieces, piece_owner = pieces[again], piece_owner[again]
+    uv, imaged, inside = (np.concatenate(parts) for parts in zip(*vertices))
+    return uv, imaged, inside, np.concatenate(face_parts), np.concatenate(owner_parts)
 
 
 def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray,
@@ -338,12 +331,15 @@ class _IndexedMesh:
         faces: (T, 3) int64 vertex indices.
         centre: (3,) centre of the bounding box, world metres.
         radius: radius of the sphere around that box, metres.
+        closed: every edge of a non-degenerate face is shared by exactly two faces that
+            run along it in opposite directions (a closed, consistently wound surface).
     """
 
     points: np.ndarray
     faces: np.ndarray
     centre: np.ndarray
     radius: float
+    closed: bool
 
 
 # id of a triangle array → (weak reference to it, its indexed mesh); the triangle arrays of a
@@ -364,14 +360,29 @@ def _indexed_mesh(triangles: np.ndarray) -> _IndexedMesh:
         lo, hi = points.min(axis=0), points.max(axis=0)
     else:
         points, inverse, lo, hi = corners, np.zeros(0, dtype=np.int64), np.zeros(3), np.zeros(3)
-    mesh = _IndexedMesh(points, inverse.reshape(-1, 3).astype(np.int64), (lo + hi) / 2.0,
-                        float(np.linalg.norm(hi - lo)) / 2.0)
+    faces = inverse.reshape(-1, 3).astype(np.int64)
+    mesh = _IndexedMesh(points, faces, (lo + hi) / 2.0, float(np.linalg.norm(hi - lo)) / 2.0,
+                        _is_closed(faces, len(points)))
     try:
         ref = weakref.ref(triangles, lambda _, key=key: _INDEXED.pop(key, None))
     except TypeError:  # not weak-referenceable: not remembered
         return mesh
     _INDEXED[key] = (ref, mesh)
     return mesh
+
+
+def _is_closed(faces: np.ndarray, n_points: int) -> bool:
+    """Whether (T, 3) faces over ``n_points`` vertices form closed, consistently wound
+    surfaces: faces with a repeated vertex (no area) aside, each directed edge occurs once
+    and its reverse once."""
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+    if not len(faces):
+        return False
+    start, end = faces.ravel(), faces[:, [1, 2, 0]].ravel()
+    forward = np.sort(start * n_points + end)
+    if (forward[1:] == forward[:-1]).any():
+        return False
+    return bool(np.array_equal(forward, np.sort(end * n_points + start)))
 
 
 def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,
@@ -449,22 +460,36 @@ def _view_half_angle_rad(intrinsics: Intrinsics) -> float:
     return cone if cone is not None else math.pi
 
 
-def _objects_in_view(intrinsics: Intrinsics, camera_to_world: np.ndarray,
-                     meshes: list[_IndexedMesh]) -> np.ndarray:
-    """(N,) bool per object: False when the object has no triangle or its bounding sphere lies
-    wholly outside the camera's field of view (conservative: True when unsure).
-    ``camera_to_world`` is the (4, 4) camera pose."""
+def _objects_in_view(intrinsics: Intrinsics, camera_to_world: np.ndarray, meshes: list[_IndexedMesh],
+                     near_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where each object's bounding sphere lies with respect to the camera.
+
+    Args:
+        intrinsics: the lens.
+        camera_to_world: (4, 4) camera pose.
+        meshes: N objects.
+        near_m: near clipping distance, metres.
+
+    Returns:
+        ``(in_view, clear)``, (N,) bool each: ``in_view`` False when the object has no
+        triangle or its sphere lies wholly outside the field of view (conservative: True when
+        unsure); ``clear`` True when the camera lies outside the sphere by more than
+        ``near_m``.
+    """
     has_faces = np.array([len(mesh.faces) > 0 for mesh in meshes], dtype=bool)
-    half_angle = _view_half_angle_rad(intrinsics)
-    if half_angle >= math.pi or not meshes:
-        return has_faces
+    if not meshes:
+        return has_faces, has_faces
     centres = np.array([mesh.centre for mesh in meshes]).reshape(-1, 3)
     radii = np.array([mesh.radius for mesh in meshes])
     centres = (centres - camera_to_world[:3, 3]) @ camera_to_world[:3, :3]
     distance = np.linalg.norm(centres, axis=1)
+    clear = distance > radii + near_m
+    half_angle = _view_half_angle_rad(intrinsics)
+    if half_angle >= math.pi:
+        return has_faces, clear
     off_axis = np.arctan2(np.hypot(centres[:, 0], centres[:, 1]), centres[:, 2])
     spread = np.arcsin(np.clip(radii / np.maximum(distance, 1e-300), 0.0, 1.0))
-    return has_faces & ((distance <= radii) | (off_axis - spread <= half_angle))
+    return has_faces & ((distance <= radii) | (off_axis - spread <= half_angle)), clear
 
 
 def _subdivide(tris: np.ndarray) -> np.ndarray:

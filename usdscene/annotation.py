@@ -88,6 +88,7 @@ class ImageLabeller:
         import json
 
         from usdscene import __version__, layout
+        from usdscene.amodal import RASTER_REVISION
         from usdscene.errors import OutputError
 
         self.out = Path(out_dir)
@@ -115,6 +116,7 @@ class ImageLabeller:
             self.geometry = StageGeometry(stage_path)
         self._key = {"usdscene": __version__, "epsilon_px": self.epsilon_px,
                      "min_visible_fraction": self.min_visible_fraction, "amodal": bool(amodal),
+                     "amodal_raster_revision": RASTER_REVISION if amodal else None,
                      "ids_sha256": hashlib.sha256(id_bytes).hexdigest(),
                      "stage_sha256": stage_digest(stage_path) if amodal else None}
         self._triangles: tuple[int, dict] | None = None  # (frame, uid → triangles) of the last frame

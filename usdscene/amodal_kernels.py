@@ -1,0 +1,172 @@
+"""Compiled (numba, cached on disk) loops of the amodal projection (:mod:`usdscene.amodal`).
+
+Imported on first use only: importing numba costs about a second, which ``import
+usdscene.amodal`` should not pay.
+
+Conventions shared by the kernels: ``uv`` (V, 2) float64 pixel coordinates of projected
+vertices (pixel centres at integers), ``imaged`` (V,) bool (the lens images the vertex),
+``inside`` (V,) bool (the vertex lies within a fisheye's field-of-view cone; all True for other
+lenses), ``faces`` (T, 3) int64 vertex indices, ``owner`` (T,) int64 object index of each face.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def facing_kept(points_cam, faces, owner, single_facing):
+    """Which faces to rasterise: every face of an object, or for objects flagged in
+    ``single_facing`` only the faces turned towards the camera (see
+    :func:`usdscene.amodal.amodal_projections` for why that is exact for closed meshes).
+
+    Args:
+        points_cam: (P, 3) float64 camera-frame vertices (camera at the origin), metres.
+        faces: (T, 3) int64.
+        owner: (T,) int64.
+        single_facing: (N,) bool per object.
+
+    Returns:
+        (T,) bool.
+    """
+    keep = np.ones(faces.shape[0], dtype=np.bool_)
+    for t in range(faces.shape[0]):
+        if not single_facing[owner[t]]:
+            continue
+        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        ax, ay, az = points_cam[a, 0], points_cam[a, 1], points_cam[a, 2]
+        ux, uy, uz = points_cam[b, 0] - ax, points_cam[b, 1] - ay, points_cam[b, 2] - az
+        vx, vy, vz = points_cam[c, 0] - ax, points_cam[c, 1] - ay, points_cam[c, 2] - az
+        # (u × v) · a: negative when the face's winding turns it towards the camera.
+        facing = (uy * vz - uz * vy) * ax + (uz * vx - ux * vz) * ay + (ux * vy - uy * vx) * az
+        keep[t] = facing <= 0.0
+    return keep
+
+
+@numba.njit(cache=True, nogil=True)
+def needs_split(uv, imaged, inside, faces, max_edge, max_cut_edge):
+    """(T,) bool: faces whose three vertices are imaged and one of whose projected edges is
+    longer than ``max_edge`` pixels, or, for faces that cross a fisheye's cone (some vertices
+    inside it, some not), longer than ``max_cut_edge``."""
+    out = np.zeros(faces.shape[0], dtype=np.bool_)
+    for t in range(faces.shape[0]):
+        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        if not (imaged[a] and imaged[b] and imaged[c]):
+            continue
+        crossing = (inside[a] or inside[b] or inside[c]) and not (inside[a] and inside[b] and inside[c])
+        limit = max_cut_edge * max_cut_edge if crossing else max_edge * max_edge
+        for k in range(3):
+            i, j = faces[t, k], faces[t, (k + 1) % 3]
+            dx = uv[i, 0] - uv[j, 0]
+            dy = uv[i, 1] - uv[j, 1]
+            if dx * dx + dy * dy > limit:
+                out[t] = True
+                break
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def rasterize_objects(uv, imaged, inside, faces, owner, n_objects, width, height):
+    """Fill every object's faces by pixel-centre sampling into one crop per object.
+
+    A pixel belongs to an object when its centre lies inside or on the edge of one of the
+    object's projected faces. Faces with a vertex the lens cannot image are skipped and make
+    their object truncated; faces with no vertex inside the fisheye cone are dropped, and a
+    face with some vertex outside it marks its object as cut.
+
+    Returns:
+        ``(crops, offsets, origin, tight, counts, truncated, cut)``: ``crops`` a flat bool
+        buffer holding object ``o``'s crop at ``offsets[o]:offsets[o + 1]`` as a row-major
+        (h, w) array, ``origin`` (N, 4) int64 ``(x0, y0, w, h)`` of that crop, ``tight``
+        (N, 4) int64 ``(x_min, y_min, x_max, y_max)`` of the covered pixels (x_max < x_min
+        when none), ``counts`` (N,) covered pixels, ``truncated`` (N,) bool (a vertex outside
+        the image area ``[-0.5, W - 0.5] × [-0.5, H - 0.5]``, non-finite or not imaged),
+        ``cut`` (N,) bool (a face leaves the fisheye cone).
+    """
+    n_faces = faces.shape[0]
+    lo_x = np.full(n_objects, width, dtype=np.int64)
+    lo_y = np.full(n_objects, height, dtype=np.int64)
+    hi_x = np.full(n_objects, -1, dtype=np.int64)
+    hi_y = np.full(n_objects, -1, dtype=np.int64)
+    truncated = np.zeros(n_objects, dtype=np.bool_)
+    cut = np.zeros(n_objects, dtype=np.bool_)
+    drawn = np.zeros(n_faces, dtype=np.bool_)
+    for t in range(n_faces):
+        o = owner[t]
+        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        if not (inside[a] and inside[b] and inside[c]):
+            cut[o] = True
+            if not (inside[a] or inside[b] or inside[c]):
+                continue
+        if not (imaged[a] and imaged[b] and imaged[c]):
+            truncated[o] = True
+            continue
+        min_x = min(uv[a, 0], uv[b, 0], uv[c, 0])
+        max_x = max(uv[a, 0], uv[b, 0], uv[c, 0])
+        min_y = min(uv[a, 1], uv[b, 1], uv[c, 1])
+        max_y = max(uv[a, 1], uv[b, 1], uv[c, 1])
+        if not (math.isfinite(min_x) and math.isfinite(max_x) and math.isfinite(min_y)
+                and math.isfinite(max_y)):
+            truncated[o] = True
+            continue
+        if min_x < -0.5 or min_y < -0.5 or max_x > width - 0.5 or max_y > height - 0.5:
+            truncated[o] = True
+        drawn[t] = True
+        lo_x[o] = min(lo_x[o], max(0, int(math.ceil(min_x))))
+        lo_y[o] = min(lo_y[o], max(0, int(math.ceil(min_y))))
+        hi_x[o] = max(hi_x[o], min(width - 1, int(math.floor(max_x))))
+        hi_y[o] = max(hi_y[o], min(height - 1, int(math.floor(max_y))))
+
+    origin = np.zeros((n_objects, 4), dtype=np.int64)
+    offsets = np.zeros(n_objects + 1, dtype=np.int64)
+    for o in range(n_objects):
+        w, h = hi_x[o] - lo_x[o] + 1, hi_y[o] - lo_y[o] + 1
+        if w <= 0 or h <= 0:
+            w, h = 0, 0
+        origin[o, 0], origin[o, 1], origin[o, 2], origin[o, 3] = lo_x[o], lo_y[o], w, h
+        offsets[o + 1] = offsets[o] + w * h
+    crops = np.zeros(offsets[n_objects], dtype=np.bool_)
+
+    tight = np.empty((n_objects, 4), dtype=np.int64)
+    tight[:, 0], tight[:, 1], tight[:, 2], tight[:, 3] = width, height, -1, -1
+    counts = np.zeros(n_objects, dtype=np.int64)
+    for t in range(n_faces):
+        if not drawn[t]:
+            continue
+        o = owner[t]
+        x0, y0, w = origin[o, 0], origin[o, 1], origin[o, 2]
+        h = origin[o, 3]
+        base = offsets[o]
+        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        ax, ay = uv[a, 0], uv[a, 1]
+        bx, by = uv[b, 0], uv[b, 1]
+        cx, cy = uv[c, 0], uv[c, 1]
+        area2 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        if area2 == 0.0:
+            continue
+        sign = 1.0 if area2 > 0.0 else -1.0
+        px0 = max(int(math.ceil(min(ax, bx, cx))), x0)
+        px1 = min(int(math.floor(max(ax, bx, cx))), x0 + w - 1)
+        py0 = max(int(math.ceil(min(ay, by, cy))), y0)
+        py1 = min(int(math.floor(max(ay, by, cy))), y0 + h - 1)
+        for py in range(py0, py1 + 1):
+            for px in range(px0, px1 + 1):
+                # Edge functions at the pixel centre, oriented so the interior is >= 0.
+                if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
+                    continue
+                if ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0:
+                    continue
+                if ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0:
+                    continue
+                index = base + (py - y0) * w + (px - x0)
+                if not crops[index]:
+                    crops[index] = True
+                    counts[o] += 1
+                    tight[o, 0] = min(tight[o, 0], px)
+                    tight[o, 1] = min(tight[o, 1], py)
+                    tight[o, 2] = max(tight[o, 2], px)
+                    tight[o, 3] = max(tight[o, 3], py)
+    return crops, offsets, origin, tight, counts, truncated, cut
