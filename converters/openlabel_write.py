@@ -140,6 +140,8 @@ def write_openlabel(scene: SceneSpec) -> dict:
         data = _Data()
         if obj.appearance is not None:
             data.add("text", "appearance", obj.appearance)
+        if obj.pose_variant is not None:
+            data.add("text", "pose_variant", obj.pose_variant)
         if obj.color_rgb is not None:
             data.add("vec", "color_rgb", [float(v) for v in obj.color_rgb])
         knobs = obj.randomization

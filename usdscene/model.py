@@ -493,6 +493,9 @@ class SceneObject:
             :func:`canonical_json` text of a partial OpenLABEL object; "" = none.
         frame_extra: the same per frame ``(frame, text)`` for ``frames[f].objects[uid]``,
             sorted by frame.
+        pose_variant: requested variant of the asset's ``pose`` variant set (a passenger's
+            ``reading``); None = the asset's default. It decides the support places the object
+            offers (a passenger's lap).
     """
 
     uid: str
@@ -506,6 +509,7 @@ class SceneObject:
     randomization: Randomization = field(default_factory=Randomization)
     extra: str = ""
     frame_extra: tuple[tuple[int, str], ...] = ()
+    pose_variant: str | None = None
 
 
 @dataclass(frozen=True)
