@@ -31,9 +31,14 @@ holds for one frame. The chosen appearance variant and colour of every object ar
 the document (explicit object data), so every label traces back to its variant and colour, and
 the generator's seed and options to the report.
 
-Passengers (``occupancy``): per frame that fraction of the places whose ``is_on`` region seats a
-passenger-kind class gets one, drawn from a per-class pool whose objects have random appearance
-variants; the pool is shuffled over the seats every frame.
+Passengers (``occupancy``): per frame, before the objects, that fraction of the places whose
+``is_on`` region seats a passenger-kind class gets one. Each seated passenger draws its
+``pose`` variant per frame (among the poses whose lap holds the object planned on it, if any);
+passengers of one class and pose share a pool whose objects draw random appearance variants.
+Seated passengers are supports: every support place their class declares (the ``lap``, per
+pose: :func:`lap_regions`) is a *lap place* ``<seat>/lap`` that ``balanced`` and
+``appearance`` fill like any region while somebody sits there; the document relates the object
+``is_on`` the passenger object.
 """
 
 from __future__ import annotations
