@@ -284,6 +284,8 @@ def _metadata(scene: SceneSpec) -> dict:
         "seed": int(render.seed)}
     block["exports"] = list(scene.exports)
     block["roi_rules"] = dict(scene.roi_rules)
+    if scene.split_rule:
+        block["split"] = {"rule": scene.split_rule, "seed": int(scene.split_seed)}
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
     if scene.description:

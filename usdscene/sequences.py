@@ -109,6 +109,9 @@ class GenerateOptions:
             class count, or what coverage within ``frames`` needs when ``frames`` is given.
         position_noise_m: position noise (standard deviation, metres) of generated objects.
         rotation_noise_deg: yaw noise (standard deviation, degrees) of generated objects.
+        split: training split rule written into the document (``metadata.usdscene.split``,
+            :mod:`usdscene.splits` syntax); "" keeps the setup's own rule, if any.
+        split_seed: seed of a ``fractions`` split rule.
     """
 
     strategy: str
@@ -120,6 +123,8 @@ class GenerateOptions:
     objects_per_frame: int | None = None
     position_noise_m: float = 0.03
     rotation_noise_deg: float = 20.0
+    split: str = ""
+    split_seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -398,7 +403,8 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         "classes": list(classes), "place_patterns": list(options.place_patterns),
         "occupancy": float(options.occupancy), "objects_per_frame": int(per_frame),
         "frames": int(n_frames), "position_noise_m": float(options.position_noise_m),
-        "rotation_noise_deg": float(options.rotation_noise_deg)}
+        "rotation_noise_deg": float(options.rotation_noise_deg),
+        "split": scene.split_rule, "split_seed": int(scene.split_seed)}
     report["coverage"] = {
         "combinations": len(combos), "covered": len(covered), "uncovered_count": len(uncovered),
         "uncovered": [[c.class_name, c.relation, c.place] for c in uncovered],
@@ -435,6 +441,15 @@ def _check_options(setup: SceneSpec, catalog: Catalog, options: GenerateOptions)
         problems.add("--occupancy", f"occupancy must be a fraction in [0, 1], got {options.occupancy}")
     if options.seed < 0:
         problems.add("--seed", f"seed must be non-negative, got {options.seed}")
+    if options.split:
+        from usdscene.splits import parse_split
+
+        try:
+            parse_split(options.split)
+        except DocumentError as exc:
+            problems.extend(exc.problems)
+    if options.split_seed < 0:
+        problems.add("--split-seed", f"seed must be non-negative, got {options.split_seed}")
     known = catalog.classes("object")
     for name in options.classes:
         if name not in catalog or catalog[name].kind != "object":
@@ -782,7 +797,8 @@ def _sequence_scene(setup: SceneSpec, plan: list[list[Combination]], slots: list
                                       object_uid=uid_of[target] if isinstance(target, tuple) else place_ref(target),
                                       frame_intervals=(FrameInterval(frame, frame),)))
     n_frames = max(len(plan), 1)
-    return replace(setup, frame_start=0, frame_end=n_frames - 1, objects=tuple(objects),
+    split = dict(split_rule=options.split, split_seed=int(options.split_seed)) if options.split else {}
+    return replace(setup, **split, frame_start=0, frame_end=n_frames - 1, objects=tuple(objects),
                    places=tuple(setup.places) + tuple(new_places), relations=tuple(relations),
                    seed=int(options.seed),
                    description=(setup.description + " " if setup.description else "")
