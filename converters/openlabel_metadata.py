@@ -25,7 +25,7 @@ from usdscene.converters.openlabel_values import (
 )
 from usdscene.errors import ProblemCollector
 
-METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range")
+METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split")
 RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
                "path_guiding", "clamp_indirect", "sampling_pattern", "max_bounces", "caustics", "tile_size_px", "resolution_px",
@@ -49,8 +49,9 @@ def read_metadata(doc: DocumentBody) -> dict:
 
     Returns:
         ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
-        ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules`` and
-        ``frame_range`` (a :class:`FrameInterval` or None), with defaults for what is absent
+        ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``,
+        ``frame_range`` (a :class:`FrameInterval` or None), ``split_rule`` and ``split_seed``
+        (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.splits`), with defaults for what is absent
         or bad (the problem is recorded in ``doc``).
     """
     problems = doc.problems
@@ -58,7 +59,7 @@ def read_metadata(doc: DocumentBody) -> dict:
     where = f"{R}.metadata"
     meta = doc.body.get("metadata")
     out: dict = dict(name="scene", description="", render=RenderSettings(), seed=0, environment=None,
-                     asset_paths=(), exports=(), roi_rules={}, frame_range=None)
+                     asset_paths=(), exports=(), roi_rules={}, frame_range=None, split_rule="", split_seed=0)
     if meta is None:
         problems.add(where, f"missing 'metadata' with 'schema_version': '{SCHEMA_VERSION}'")
         return out
@@ -105,6 +106,12 @@ def read_metadata(doc: DocumentBody) -> dict:
         rules = read_object(block["roi_rules"], f"{where}.roi_rules", problems) or {}
         out["roi_rules"] = {k: v for k, v in rules.items()
                             if read_text(v, f"{where}.roi_rules.{k}", problems, non_empty=True)}
+    if "split" in block:
+        from usdscene.splits import read_document_split
+
+        rule, seed = read_document_split(block["split"], f"{where}.split", problems)
+        if rule is not None:
+            out["split_rule"], out["split_seed"] = rule.text, seed
     if "frame_range" in block:
         out["frame_range"] = read_interval(block["frame_range"], f"{where}.frame_range", problems)
     if "render" in block:

@@ -54,7 +54,7 @@ POSE_DATA = {"position_m": "vec", "rotation_xyz_deg": "vec", "rotation_quaternio
 LIGHT_DATA = {"kind": "text", "power_w": "num", "color_rgb": "vec", "radius_m": "num",
               "spot_angle_deg": "num", "spot_blend": "num", "size_m": "vec", "sun_angle_deg": "num",
               **POSE_DATA}
-OBJECT_DATA = {"appearance": "text", "color_rgb": "vec", "position_noise_m": "num",
+OBJECT_DATA = {"appearance": "text", "pose_variant": "text", "color_rgb": "vec", "position_noise_m": "num",
                "rotation_noise_deg": "num", "random_color": "boolean", "random_appearance": "boolean",
                **POSE_DATA}
 DATA_KINDS = ("text", "num", "vec", "boolean")
@@ -267,6 +267,8 @@ def _read_scene_object(doc: DocumentBody, uid: str, name: str, otype: str, obj: 
     kwargs: dict = {}
     if "appearance" in items:
         kwargs["appearance"] = read_text(items["appearance"][1], items["appearance"][2], P, non_empty=True)
+    if "pose_variant" in items:
+        kwargs["pose_variant"] = read_text(items["pose_variant"][1], items["pose_variant"][2], P, non_empty=True)
     if "color_rgb" in items:
         kwargs["color_rgb"] = _read_color(items["color_rgb"], P)
     knobs: dict = {}

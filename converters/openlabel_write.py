@@ -140,6 +140,8 @@ def write_openlabel(scene: SceneSpec) -> dict:
         data = _Data()
         if obj.appearance is not None:
             data.add("text", "appearance", obj.appearance)
+        if obj.pose_variant is not None:
+            data.add("text", "pose_variant", obj.pose_variant)
         if obj.color_rgb is not None:
             data.add("vec", "color_rgb", [float(v) for v in obj.color_rgb])
         knobs = obj.randomization
@@ -282,6 +284,8 @@ def _metadata(scene: SceneSpec) -> dict:
         "seed": int(render.seed)}
     block["exports"] = list(scene.exports)
     block["roi_rules"] = dict(scene.roi_rules)
+    if scene.split_rule:
+        block["split"] = {"rule": scene.split_rule, "seed": int(scene.split_seed)}
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
     if scene.description:

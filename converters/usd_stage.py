@@ -468,9 +468,13 @@ class _StageReader:
             sets = prim.GetVariantSets()
             if sets.HasVariantSet(ss.VARIANT_SET_APPEARANCE):
                 appearance = sets.GetVariantSet(ss.VARIANT_SET_APPEARANCE).GetVariantSelection() or None
+            pose_variant = None
+            if sets.HasVariantSet(ss.VARIANT_SET_POSE):
+                pose_variant = sets.GetVariantSet(ss.VARIANT_SET_POSE).GetVariantSelection() or None
             objects.append(SceneObject(
                 uid=uid, name=name or uid, class_name=cls, frame_intervals=_intervals(visible, self.frame_start),
-                pose=pose, frame_poses=frame_poses, appearance=appearance, color_rgb=self._color(prim)))
+                pose=pose, frame_poses=frame_poses, appearance=appearance, pose_variant=pose_variant,
+                color_rgb=self._color(prim)))
         return tuple(objects)
 
     def _color(self, prim) -> tuple[float, float, float] | None:

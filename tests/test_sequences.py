@@ -30,6 +30,7 @@ CLASSES = {  # class: (extent min, extent max, appearance variants)
     "ladder": ((-0.25, -1.2, 0.0), (0.25, 1.2, 0.1), ("alu",)),  # only the bays are long enough
 }
 SITTER = ((-0.25, -0.25, -0.45), (0.25, 0.25, 0.8))
+SITTER_LAP = (_yaw_pose(0.0, 0.0, -0.2, 0.25), (0.6, 0.5, 0.6))  # pose "sitting"; "slumped" has none
 
 
 def _car_park_places() -> dict:
@@ -61,6 +62,13 @@ def car_park(tmp_path_factory):
                          "default_variants": {"appearance": variants[0]} if variants else {},
                          "extent_m": [list(lo), list(hi)],
                          "relations": ["is_on"] if name == "sitter" else ["is_on", "is_in", "is_below", "is_in_front_of"]}
+    lap_pose, lap_size = SITTER_LAP
+    classes["sitter"]["variants"]["pose"] = ["sitting", "slumped"]
+    classes["sitter"]["default_variants"]["pose"] = "sitting"
+    classes["sitter"]["variant_places"] = {"pose": {
+        "sitting": {"lap": {"kind": "lap", "regions": {"is_on": {"matrix": list(lap_pose.matrix),
+                                                                  "size_m": list(lap_size)}}}},
+        "slumped": {}}}
     places = _car_park_places()
     (folder / "environments" / "car_park.usda").write_text(_environment_usda(places).replace("test_cabin", "car_park"))
     classes["car_park"] = {"kind": "environment", "usd": "environments/car_park.usda", "extent_m": [[-5, -5, 0], [15, 5, 3]],
@@ -77,10 +85,14 @@ def car_park(tmp_path_factory):
 
 
 def _instances(scene: m.SceneSpec) -> list[tuple[int, str, str, str]]:
-    """(frame, class, relation, place name) of every generated relation."""
+    """(frame, class, relation, place name) of every generated relation; an object on a
+    passenger's lap is at ``<seat>/lap``."""
     objects = scene.object_by_uid()
     places = {p.uid: p.name for p in scene.places}
-    return [(rel.frame_intervals[0].frame_start, objects[rel.subject_uid].class_name, rel.type, places[rel.object_uid])
+    seat_of = {(rel.frame_intervals[0].frame_start, rel.subject_uid): places[rel.object_uid]
+               for rel in scene.relations if rel.frame_intervals and rel.object_uid in places}
+    return [(rel.frame_intervals[0].frame_start, objects[rel.subject_uid].class_name, rel.type,
+             places.get(rel.object_uid) or seat_of[(rel.frame_intervals[0].frame_start, rel.object_uid)] + "/lap")
             for rel in scene.relations if rel.frame_intervals]  # the setup's own relations have none
 
 
@@ -249,10 +261,12 @@ def test_cabin_balanced_and_single_class_compose(tmp_path):
     classes = ("backpack", "laptop", "trolley_suitcase")
     places = ("seat_0[123]?", "bin_0[12]?", "aisle_02")
     combos = fitting_combinations(catalog, "aircraft_cabin", classes, places)
-    frames = math.ceil(len(classes) * max(collections.Counter(c.class_name for c in combos).values()) / 6)
-    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=frames, seed=3, classes=classes,
+    # Frames: what full coverage needs, passengers' laps included (laptops fit a reading lap).
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", seed=3, classes=classes,
                                                             place_patterns=places, objects_per_frame=6, occupancy=0.4))
     rows = _instances(gen.scene)
+    on_laps = [r for r in rows if r[3].endswith("/lap")]
+    assert on_laps and {cls for _, cls, _, _ in on_laps} == {"laptop"}  # the others do not fit a lap
     per_class = collections.Counter(cls for _, cls, _, _ in rows if cls != "passenger")
     assert max(per_class.values()) - min(per_class.values()) <= 1
     assert {(c.class_name, c.relation, c.place) for c in combos} <= {r[1:] for r in rows}
@@ -318,3 +332,77 @@ def test_the_command_offers_exactly_the_library_strategies():
     commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     strategy = next(a for a in commands.choices["generate"]._actions if a.dest == "strategy")
     assert tuple(strategy.choices) == STRATEGIES
+
+
+def test_passengers_laps_hold_objects_of_the_poses_that_have_one(car_park):
+    """Occupancy: objects go on seated passengers' laps (cones and crates fit the sitter's lap,
+    ladders and tyres do not), only of passengers in a pose with a lap; the pose is drawn per
+    frame and written into the document; the report counts the laps as ``<seat>/lap``."""
+    catalog, setup, _ = car_park
+    gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=10, seed=6,
+                                                            objects_per_frame=3, occupancy=1.0))
+    scene = read_openlabel(write_openlabel(gen.scene))
+    objects = scene.object_by_uid()
+    rows = _instances(scene)
+    on_laps = [r for r in rows if r[3].endswith("/lap")]
+    assert on_laps and {cls for _, cls, _, _ in on_laps} <= {"cone", "crate"}
+    assert {place for *_, place in on_laps} <= {"kerb_a/lap", "kerb_b/lap"}
+    per_class = collections.Counter(cls for _, cls, _, _ in rows if cls != "sitter")
+    assert max(per_class.values()) - min(per_class.values()) <= 1
+    for rel in scene.relations:
+        if rel.object_uid in objects:  # on a lap: of a sitting sitter
+            assert rel.type == "is_on" and objects[rel.object_uid].class_name == "sitter"
+            assert objects[rel.object_uid].pose_variant == "sitting"
+    poses = {o.pose_variant for o in scene.objects if o.class_name == "sitter"}
+    assert poses == {"sitting", "slumped"}  # drawn per frame, recorded in the document
+    report = gen.report
+    assert report["places"].get("kerb_a/lap", 0) + report["places"].get("kerb_b/lap", 0) == len(on_laps)
+    assert report["place_kinds"]["lap"] == len(on_laps)
+    assert report["class_relation"]["cone"]["is_on"] >= sum(1 for r in on_laps if r[1] == "cone")
+    lap_combos = report["coverage"]["combinations"] - len(fitting_combinations(catalog, "car_park", sorted(CLASSES)))
+    assert lap_combos == 4  # cone and crate on two laps
+    check_composes(scene, catalog)
+
+
+def test_magazine_on_a_reading_passengers_lap_in_the_composed_cabin(tmp_path):
+    """A magazine ``is_on`` a seated passenger lies on its thighs, under its chest: world
+    positions read back from the composed stage."""
+    from pxr import Usd, UsdGeom
+
+    from usdscene import stage_schema as ss
+    from usdscene.compose import compose_stage
+    from usdscene.errors import CompositionError
+
+    catalog = load_catalog()
+    scene = m.SceneSpec(
+        name="lap", environment="aircraft_cabin", seed=1, frame_start=0, frame_end=0,
+        cameras=(m.Camera("c", pinhole(), pose=look_at_cv((-2.2, 0.0, 1.6), (-3.4, -1.0, 0.6))),),
+        objects=(m.SceneObject("1", "pax", "passenger", pose_variant="reading"),
+                 m.SceneObject("2", "mag", "magazine")),
+        places=(m.PlaceRef("10", "seat_03A"),),
+        relations=(m.Relation("20", "is_on", "1", "10"), m.Relation("21", "is_on", "2", "1")))
+    result = compose_stage(read_openlabel(write_openlabel(scene)), catalog, tmp_path / "stage")
+    stage = Usd.Stage.Open(str(result.root_layer))
+    cache = UsdGeom.BBoxCache(Usd.TimeCode(0), [UsdGeom.Tokens.default_])
+    pax = stage.GetPrimAtPath(ss.object_prim_path("passenger", "1"))
+    assert pax.GetVariantSets().GetVariantSet(ss.VARIANT_SET_POSE).GetVariantSelection() == "reading"
+
+    def box(prim):
+        r = cache.ComputeWorldBound(prim).ComputeAlignedRange()
+        return np.array(r.GetMin()), np.array(r.GetMax())
+
+    mag_lo, mag_hi = box(stage.GetPrimAtPath(ss.object_prim_path("magazine", "2")))
+    hip_z = UsdGeom.Xformable(pax).ComputeLocalToWorldTransform(Usd.TimeCode(0)).ExtractTranslation()[2]
+    chest_lo, chest_hi = box(pax.GetPrimAtPath("Geom/Body"))
+    legs_lo, legs_hi = box(pax.GetPrimAtPath("Geom/Trousers"))
+    thigh_top = hip_z + 0.176  # the thigh capsules' top (the pelvis rises higher, behind the lap)
+    assert mag_lo[2] == pytest.approx(thigh_top, abs=0.003)  # resting on the thighs
+    assert mag_hi[2] < chest_hi[2] - 0.3  # far below the chest's top (not on the head)
+    centre = (mag_lo + mag_hi) / 2.0
+    assert legs_lo[0] < centre[0] < legs_hi[0] and legs_lo[1] < centre[1] < legs_hi[1]
+    # A sleeping passenger's hands lie in its lap: what is left in front of them is too short.
+    sleeping = dataclasses.replace(scene, objects=(dataclasses.replace(scene.objects[0], pose_variant="sleeping"),
+                                                   scene.objects[1]))
+    with pytest.raises(CompositionError, match="'2' .magazine.*does not fit object '1' .is_on."):
+        compose_stage(sleeping, catalog, tmp_path / "sleeping")
+

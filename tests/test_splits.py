@@ -23,14 +23,16 @@ W, H = 32, 24
 CAMERAS = ("cam_a", "cam_b")
 
 
-def _annotated_output(folder: Path, frames: int, classes=("backpack", "suitcase")) -> Path:
+def _annotated_output(folder: Path, frames: int, classes=("backpack", "suitcase"), split: str = "",
+                      split_seed: int = 0) -> Path:
     """An output folder with ``annotations.openlabel.json`` and placeholder images: one object
-    per class moving one pixel per frame, seen by both cameras."""
+    per class moving one pixel per frame, seen by both cameras; the document carries ``split``."""
     intr = Intrinsics(LensModel.PERSPECTIVE, W, H, 20.0, 20.0, (W - 1) / 2, (H - 1) / 2)
     objects = tuple(SceneObject(str(k), f"obj_{k}", cls, (FrameInterval(0, frames - 1),))
                     for k, cls in enumerate(classes))
     scene = SceneSpec(name=folder.name, frame_start=0, frame_end=frames - 1,
-                      cameras=tuple(Camera(name, intr) for name in CAMERAS), objects=objects)
+                      cameras=tuple(Camera(name, intr) for name in CAMERAS), objects=objects,
+                      split_rule=split, split_seed=split_seed)
     images = []
     for frame in range(frames):
         for camera in CAMERAS:

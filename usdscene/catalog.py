@@ -17,13 +17,22 @@ same generator (or by ``usdscene assets add``) and mirrors what composition need
           "default_variants": {"appearance": "navy"},
           "extent_m": [[-0.16, -0.11, 0.0], [0.16, 0.11, 0.45]],  # asset frame, Z up
           "relations": ["is_on", "is_below", "is_in", "is_in_front_of"],
-          "places": {}                            # environments only, see Place
+          "places": {},                           # see Place
+          "variant_places": {}                    # objects and passengers, see below
         }
       }
     }
 
 Asset frames: Z up, metres, origin at the centre of the bottom face of the object, so an
 object rests on a surface when its origin lies on it.
+
+``places`` of an environment are its named targets in world (= environment) coordinates. An
+``object`` or ``passenger`` entry may declare *support places* of its own in the same form, in
+object coordinates: where another object goes when it ``is_on`` (``is_in``, ...) an object of
+this class (a passenger's ``lap``). Places that depend on a variant (the lap moves with the
+passenger's ``pose``) go under ``variant_places``: variant set → variant → places, which
+replace ``places`` when that variant is selected; a variant listed with no places (``{}``) has
+none (a sleeping passenger's hands lie in its lap). At most one variant set carries places.
 """
 
 from __future__ import annotations
@@ -99,7 +108,11 @@ class AssetEntry:
         default_variants: variant set name → default variant.
         extent_min_m, extent_max_m: axis-aligned bounds in the asset frame (metres).
         relations: placement relations the class supports as a subject.
-        places: for environments, place name → Place.
+        places: place name → Place. Environments: their places (world coordinates). Objects
+            and passengers: the support places they offer other objects (object coordinates)
+            when no ``variant_places`` entry applies.
+        variant_places: variant set → variant → the support places (object coordinates) of
+            that variant, replacing ``places`` when it is selected (see :meth:`places_for`).
     """
 
     class_name: str
@@ -112,6 +125,38 @@ class AssetEntry:
     extent_max_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     relations: tuple[str, ...] = ()
     places: Mapping[str, Place] = field(default_factory=dict)
+    variant_places: Mapping[str, Mapping[str, Mapping[str, Place]]] = field(default_factory=dict)
+
+    def places_for(self, selection: Mapping[str, str] | None = None) -> Mapping[str, Place]:
+        """The places of this asset with the given variants selected.
+
+        Args:
+            selection: variant set → variant; sets it leaves out (or maps to None) take the
+                entry's default variant.
+
+        Returns:
+            ``variant_places[set][variant]`` for the variant set that carries places when the
+            selected variant is listed there, else ``places``.
+        """
+        for set_name, by_variant in sorted(self.variant_places.items()):
+            chosen = (selection or {}).get(set_name) or self.default_variants.get(set_name)
+            if chosen in by_variant:
+                return by_variant[chosen]
+        return self.places
+
+    def support_region(self, relation: str, selection: Mapping[str, str] | None = None) -> tuple[str, PlaceRegion] | None:
+        """``(place name, region)`` that this asset offers an object related to it by
+        ``relation`` with the given variants selected (the first such place by name), or None.
+        """
+        for name, place in place_items(self.places_for(selection)):
+            if relation in place.regions:
+                return name, place.regions[relation]
+        return None
+
+    def declares_support(self, relation: str) -> bool:
+        """Does any variant of this asset declare a support place for ``relation``?"""
+        every = [self.places, *(p for by in self.variant_places.values() for p in by.values())]
+        return any(relation in place.regions for places in every for place in places.values())
 
     @property
     def size_m(self) -> tuple[float, float, float]:
@@ -274,27 +319,57 @@ def _parsed_catalog(path: Path, folder: Path, mtime_ns: int, size: int):
     return tuple(parsed)
 
 
-def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:
-    lo, hi = raw.get("extent_m", [[0, 0, 0], [0, 0, 0]])
+def _places_from_json(raw: Mapping) -> dict[str, Place]:
+    """``places`` of a catalog entry (place name → {kind, regions}) read."""
     places = {}
-    for pname, praw in raw.get("places", {}).items():
+    for pname, praw in raw.items():
         regions = {
             rel: PlaceRegion(relation=rel, pose=Pose.from_matrix(r["matrix"]),
                              size_m=tuple(float(v) for v in r["size_m"]))  # type: ignore[arg-type]
             for rel, r in praw.get("regions", {}).items()
         }
         places[pname] = Place(name=pname, kind=str(praw.get("kind", "")), regions=regions)
+    return places
+
+
+def _variant_places_from_json(raw: Mapping, variants: Mapping[str, tuple[str, ...]]) -> dict:
+    """``variant_places`` read and checked against the entry's variant sets.
+
+    Raises:
+        ValueError: a variant set or variant the entry does not have, or places under more
+            than one variant set (the message names the field and the value).
+    """
+    if len(raw) > 1:
+        raise ValueError(f"variant_places: places under more than one variant set ({', '.join(sorted(raw))}); "
+                         "at most one variant set may carry places")
+    out = {}
+    for set_name, by_variant in raw.items():
+        if set_name not in variants:
+            raise ValueError(f"variant_places.{set_name}: the entry has no variant set {set_name!r} "
+                             f"(variant sets: {', '.join(sorted(variants)) or 'none'})")
+        for variant in by_variant:
+            if variant not in variants[set_name]:
+                raise ValueError(f"variant_places.{set_name}.{variant}: {variant!r} is not a variant of "
+                                 f"{set_name!r} (variants: {', '.join(variants[set_name])})")
+        out[set_name] = {variant: _places_from_json(places) for variant, places in by_variant.items()}
+    return out
+
+
+def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:
+    lo, hi = raw.get("extent_m", [[0, 0, 0], [0, 0, 0]])
+    variants = {k: tuple(v) for k, v in raw.get("variants", {}).items()}
     return AssetEntry(
         class_name=name,
         kind=str(raw["kind"]),
         usd_path=(folder / raw["usd"]).resolve(),
         description=str(raw.get("description", "")),
-        variants={k: tuple(v) for k, v in raw.get("variants", {}).items()},
+        variants=variants,
         default_variants=dict(raw.get("default_variants", {})),
         extent_min_m=tuple(float(v) for v in lo),  # type: ignore[arg-type]
         extent_max_m=tuple(float(v) for v in hi),  # type: ignore[arg-type]
         relations=tuple(raw.get("relations", ())),
-        places=places,
+        places=_places_from_json(raw.get("places", {})),
+        variant_places=_variant_places_from_json(raw.get("variant_places", {}), variants),
     )
 
 
@@ -311,13 +386,18 @@ def entry_to_json(entry: AssetEntry, folder: Path) -> dict:
         "relations": list(entry.relations),
     }
     if entry.places:
-        out["places"] = {
-            name: {"kind": place.kind,
+        out["places"] = _places_to_json(entry.places)
+    if entry.variant_places:
+        out["variant_places"] = {set_name: {variant: _places_to_json(places) for variant, places in by_variant.items()}
+                                 for set_name, by_variant in entry.variant_places.items()}
+    return out
+
+
+def _places_to_json(places: Mapping[str, Place]) -> dict:
+    return {name: {"kind": place.kind,
                    "regions": {rel: {"matrix": list(r.pose.matrix), "size_m": list(r.size_m)}
                                for rel, r in place.regions.items()}}
-            for name, place in place_items(entry.places)
-        }
-    return out
+            for name, place in place_items(places)}
 
 
 def places_for_catalog(places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]]]) -> dict[str, Place]:

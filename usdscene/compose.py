@@ -161,7 +161,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     _check_asset_arcs(scene, catalog)
     choices = draw_looks(scene, catalog, rng)
     placements = place_objects(scene, catalog, rng)
-    resolved = resolved_scene(scene, placements, choices)
+    resolved = resolved_scene(scene, placements, choices, catalog)
     try:
         ids = mask_ids(scene)
     except ValueError as exc:
@@ -256,10 +256,15 @@ def _canonical_camera(cam: Camera, frames: range) -> Camera:
 
 
 def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
-                   looks: Mapping[str, tuple[str | None, tuple[float, float, float] | None]]) -> SceneSpec:
-    """The scene as composed (see :attr:`ComposeResult.resolved`)."""
+                   looks: Mapping[str, tuple[str | None, tuple[float, float, float] | None]],
+                   catalog: Catalog | None = None) -> SceneSpec:
+    """The scene as composed (see :attr:`ComposeResult.resolved`); with ``catalog``, objects
+    that ask for no pose variant get their class's default one (what a reader of the stage sees)."""
     objects = []
     for obj in scene.objects:
+        pose_variant = obj.pose_variant
+        if pose_variant is None and catalog is not None:
+            pose_variant = catalog[obj.class_name].default_variants.get(ss.VARIANT_SET_POSE)
         spans = placements[obj.uid].spans
         appearance, color = looks[obj.uid]
         if spans:
@@ -274,7 +279,7 @@ def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
         objects.append(replace(
             obj, frame_intervals=canonical_intervals(obj.frame_intervals, scene.frame_start, scene.frame_end),
             pose=base, frame_poses=frame_poses, appearance=appearance, color_rgb=color,
-            randomization=Randomization()))
+            pose_variant=pose_variant, randomization=Randomization()))
     lights = tuple(replace(lt, frame_intervals=canonical_intervals(lt.frame_intervals, scene.frame_start,
                                                                    scene.frame_end))
                    for lt in scene.lights)
@@ -646,6 +651,8 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
         _author_visibility(layer, prim, present, scene.frame_start)
         if obj.appearance is not None:
             prim.variantSelections[ss.VARIANT_SET_APPEARANCE] = obj.appearance
+        if obj.pose_variant is not None:
+            prim.variantSelections[ss.VARIANT_SET_POSE] = obj.pose_variant
         if obj.color_rgb is not None:
             rgb = tuple(float(c) for c in obj.color_rgb)
             color = _attr(prim, ss.ATTR_COLOR, T.Color3fArray, Vt.Vec3fArray([Gf.Vec3f(*rgb)]))

@@ -85,6 +85,44 @@ def _load_annotated(out_dir, extra_assets, need_catalog: bool):
         return document, None
 
 
+def carried_split(out_dirs) -> tuple:
+    """The split rule the annotated documents of ``out_dirs`` carry (``metadata.usdscene.split``,
+    :func:`usdscene.splits.document_split`), for an export given no rule of its own.
+
+    Returns:
+        ``(SplitRule, seed)``, or None when no document carries one.
+
+    Raises:
+        OutputError: a folder without annotations. DocumentError: a malformed rule, or two
+            documents carrying different rules (naming both folders and rules).
+    """
+    from pathlib import Path
+
+    from usdscene import layout
+    from usdscene.converters.openlabel import load_document
+    from usdscene.errors import DocumentError, OutputError, Problem
+    from usdscene.splits import DOCUMENT_FIELD, document_split
+
+    found = None
+    for out in out_dirs:
+        path = Path(out) / layout.ANNOTATIONS_FILE
+        if not path.is_file():
+            raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
+        try:
+            carried = document_split(load_document(path))
+        except DocumentError as exc:
+            raise DocumentError([Problem(f"{path}: {p.where}", p.message) for p in exc.problems]) from None
+        if carried is None:
+            continue
+        if found is not None and (found[1].text, found[2]) != (carried[0].text, carried[1]):
+            raise DocumentError([Problem(f"{path}: {DOCUMENT_FIELD}",
+                                         f"rule {carried[0].text!r} (seed {carried[1]}) differs from "
+                                         f"{found[1].text!r} (seed {found[2]}) of {found[0]}; "
+                                         "give the dataset's rule with --split")])
+        found = found or (str(path), *carried)
+    return None if found is None else (found[1], found[2])
+
+
 def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,
                    copy_images: bool = False, min_roi_px: int = 8, split=None,
                    split_seed: int = 0) -> dict:

@@ -493,6 +493,9 @@ class SceneObject:
             :func:`canonical_json` text of a partial OpenLABEL object; "" = none.
         frame_extra: the same per frame ``(frame, text)`` for ``frames[f].objects[uid]``,
             sorted by frame.
+        pose_variant: requested variant of the asset's ``pose`` variant set (a passenger's
+            ``reading``); None = the asset's default. It decides the support places the object
+            offers (a passenger's lap).
     """
 
     uid: str
@@ -506,6 +509,7 @@ class SceneObject:
     randomization: Randomization = field(default_factory=Randomization)
     extra: str = ""
     frame_extra: tuple[tuple[int, str], ...] = ()
+    pose_variant: str | None = None
 
 
 @dataclass(frozen=True)
@@ -643,6 +647,10 @@ class SceneSpec:
         asset_paths: extra asset folders (catalogs) named by the document, as given.
         exports: dataset formats to export after a run (``coco``, ``yolo``, ``rois``).
         roi_rules: relation type → label for ROI crops (e.g. ``{"is_below": "correct"}``).
+        split_rule: the training split rule the document carries (``usdscene.splits`` syntax,
+            e.g. ``train=0.8,val=0.2``), used by ``usdscene export`` when no ``--split`` is
+            given; "" = none.
+        split_seed: seed of a ``fractions`` split rule.
         description: free text.
         provenance: where it came from.
         extra: the document's content usdscene does not model, as :func:`canonical_json` text
@@ -671,6 +679,8 @@ class SceneSpec:
     description: str = ""
     provenance: Provenance = field(default_factory=Provenance)
     extra: str = ""
+    split_rule: str = ""
+    split_seed: int = 0
 
     @property
     def frames(self) -> range:

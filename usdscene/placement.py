@@ -12,8 +12,13 @@ Rules, in order of precedence:
    the object in a *support region*: a box whose z = 0 plane is the support surface.
 
    * Relation to a place: the region ``catalog.places(env)[place].regions[relation]``.
-   * Relation to another object (``T`` with asset extent ``[lo, hi]``, pose of that frame):
-     ``is_on`` → T's top face (z = hi.z, footprint = T's x/y extent, unlimited height);
+   * Relation to another object ``T`` whose catalog entry declares a support place for the
+     relation (a passenger's ``lap`` for ``is_on``; per pose variant, see
+     :meth:`usdscene.catalog.AssetEntry.places_for`): that region, carried by T's pose of that
+     frame; the object lies there as modelled (upright or turned a quarter, never on a side).
+     A class that declares the relation for some variants but not for T's refuses it.
+   * Relation to another object (``T`` with asset extent ``[lo, hi]``, pose of that frame)
+     declaring nothing for the relation: ``is_on`` → T's top face (z = hi.z, footprint = T's x/y extent, unlimited height);
      ``is_in`` → T's inside (z = lo.z, footprint and height of T's extent);
      ``is_in_front_of`` → a strip of depth :data:`FRONT_DEPTH_M` in front of T on T's
      support plane (z = lo.z). An asset's *front* is its -Y side, as in Blender's front view.
@@ -276,12 +281,14 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
         elif catalog[obj.class_name].kind == "environment":
             problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has class {obj.class_name!r}, "
                                                 "which is an environment, not a placeable object")
-        elif obj.appearance is not None:
-            choices = catalog[obj.class_name].variants.get("appearance", ())
-            if obj.appearance not in choices:
-                problems.add(f"objects.{obj.uid}.appearance",
-                             f"object {obj.uid!r}: appearance {obj.appearance!r} is not a variant of "
-                             f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+        else:
+            for field_name, set_name, chosen in (("appearance", "appearance", obj.appearance),
+                                                 ("pose_variant", "pose", obj.pose_variant)):
+                choices = catalog[obj.class_name].variants.get(set_name, ())
+                if chosen is not None and chosen not in choices:
+                    problems.add(f"objects.{obj.uid}.{field_name}",
+                                 f"object {obj.uid!r}: {set_name} {chosen!r} is not a variant of "
+                                 f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
     for rel in scene.relations:
         if rel.type not in PLACEMENT_RELATIONS:
             continue
@@ -308,6 +315,15 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
                                     f"({rel.object_uid!r}) is not supported; relate it to a place")
             elif rel.object_uid == rel.subject_uid:
                 problems.add(where, f"relation {rel.uid!r}: object {rel.subject_uid!r} is related to itself")
+            elif objects[rel.object_uid].class_name in catalog:
+                target = objects[rel.object_uid]
+                entry = catalog[target.class_name]
+                variants = object_variants(target)
+                if entry.declares_support(rel.type) and entry.support_region(rel.type, variants) is None:
+                    shown = ", ".join(f"{k} {v!r}" for k, v in sorted(variants.items())) or "its default variants"
+                    problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
+                                        f"but class {target.class_name!r} with {shown} offers no region for "
+                                        f"{rel.type!r} (other variants do)")
         else:
             problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
                                 "which is neither a place nor an object of the document")
@@ -357,24 +373,44 @@ def _find_cycles(graph: Mapping[str, list[tuple[str, str]]], order: list[str]) -
 # Sampling
 
 
+def object_variants(obj: SceneObject) -> dict[str, str]:
+    """The variant selection an object asks for (variant set → variant; sets left to the
+    asset's default are left out)."""
+    from usdscene.stage_schema import VARIANT_SET_APPEARANCE, VARIANT_SET_POSE
+
+    chosen = {VARIANT_SET_APPEARANCE: obj.appearance, VARIANT_SET_POSE: obj.pose_variant}
+    return {k: v for k, v in chosen.items() if v is not None}
+
+
 def _translation(x: float, y: float, z: float) -> np.ndarray:
     m = np.eye(4)
     m[:3, 3] = (x, y, z)
     return m
 
 
-def object_support_region(relation: str, target: AssetEntry,
-                          target_pose: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
+def object_support_region(relation: str, target: AssetEntry, target_pose: np.ndarray,
+                          variants: Mapping[str, str] | None = None) -> tuple[np.ndarray, tuple[float, float, float]]:
     """Support region that ``relation`` defines on another object (see the module docstring).
 
     Args:
         relation: ``is_on``, ``is_in`` or ``is_in_front_of``.
         target: catalog entry of the related object.
         target_pose: (4, 4) its object → world pose.
+        variants: the related object's variant selection (variant set → variant; missing sets
+            take the entry's defaults): it decides which declared support places apply.
 
     Returns:
         ``(region → world (4, 4), (x, y, z) size in metres)``; z may be ``inf``.
+
+    Raises:
+        ValueError: the entry declares the relation for other variants only.
     """
+    declared = target.support_region(relation, variants)
+    if declared is not None:
+        region = declared[1]
+        return target_pose @ region.pose.as_array(), tuple(float(v) for v in region.size_m)  # type: ignore[return-value]
+    if target.declares_support(relation):
+        raise ValueError(f"class {target.class_name!r} offers no {relation!r} region with variants {dict(variants or {})}")
     lo = np.asarray(target.extent_min_m, dtype=np.float64)
     hi = np.asarray(target.extent_max_m, dtype=np.float64)
     cx, cy = (lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0
@@ -518,6 +554,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                 region_pose, size = region.pose.as_array(), tuple(float(v) for v in region.size_m)
                 label = f"place {place_name!r} ({rel.type})"
                 exclude = None
+                upright_only = False
             else:
                 target = done.get(rel.object_uid)
                 if target is None:
@@ -526,12 +563,15 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                                  f"at frame {frame}, but {rel.object_uid!r} is not present in that frame")
                     continue
                 region_pose, size = object_support_region(rel.type, infos[rel.object_uid].entry,
-                                                          np.asarray(target.world).reshape(4, 4))
+                                                          np.asarray(target.world).reshape(4, 4),
+                                                          object_variants(objects[rel.object_uid]))
                 label = f"object {rel.object_uid!r} ({rel.type})"
                 exclude = rel.object_uid
-            cache_key = (info.obj.class_name, size)
+                # On a declared support place (a lap) objects lie as modelled, never on an edge.
+                upright_only = infos[rel.object_uid].entry.declares_support(rel.type)
+            cache_key = (info.obj.class_name, size, upright_only)
             if cache_key not in orientation_cache:
-                orientation_cache[cache_key] = _orientations(info.entry, size)
+                orientation_cache[cache_key] = _orientations(info.entry, size, upright_only)
             orientations = orientation_cache[cache_key]
             if not orientations:
                 lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
@@ -704,7 +744,7 @@ _LAY_ROTATIONS = (np.eye(3),
                   np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]))
 
 
-def fits_region(entry: AssetEntry, size_m: tuple[float, float, float]) -> bool:
+def fits_region(entry: AssetEntry, size_m: tuple[float, float, float], upright_only: bool = False) -> bool:
     """Can an object of this class rest alone in a support region of this size?
 
     The same test :func:`place_objects` applies before sampling (upright, turned a quarter or
@@ -713,15 +753,18 @@ def fits_region(entry: AssetEntry, size_m: tuple[float, float, float]) -> bool:
     Args:
         entry: catalog entry of the object's class.
         size_m: (x, y, z) size of the region in metres (z may be ``inf``).
+        upright_only: only as modelled (upright or turned a quarter): the rule for support
+            places an object declares (a lap), where nothing stands on its edge.
     """
-    return bool(_orientations(entry, tuple(float(v) for v in size_m)))  # type: ignore[arg-type]
+    return bool(_orientations(entry, tuple(float(v) for v in size_m), upright_only))  # type: ignore[arg-type]
 
 
-def _orientations(entry: AssetEntry, size: tuple[float, float, float]) -> list[_Orientation]:
+def _orientations(entry: AssetEntry, size: tuple[float, float, float],
+                  upright_only: bool = False) -> list[_Orientation]:
     """Every orientation that fits the region, preferred first: upright, upright turned a
     quarter, then lying on a side (a bag too tall for the space under a seat is laid down, as
-    people do). Seated assets stay upright and only their part above the origin counts for
-    clearance."""
+    people do), unless ``upright_only``. Seated assets stay upright and only their part above
+    the origin counts for clearance."""
     lo0 = np.asarray(entry.extent_min_m, dtype=np.float64)
     hi0 = np.asarray(entry.extent_max_m, dtype=np.float64)
     if _seated(entry):
@@ -742,7 +785,7 @@ def _orientations(entry: AssetEntry, size: tuple[float, float, float]) -> list[_
                 fitting.append(orientation)
     # Lying down is only for objects that do not fit upright.
     upright = [o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated]
-    return upright or fitting
+    return upright if upright or upright_only else fitting
 
 
 def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[float, float, float]):

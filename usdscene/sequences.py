@@ -31,14 +31,20 @@ holds for one frame. The chosen appearance variant and colour of every object ar
 the document (explicit object data), so every label traces back to its variant and colour, and
 the generator's seed and options to the report.
 
-Passengers (``occupancy``): per frame that fraction of the places whose ``is_on`` region seats a
-passenger-kind class gets one, drawn from a per-class pool whose objects have random appearance
-variants; the pool is shuffled over the seats every frame.
+Passengers (``occupancy``): per frame, before the objects, that fraction of the places whose
+``is_on`` region seats a passenger-kind class gets one. Each seated passenger draws its
+``pose`` variant per frame (among the poses whose lap holds the object planned on it, if any);
+passengers of one class and pose share a pool whose objects draw random appearance variants.
+Seated passengers are supports: every support place their class declares (the ``lap``, per
+pose: :func:`lap_regions`) is a *lap place* ``<seat>/lap`` that ``balanced`` and
+``appearance`` fill like any region while somebody sits there; the document relates the object
+``is_on`` the passenger object.
 """
 
 from __future__ import annotations
 
 import collections
+import dataclasses
 import fnmatch
 import hashlib
 import logging
@@ -50,9 +56,9 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from usdscene.catalog import Catalog, place_items
+from usdscene.catalog import Catalog, Place, PlaceRegion, place_items
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec
+from usdscene.model import FrameInterval, PlaceRef, Pose, Randomization, Relation, SceneObject, SceneSpec
 from usdscene.placement import PLACEMENT_RELATIONS, fits_region
 
 log = logging.getLogger(__name__)
@@ -103,6 +109,9 @@ class GenerateOptions:
             class count, or what coverage within ``frames`` needs when ``frames`` is given.
         position_noise_m: position noise (standard deviation, metres) of generated objects.
         rotation_noise_deg: yaw noise (standard deviation, degrees) of generated objects.
+        split: training split rule written into the document (``metadata.usdscene.split``,
+            :mod:`usdscene.splits` syntax); "" keeps the setup's own rule, if any.
+        split_seed: seed of a ``fractions`` split rule.
     """
 
     strategy: str
@@ -114,6 +123,8 @@ class GenerateOptions:
     objects_per_frame: int | None = None
     position_noise_m: float = 0.03
     rotation_noise_deg: float = 20.0
+    split: str = ""
+    split_seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -348,29 +359,41 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
     classes, combos, passenger_classes = _check_options(setup, catalog, options)
     rng = np.random.default_rng(options.seed)
     n_places_regions = {c.region for c in combos}
-    all_regions = [(name, relation) for name, place in catalog.places(setup.environment).items()
-                   for relation in place.regions]
+    all_regions = sorted((name, relation) for name, place in catalog.places(setup.environment).items()
+                         for relation in place.regions)
     conflicts = region_conflicts(catalog, setup.environment, all_regions)
     fixed_taken = [(region, when) for fixed_region, when in _fixed_regions(setup)
                    for region in conflicts.get(fixed_region, {fixed_region})]
 
+    laps = lap_regions(catalog, setup.environment, passenger_classes, options)
+    if laps:
+        conflicts = region_conflicts(_with_lap_places(catalog, setup.environment, laps), setup.environment,
+                                     all_regions + sorted(laps))
     if options.strategy == "single-class":
         plan = plan_single_class(combos, conflicts, (region for region, _ in fixed_taken))
         n_frames = len(plan)
         per_frame = max((len(p) for p in plan), default=0)
+        busy = [{r for c in combos_ for r in conflicts.get(c.region, {c.region})} | _taken_at(fixed_taken, f)
+                for f, combos_ in enumerate(plan)]
+        seated = _draw_seats(busy, setup, catalog, passenger_classes, options, conflicts, rng)
+        lap_combos: tuple[Combination, ...] = ()
     else:
+        lap_combos = lap_combinations(catalog, classes, laps)
+        combos = tuple(sorted(combos + lap_combos))
         per_frame = options.objects_per_frame
         if per_frame is None:
             per_frame = len(classes) if options.frames is None else math.ceil(
                 len(classes) * _most_combinations(combos, classes) / options.frames)
         per_frame = max(1, min(per_frame, len(n_places_regions)))
         n_frames = options.frames or frames_for_coverage(combos, classes, per_frame)
-        taken = [_taken_at(fixed_taken, f) for f in range(n_frames)]
+        seated = _draw_seats([_taken_at(fixed_taken, f) for f in range(n_frames)], setup, catalog,
+                             passenger_classes, options, conflicts, rng)
+        taken = [_taken_at(fixed_taken, f) | _seated_taken(row, laps, conflicts) for f, row in enumerate(seated)]
         plan = plan_balanced(combos, classes, n_frames, per_frame, taken, conflicts, rng)
 
     slots = _pool_indices(plan, options.strategy)
     looks = _draw_looks(plan, slots, catalog, options, rng)
-    seats = _seat_passengers(plan, setup, catalog, passenger_classes, options, fixed_taken, conflicts, rng)
+    seats = _dress_passengers(seated, plan, catalog, laps, rng)
     scene = _sequence_scene(setup, plan, slots, looks, seats, options)
     covered = {c for frame in plan for c in frame}
     uncovered = sorted(set(combos) - covered)
@@ -380,7 +403,8 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         "classes": list(classes), "place_patterns": list(options.place_patterns),
         "occupancy": float(options.occupancy), "objects_per_frame": int(per_frame),
         "frames": int(n_frames), "position_noise_m": float(options.position_noise_m),
-        "rotation_noise_deg": float(options.rotation_noise_deg)}
+        "rotation_noise_deg": float(options.rotation_noise_deg),
+        "split": scene.split_rule, "split_seed": int(scene.split_seed)}
     report["coverage"] = {
         "combinations": len(combos), "covered": len(covered), "uncovered_count": len(uncovered),
         "uncovered": [[c.class_name, c.relation, c.place] for c in uncovered],
@@ -417,6 +441,15 @@ def _check_options(setup: SceneSpec, catalog: Catalog, options: GenerateOptions)
         problems.add("--occupancy", f"occupancy must be a fraction in [0, 1], got {options.occupancy}")
     if options.seed < 0:
         problems.add("--seed", f"seed must be non-negative, got {options.seed}")
+    if options.split:
+        from usdscene.splits import parse_split
+
+        try:
+            parse_split(options.split)
+        except DocumentError as exc:
+            problems.extend(exc.problems)
+    if options.split_seed < 0:
+        problems.add("--split-seed", f"seed must be non-negative, got {options.split_seed}")
     known = catalog.classes("object")
     for name in options.classes:
         if name not in catalog or catalog[name].kind != "object":
@@ -520,28 +553,122 @@ def passenger_seats(catalog: Catalog, environment: str, class_name: str,
     return tuple(out)
 
 
-def _seat_passengers(plan: list[list[Combination]], setup: SceneSpec, catalog: Catalog,
-                     passenger_classes: Sequence[str], options: GenerateOptions,
-                     fixed: Sequence[tuple[Region, tuple[FrameInterval, ...]]],
-                     conflicts: Mapping[Region, frozenset[Region]],
-                     rng: np.random.Generator) -> list[list[tuple[str, int, str, str | None]]]:
-    """Per frame: (passenger class, pool index, seat place, appearance) of each passenger.
+@dataclass(frozen=True)
+class Lap:
+    """A support place a seated passenger offers (its ``lap``), on one seat.
 
-    ``occupancy`` of the seats, among those the frame's objects and fixed objects leave free,
-    in random seats; the class's pool objects are dealt to them in random order, and each
-    pool object draws its appearance variant when first used.
+    Attributes:
+        passenger_class: the passenger class offering it.
+        place: the passenger asset's place name (``lap``).
+        by_variant: variant of the passenger's pose variant set → the region in world
+            coordinates when seated on this seat; variants without one are left out.
+        variant_set: the variant set that decides it (``pose``); "" when it does not vary.
+    """
+
+    passenger_class: str
+    place: str
+    by_variant: Mapping[str, PlaceRegion]
+    variant_set: str = ""
+
+
+def lap_place_name(seat: str, place: str) -> str:
+    """Name of a passenger's support place on a seat in plans and reports: ``seat_03A/lap``."""
+    return f"{seat}/{place}"
+
+
+def lap_regions(catalog: Catalog, environment: str, passenger_classes: Sequence[str],
+                options: GenerateOptions) -> dict[Region, Lap]:
+    """The support regions seated passengers offer, per seat: ``(seat_03A/lap, is_on)`` → :class:`Lap`.
+
+    A passenger class offers the ``is_on`` places its catalog entry declares (per pose
+    variant, :meth:`usdscene.catalog.AssetEntry.places_for`); seated on a seat's ``is_on``
+    region, without noise, its asset frame is that region's frame. Empty when ``occupancy`` is 0.
+    """
+    if options.occupancy <= 0.0:
+        return {}
+    out: dict[Region, Lap] = {}
+    places = catalog.places(environment)
+    for class_name in passenger_classes:
+        entry = catalog[class_name]
+        if not entry.declares_support(PASSENGER_RELATION):
+            continue
+        variant_set = next(iter(sorted(entry.variant_places)), "")
+        variants = entry.variants.get(variant_set, ()) if variant_set else ("",)
+        for seat in passenger_seats(catalog, environment, class_name, options.place_patterns):
+            seat_pose = places[seat].regions[PASSENGER_RELATION].pose
+            by_place: dict[str, dict[str, PlaceRegion]] = collections.defaultdict(dict)
+            for variant in variants:
+                found = entry.support_region(PASSENGER_RELATION, {variant_set: variant} if variant_set else None)
+                if found is not None:
+                    name, region = found
+                    by_place[name][variant] = PlaceRegion(region.relation, seat_pose.compose(region.pose),
+                                                          region.size_m)
+            for name, by_variant in sorted(by_place.items()):
+                # One passenger class per seat offers laps (the first by name): a lap place
+                # name must say whose lap it is.
+                out.setdefault((lap_place_name(seat, name), PASSENGER_RELATION),
+                               Lap(class_name, name, dict(by_variant), variant_set))
+    return out
+
+
+def lap_combinations(catalog: Catalog, classes: Sequence[str], laps: Mapping[Region, Lap]) -> tuple[Combination, ...]:
+    """(class, ``is_on``, ``seat/lap``) for every class that fits the lap of at least one pose
+    (:func:`usdscene.placement.fits_region`, as for places); the passenger then takes a pose
+    whose lap holds it (:func:`_dress_passengers`)."""
+    out = []
+    for (place, relation), lap in sorted(laps.items()):
+        for class_name in classes:
+            entry = catalog[class_name]
+            if relation in entry.relations and any(fits_region(entry, r.size_m, upright_only=True)
+                                                     for r in lap.by_variant.values()):
+                out.append(Combination(class_name, relation, place))
+    return tuple(out)
+
+
+def _with_lap_places(catalog: Catalog, environment: str, laps: Mapping[Region, Lap]) -> Catalog:
+    """``catalog`` whose environment also has one place per lap, its region the box around the
+    lap of every pose (for :func:`region_conflicts`: whatever pose is drawn, a lap object
+    stays inside it)."""
+    entry = catalog[environment]
+    places = dict(entry.places)
+    for (name, relation), lap in laps.items():
+        regions = list(lap.by_variant.values())
+        base = regions[0].pose.as_array()
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for region in regions:
+            local = np.linalg.inv(base) @ region.pose.as_array()
+            half = np.array([region.size_m[0] / 2.0, region.size_m[1] / 2.0, 0.0])
+            for corner in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                for z in (0.0, min(float(region.size_m[2]), OPEN_HEIGHT_M)):
+                    point = local[:3, :3] @ np.array([corner[0] * half[0], corner[1] * half[1], z]) + local[:3, 3]
+                    lo, hi = np.minimum(lo, point), np.maximum(hi, point)
+        centre = base.copy()
+        centre[:3, 3] = base[:3, :3] @ np.array([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]]) + base[:3, 3]
+        places[name] = Place(name, "lap", {relation: PlaceRegion(relation, Pose.from_matrix(centre),
+                                                                 tuple(float(v) for v in hi - lo))})
+    entries = dict(catalog.entries)
+    entries[environment] = dataclasses.replace(entry, places=places)
+    return dataclasses.replace(catalog, entries=entries)
+
+
+def _draw_seats(busy: Sequence[set[Region]], setup: SceneSpec, catalog: Catalog,
+                passenger_classes: Sequence[str], options: GenerateOptions,
+                conflicts: Mapping[Region, frozenset[Region]],
+                rng: np.random.Generator) -> list[list[tuple[str, str]]]:
+    """Per frame: (passenger class, seat place) of each passenger.
+
+    ``occupancy`` of the seats, among those ``busy`` (per frame: regions already used) leaves
+    free, in random seats, each with a random passenger class that fits it.
     """
     if options.occupancy <= 0.0 or not passenger_classes:
-        return [[] for _ in plan]
+        return [[] for _ in busy]
     seats_by_class = {c: set(passenger_seats(catalog, setup.environment, c, options.place_patterns))
                       for c in passenger_classes}
     all_seats = sorted(set().union(*seats_by_class.values()))
     wanted = int(round(options.occupancy * len(all_seats)))
-    looks: dict[tuple[str, int], str | None] = {}
     out = []
-    for frame, combos in enumerate(plan):
-        busy = {r for c in combos for r in conflicts.get(c.region, {c.region})} | _taken_at(fixed, frame)
-        free = [s for s in all_seats if (s, PASSENGER_RELATION) not in busy]
+    for taken in busy:
+        free = [s for s in all_seats if (s, PASSENGER_RELATION) not in taken]
         chosen = [free[int(i)] for i in rng.permutation(len(free))]
         # Seats whose regions overlap take one passenger.
         free, taken_now = [], set()
@@ -549,19 +676,61 @@ def _seat_passengers(plan: list[list[Combination]], setup: SceneSpec, catalog: C
             if (seat, PASSENGER_RELATION) not in taken_now:
                 free.append(seat)
                 taken_now |= conflicts.get((seat, PASSENGER_RELATION), {(seat, PASSENGER_RELATION)})
-        chosen = free[:wanted]
-        dealt: collections.Counter = collections.Counter()
         row = []
-        for seat in chosen:
+        for seat in free[:wanted]:
             fitting = [c for c in passenger_classes if seat in seats_by_class[c]]
-            class_name = fitting[int(rng.integers(len(fitting)))]
-            slot = dealt[class_name]
-            dealt[class_name] += 1
-            if (class_name, slot) not in looks:
-                variants = catalog[class_name].appearances
-                looks[(class_name, slot)] = variants[int(rng.integers(len(variants)))] if variants else None
-            row.append((class_name, slot, seat, looks[(class_name, slot)]))
+            row.append((fitting[int(rng.integers(len(fitting)))], seat))
         out.append(row)
+    return out
+
+
+def _seated_taken(row: Sequence[tuple[str, str]], laps: Mapping[Region, Lap],
+                  conflicts: Mapping[Region, frozenset[Region]]) -> set[Region]:
+    """Regions a frame's passengers take: their seats and what overlaps them, except their own
+    laps; and the laps of every seat without a passenger offering one."""
+    offered = {region for region, lap in laps.items() for cls, seat in row
+               if lap.passenger_class == cls and region[0].startswith(seat + "/")}
+    taken = set(laps) - offered
+    for _, seat in row:
+        taken |= set(conflicts.get((seat, PASSENGER_RELATION), {(seat, PASSENGER_RELATION)})) - offered
+    return taken
+
+
+def _dress_passengers(seated: Sequence[Sequence[tuple[str, str]]], plan: list[list[Combination]],
+                      catalog: Catalog, laps: Mapping[Region, Lap],
+                      rng: np.random.Generator) -> list[list[tuple[str, str | None, int, str, str | None]]]:
+    """Per frame: (passenger class, pose variant, pool index, seat place, appearance) of each
+    passenger.
+
+    Each passenger draws its pose (uniform) among the class's pose variants, or, when the plan
+    puts an object on its lap, among the poses whose lap holds that object. Passengers of one
+    class and pose share a pool: the k-th such passenger of a frame is pool object k, which
+    draws its appearance variant when first used. Classes without a pose variant set keep the
+    asset's default (pose None).
+    """
+    from usdscene.stage_schema import VARIANT_SET_POSE
+
+    looks: dict[tuple[str, str | None, int], str | None] = {}
+    out = []
+    for frame, row in enumerate(seated):
+        on_lap = {c.place: catalog[c.class_name] for c in plan[frame] if (c.place, c.relation) in laps}
+        dealt: collections.Counter = collections.Counter()
+        dressed = []
+        for class_name, seat in row:
+            entry = catalog[class_name]
+            poses = entry.variants.get(VARIANT_SET_POSE, ())
+            for (place, _), lap in sorted(laps.items()):
+                if place in on_lap and place.startswith(seat + "/") and lap.passenger_class == class_name:
+                    poses = tuple(p for p in poses if p in lap.by_variant
+                                  and fits_region(on_lap[place], lap.by_variant[p].size_m, upright_only=True))
+            pose = poses[int(rng.integers(len(poses)))] if poses else None
+            slot = dealt[(class_name, pose)]
+            dealt[(class_name, pose)] += 1
+            if (class_name, pose, slot) not in looks:
+                variants = entry.appearances
+                looks[(class_name, pose, slot)] = variants[int(rng.integers(len(variants)))] if variants else None
+            dressed.append((class_name, pose, slot, seat, looks[(class_name, pose, slot)]))
+        out.append(dressed)
     return out
 
 
@@ -584,43 +753,52 @@ def _sequence_scene(setup: SceneSpec, plan: list[list[Combination]], slots: list
 
     noise = Randomization(position_noise_m=float(options.position_noise_m),
                           rotation_noise_deg=float(options.rotation_noise_deg))
-    # (class, pool index) → frames, look; then relations per frame.
-    uses: dict[tuple[str, int], list[int]] = collections.defaultdict(list)
-    look_of: dict[tuple[str, int], tuple] = {}
-    per_frame: list[list[tuple[tuple[str, int], str, str]]] = []
+    # (class, pose, pool index) → frames, look; then relations per frame. Objects have pose
+    # "", passengers their pose variant and a pool index below zero.
+    uses: dict[tuple[str, str, int], list[int]] = collections.defaultdict(list)
+    look_of: dict[tuple[str, str, int], tuple] = {}
+    per_frame: list[list[tuple[tuple[str, str, int], str, str | tuple[str, str, int]]]] = []
     for frame, combos in enumerate(plan):
-        row = []
-        for combo, slot, look in zip(combos, slots[frame], looks[frame]):
-            key = (combo.class_name, slot)
-            uses[key].append(frame)
-            look_of[key] = look
-            row.append((key, combo.relation, combo.place))
-        for class_name, slot, seat, appearance in seats[frame]:
-            key = (class_name, -1 - slot)  # passengers: pool index below zero
+        row: list = []
+        sitter: dict[str, tuple[str, str, int]] = {}
+        for class_name, pose, slot, seat, appearance in seats[frame]:
+            key = (class_name, pose or "", -1 - slot)
             uses[key].append(frame)
             look_of[key] = (appearance, None)
+            sitter[seat] = key
             row.append((key, PASSENGER_RELATION, seat))
+        for combo, slot, look in zip(combos, slots[frame], looks[frame]):
+            key = (combo.class_name, "", slot)
+            uses[key].append(frame)
+            look_of[key] = look
+            seat = combo.place.split("/", 1)[0]
+            # On a lap: related to the passenger sitting there.
+            row.append((key, combo.relation, sitter[seat] if "/" in combo.place else combo.place))
         per_frame.append(row)
-    uid_of: dict[tuple[str, int], str] = {}
+    uid_of: dict[tuple[str, str, int], str] = {}
     objects = list(setup.objects)
-    for key in sorted(uses, key=lambda k: (k[0], k[1] < 0, abs(k[1]))):
-        class_name, slot = key
+    for key in sorted(uses, key=lambda k: (k[0], k[2] < 0, k[1], abs(k[2]))):
+        class_name, pose, slot = key
         uid = str(next(next_uid))
         uid_of[key] = uid
         appearance, color = look_of[key]
-        label = f"{class_name}_{slot:04d}" if slot >= 0 else f"{class_name}_seated_{-1 - slot:03d}"
+        if slot >= 0:
+            label = f"{class_name}_{slot:04d}"
+        else:
+            label = f"{class_name}_{pose + '_' if pose else ''}seated_{-1 - slot:03d}"
         objects.append(SceneObject(
             uid=uid, name=label, class_name=class_name,
-            frame_intervals=_intervals(uses[key]), appearance=appearance, color_rgb=color,
-            randomization=noise if slot >= 0 else Randomization()))
+            frame_intervals=_intervals(uses[key]), appearance=appearance, pose_variant=pose or None,
+            color_rgb=color, randomization=noise if slot >= 0 else Randomization()))
     relations = list(setup.relations)
     for frame, row in enumerate(per_frame):
-        for key, relation, place in row:
+        for key, relation, target in row:
             relations.append(Relation(uid=str(next(next_rel)), type=relation, subject_uid=uid_of[key],
-                                      object_uid=place_ref(place),
+                                      object_uid=uid_of[target] if isinstance(target, tuple) else place_ref(target),
                                       frame_intervals=(FrameInterval(frame, frame),)))
     n_frames = max(len(plan), 1)
-    return replace(setup, frame_start=0, frame_end=n_frames - 1, objects=tuple(objects),
+    split = dict(split_rule=options.split, split_seed=int(options.split_seed)) if options.split else {}
+    return replace(setup, **split, frame_start=0, frame_end=n_frames - 1, objects=tuple(objects),
                    places=tuple(setup.places) + tuple(new_places), relations=tuple(relations),
                    seed=int(options.seed),
                    description=(setup.description + " " if setup.description else "")
@@ -659,7 +837,9 @@ def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
     """Counts of a scene document: what a dataset built from it holds.
 
     An *instance-frame* is one object present in one frame. Objects placed on another object
-    count at the place and relation their chain of relations ends at.
+    count at the place and relation their chain of relations ends at; with a catalog, an object
+    on another object's declared support place (a magazine on a passenger's lap) counts with
+    its own relation at ``<place>/<support place>`` (``seat_03A/lap``, kind ``lap``).
 
     Args:
         scene: the scene.
@@ -687,6 +867,7 @@ def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
     for obj in scene.objects:
         classes.setdefault(obj.class_name, {"objects": 0, "instance_frames": 0})["objects"] += 1
     resolved_at = resolve_places_over(scene, scene.frames)
+    on_support = _declared_supports(scene, catalog) if catalog is not None else {}
     for obj in scene.objects:
         intervals = obj.frame_intervals or (FrameInterval(scene.frame_start, scene.frame_end),)
         frames = sorted({f for iv in intervals for f in iv.frames() if f in resolved_at})
@@ -695,13 +876,19 @@ def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
             total += 1
             classes[obj.class_name]["instance_frames"] += 1
             place_uid, relation = resolved.get(obj.uid, (None, "none"))
+            support = on_support.get((frame, obj.uid))
+            if support is not None and place_uid is not None:
+                relation = support[0]
             matrix.setdefault(obj.class_name, collections.Counter())[relation] += 1
             relations[relation] += 1
             if place_uid is not None:
                 name = place_names.get(place_uid, place_uid)
+                kind = kinds.get(name)
+                if support is not None:
+                    name, kind = lap_place_name(name, support[1]), support[2]
                 places[name] += 1
-                if name in kinds:
-                    place_kinds[kinds[name]] += 1
+                if kind is not None:
+                    place_kinds[kind] += 1
     n_frames = len(scene.frames)
     return {
         "format": REPORT_FORMAT, "version": 1, "scene": scene.name,
@@ -713,6 +900,37 @@ def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
         "places": dict(sorted(places.items())),
         "place_kinds": dict(sorted(place_kinds.items())),
     }
+
+
+def _declared_supports(scene: SceneSpec, catalog: Catalog) -> dict[tuple[int, str], tuple[str, str, str]]:
+    """(frame, uid) → (relation, support place name, its kind) for objects whose first
+    placement relation in that frame relates them to an object that declares a support place
+    for it (:meth:`usdscene.catalog.AssetEntry.support_region`)."""
+    from usdscene.placement import object_variants
+
+    objects = scene.object_by_uid()
+    out: dict[tuple[int, str], tuple[str, str, str]] = {}
+    first: set[tuple[int, str]] = set()
+    every = set(scene.frames)
+    for rel in scene.relations:
+        subject = objects.get(rel.subject_uid)
+        if rel.type not in PLACEMENT_RELATIONS or subject is None:
+            continue
+        intervals = rel.frame_intervals or subject.frame_intervals
+        frames = {f for iv in intervals for f in iv.frames()} & every if intervals else every
+        target = objects.get(rel.object_uid)
+        found = None
+        if target is not None and target.class_name in catalog:
+            entry = catalog[target.class_name]
+            found = entry.support_region(rel.type, object_variants(target))
+        for frame in frames:
+            if (frame, rel.subject_uid) in first:
+                continue
+            first.add((frame, rel.subject_uid))
+            if found is not None:
+                name = found[0]
+                out[(frame, rel.subject_uid)] = (rel.type, name, entry.places_for(object_variants(target))[name].kind)
+    return out
 
 
 def report_path(document: str | os.PathLike) -> Path:

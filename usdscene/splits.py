@@ -77,12 +77,75 @@ class SplitRule:
         return listed
 
 
-def parse_split(text: str) -> SplitRule:
+def parse_split(text: str, where: str = WHERE) -> SplitRule:
     """Parse a split rule (syntax in the module docstring).
 
+    Args:
+        text: the rule.
+        where: what the problems name (``--split``, or the document field that holds it).
+
     Raises:
-        DocumentError: naming ``--split`` and the bad part of the text.
+        DocumentError: naming ``where`` and the bad part of the text.
     """
+    try:
+        return _parse_split(text)
+    except DocumentError as exc:
+        if where == WHERE:
+            raise
+        raise DocumentError([Problem(where, p.message) for p in exc.problems]) from None
+
+
+DOCUMENT_FIELD = "metadata.usdscene.split"
+"""Where a scene document carries its split rule: ``{"rule": RULE, "seed": N}`` (seed
+optional, default 0)."""
+
+
+def document_split(document: Mapping) -> tuple[SplitRule, int] | None:
+    """The split rule an OpenLABEL document carries (:data:`DOCUMENT_FIELD`), with its seed;
+    None when it carries none.
+
+    Raises:
+        DocumentError: a malformed rule or seed, naming the field and the value.
+    """
+    meta = document.get("openlabel", document).get("metadata", {})
+    block = meta.get("usdscene", {}) if isinstance(meta, Mapping) else {}
+    value = block.get("split") if isinstance(block, Mapping) else None
+    if value is None:
+        return None
+    problems = ProblemCollector()
+    rule, seed = read_document_split(value, DOCUMENT_FIELD, problems)
+    problems.raise_if_any(DocumentError)
+    return (rule, seed) if rule is not None else None
+
+
+def read_document_split(value, where: str, problems: ProblemCollector) -> tuple[SplitRule | None, int]:
+    """Read ``{"rule": RULE, "seed": N}`` found at ``where``; problems go to ``problems``.
+
+    Returns:
+        (rule or None when it is bad, seed).
+    """
+    if not isinstance(value, Mapping):
+        problems.add(where, f"expected an object {{\"rule\": RULE, \"seed\": N}}, got {value!r}")
+        return None, 0
+    for key in value:
+        if key not in ("rule", "seed"):
+            problems.add(f"{where}.{key}", f"unknown key {key!r}; known keys: rule, seed")
+    seed = value.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        problems.add(f"{where}.seed", f"expected a non-negative integer, got {seed!r}")
+        seed = 0
+    text = value.get("rule")
+    if not isinstance(text, str) or not text.strip():
+        problems.add(f"{where}.rule", f"expected a split rule such as 'train=0.8,val=0.2', got {text!r}")
+        return None, seed
+    try:
+        return parse_split(text, where=f"{where}.rule"), seed
+    except DocumentError as exc:
+        problems.extend(exc.problems)
+        return None, seed
+
+
+def _parse_split(text: str) -> SplitRule:
     problems = ProblemCollector()
     body = text.strip()
     kind = "fractions"

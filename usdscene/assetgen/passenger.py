@@ -24,7 +24,8 @@ from usdscene import stage_schema
 from usdscene.assetgen import mesh as m
 from usdscene.assetgen.usd_write import (MaterialSpec, bounds_of_stage, define_material, define_mesh,
                                          in_variant, new_asset_stage, save_stage, set_material_color)
-from usdscene.catalog import AssetEntry
+from usdscene.catalog import AssetEntry, Place, PlaceRegion
+from usdscene.model import Pose as PoseMatrix
 
 FLOOR_BELOW_HIP_M = 0.45
 
@@ -97,8 +98,10 @@ def _rotate(v: np.ndarray, axis: str, angle_deg: float) -> np.ndarray:
     return rot @ v
 
 
-def figure_parts(pose: Pose) -> dict[str, list[m.MeshData]]:
-    """Meshes of the figure in ``pose`` by material (Body, Skin, Trousers, Shoes, Hair)."""
+def figure_segments(pose: Pose) -> dict[str, tuple[str, m.MeshData]]:
+    """Named body segments of the figure in ``pose``: segment → (material, mesh), passenger
+    frame facing +X (metres). Segments: pelvis, abdomen, chest, neck, head, hair,
+    upper_arm_/forearm_/hand_/thigh_/shin_/shoe_ + left (+Y) or right."""
     up = np.array([0.0, 0.0, 1.0])
     spine = _rotate(_rotate(up, "y", -pose.recline_deg), "x", -pose.lean_deg)
     base = np.array([-0.09, 0.0, 0.13])
@@ -110,33 +113,134 @@ def figure_parts(pose: Pose) -> dict[str, list[m.MeshData]]:
     side = -side / np.linalg.norm(side)  # +Y-ish
     shoulders = [neck_base - 0.04 * spine + s * 0.19 * side for s in (1.0, -1.0)]
 
-    body = [
-        _ellipsoid_along(base + 0.13 * spine, spine, (0.11, 0.16, 0.15), 10, 16),
-        _ellipsoid_along(chest + 0.02 * spine, spine, (0.12, 0.19, 0.19), 10, 16),
-    ]
-    skin = [
-        m.capsule(neck_base - 0.03 * spine, neck_base + 0.07 * spine, 0.052, 0.048, 3, 10),
-        _ellipsoid_along(head, head_dir, (0.095, 0.078, 0.115)),
-    ]
-    hair = [_ellipsoid_along(head + 0.035 * head_dir - 0.015 * np.array([1.0, 0.0, 0.0]), head_dir,
-                             (0.098, 0.083, 0.09), 6, 12)]
-    for shoulder, elbow, wrist in zip(shoulders, pose.elbows, pose.wrists):
+    out: dict[str, tuple[str, m.MeshData]] = {
+        "abdomen": ("Body", _ellipsoid_along(base + 0.13 * spine, spine, (0.11, 0.16, 0.15), 10, 16)),
+        "chest": ("Body", _ellipsoid_along(chest + 0.02 * spine, spine, (0.12, 0.19, 0.19), 10, 16)),
+        "neck": ("Skin", m.capsule(neck_base - 0.03 * spine, neck_base + 0.07 * spine, 0.052, 0.048, 3, 10)),
+        "head": ("Skin", _ellipsoid_along(head, head_dir, (0.095, 0.078, 0.115))),
+        "hair": ("Hair", _ellipsoid_along(head + 0.035 * head_dir - 0.015 * np.array([1.0, 0.0, 0.0]), head_dir,
+                                          (0.098, 0.083, 0.09), 6, 12)),
+    }
+    for side_name, shoulder, elbow, wrist in zip(("left", "right"), shoulders, pose.elbows, pose.wrists):
         elbow, wrist = np.asarray(elbow), np.asarray(wrist)
-        body.append(m.capsule(shoulder, elbow, 0.050, 0.042, 3, 10))
-        skin.append(m.capsule(elbow, wrist, 0.036, 0.028, 3, 10))
+        out[f"upper_arm_{side_name}"] = ("Body", m.capsule(shoulder, elbow, 0.050, 0.042, 3, 10))
+        out[f"forearm_{side_name}"] = ("Skin", m.capsule(elbow, wrist, 0.036, 0.028, 3, 10))
         direction = (wrist - elbow) / np.linalg.norm(wrist - elbow)
-        skin.append(_ellipsoid_along(wrist + 0.06 * direction, direction, (0.022, 0.045, 0.07), 5, 10))
-    trousers = [_ellipsoid_along(np.array([-0.05, 0.0, 0.10]), up, (0.13, 0.17, 0.09))]
-    shoes = []
-    for s in (1.0, -1.0):
+        out[f"hand_{side_name}"] = ("Skin", _ellipsoid_along(wrist + 0.06 * direction, direction,
+                                                             (0.022, 0.045, 0.07), 5, 10))
+    out["pelvis"] = ("Trousers", _ellipsoid_along(np.array([-0.05, 0.0, 0.10]), up, (0.13, 0.17, 0.09)))
+    for side_name, s in (("left", 1.0), ("right", -1.0)):
         hip = np.array([-0.03, s * 0.09, 0.09])
         knee = np.array([0.40, s * (0.11 + pose.knee_spread_m), 0.12])
         ankle = np.array([0.44, s * (0.11 + pose.knee_spread_m), -FLOOR_BELOW_HIP_M + 0.08])
-        trousers.append(m.capsule(hip, knee, 0.078, 0.056, 3, 12))
-        trousers.append(m.capsule(knee, ankle, 0.052, 0.038, 3, 10))
-        shoes.append(m.rounded_box((0.26, 0.095, 0.075), 0.03, 2).translated(
+        out[f"thigh_{side_name}"] = ("Trousers", m.capsule(hip, knee, 0.078, 0.056, 3, 12))
+        out[f"shin_{side_name}"] = ("Trousers", m.capsule(knee, ankle, 0.052, 0.038, 3, 10))
+        out[f"shoe_{side_name}"] = ("Shoes", m.rounded_box((0.26, 0.095, 0.075), 0.03, 2).translated(
             (ankle[0] + 0.07, ankle[1], -FLOOR_BELOW_HIP_M + 0.0375)))
-    return {"Body": body, "Skin": skin, "Trousers": trousers, "Shoes": shoes, "Hair": hair}
+    return out
+
+
+def figure_parts(pose: Pose) -> dict[str, list[m.MeshData]]:
+    """Meshes of the figure in ``pose`` by material (Body, Skin, Trousers, Shoes, Hair)."""
+    parts: dict[str, list[m.MeshData]] = {"Body": [], "Skin": [], "Trousers": [], "Shoes": [], "Hair": []}
+    for material, mesh in figure_segments(pose).values():
+        parts[material].append(mesh)
+    return parts
+
+
+LAP_PLACE = "lap"
+LAP_MIN_CLEARANCE_M = 0.03
+"""Free height above the thighs a lap needs (a magazine, a phone, a closed laptop)."""
+LAP_CELL_M = 0.01
+"""Grid of the free-space search over the thighs."""
+LAP_MARGIN_M = 0.015
+"""Limb meshes have a vertex every 1-3 cm: each vertex blocks the cells this close."""
+LAP_MAX_CLEARANCE_M = 0.25
+"""Height a lap holds at most: flat things and small bags, not luggage that would hide the
+face (nothing above the lap but open air otherwise bounds it)."""
+LAP_SAG_M = 0.01
+"""The thighs' top line: thigh points this close below the highest one (knees included)."""
+_LAP_SUPPORT = ("thigh_left", "thigh_right")
+_LAP_FLOOR = ("pelvis", "abdomen")                 # where the lap begins: the belly ends
+_LAP_IGNORED = ("shin_left", "shin_right", "shoe_left", "shoe_right")  # below the lap
+
+
+def lap_region(pose: Pose) -> PlaceRegion | None:
+    """The lap of the figure in ``pose``: the largest box resting on the thighs that no other
+    body part (hands, forearms, belly) reaches into.
+
+    The support surface is the top of the thighs (their highest point); the footprint runs
+    from where the belly ends to the knees, between the thighs' outer sides, on a
+    :data:`LAP_CELL_M` grid; every other segment's vertices block their cells (grown by
+    :data:`LAP_MARGIN_M`) from their lowest point up. The largest rectangle whose free height
+    is at least :data:`LAP_MIN_CLEARANCE_M` wins (ties: more clearance); its height is the
+    free height, at most :data:`LAP_MAX_CLEARANCE_M`.
+
+    Returns:
+        The ``is_on`` region in the asset frame (facing -Y: the figure is modelled facing +X
+        and turned -90° about Z), or None when no such rectangle exists (hands in the lap).
+    """
+    segments = figure_segments(pose)
+    thighs = np.vstack([segments[n][1].points for n in _LAP_SUPPORT])
+    surface = float(thighs[:, 2].max())
+    belly = np.vstack([segments[n][1].points for n in _LAP_FLOOR])
+    x0 = float(belly[belly[:, 2] >= surface, 0].max())
+    top = thighs[thighs[:, 2] >= surface - LAP_SAG_M]
+    x1 = float(top[:, 0].max())
+    y0, y1 = float(thighs[:, 1].min()), float(thighs[:, 1].max())
+    nx, ny = int((x1 - x0) // LAP_CELL_M), int((y1 - y0) // LAP_CELL_M)
+    free = np.full((nx, ny), np.inf)  # free height above the surface per cell, metres
+    others = [mesh.points for name, (_, mesh) in segments.items()
+              if name not in _LAP_SUPPORT + _LAP_IGNORED]
+    for p in np.vstack(others):
+        i0 = int(np.floor((p[0] - LAP_MARGIN_M - x0) / LAP_CELL_M))
+        i1 = int(np.floor((p[0] + LAP_MARGIN_M - x0) / LAP_CELL_M))
+        j0 = int(np.floor((p[1] - LAP_MARGIN_M - y0) / LAP_CELL_M))
+        j1 = int(np.floor((p[1] + LAP_MARGIN_M - y0) / LAP_CELL_M))
+        if i1 < 0 or j1 < 0 or i0 >= nx or j0 >= ny:
+            continue
+        cells = free[max(i0, 0):i1 + 1, max(j0, 0):j1 + 1]
+        np.minimum(cells, p[2] - surface, out=cells)
+    best = None  # (area cells, clearance, i0, i1, j0, j1)
+    for j0 in range(ny):
+        column = np.full(nx, np.inf)
+        for j1 in range(j0, ny):
+            column = np.minimum(column, free[:, j1])
+            ok = column >= LAP_MIN_CLEARANCE_M
+            i = 0
+            while i < nx:
+                if not ok[i]:
+                    i += 1
+                    continue
+                k = i
+                while k < nx and ok[k]:
+                    k += 1
+                area = (k - i) * (j1 - j0 + 1)
+                clearance = float(column[i:k].min())
+                if best is None or (area, clearance) > best[:2]:
+                    best = (area, clearance, i, k, j0, j1 + 1)
+                i = k
+    if best is None:
+        return None
+    _, clearance, i0, i1, j0, j1 = best
+    cx, cy = x0 + (i0 + i1) / 2.0 * LAP_CELL_M, y0 + (j0 + j1) / 2.0 * LAP_CELL_M
+    length, width = (i1 - i0) * LAP_CELL_M, (j1 - j0) * LAP_CELL_M
+    clearance = min(clearance, LAP_MAX_CLEARANCE_M)
+    # Modelled facing +X; the asset faces -Y: (x, y) → (y, -x), sizes swap.
+    matrix = np.eye(4)
+    matrix[:3, 3] = [round(cy, 4) + 0.0, round(-cx, 4) + 0.0, round(surface, 4) + 0.0]
+    return PlaceRegion(relation="is_on", pose=PoseMatrix.from_matrix(matrix.reshape(16).tolist()),
+                       size_m=(round(width, 4), round(length, 4), round(clearance, 4)))
+
+
+def lap_places() -> dict[str, dict[str, Place]]:
+    """``variant_places`` of the pose variant set: pose → {``lap``: Place} (empty when the
+    pose has no lap)."""
+    out: dict[str, dict[str, Place]] = {}
+    for name, pose in POSES.items():
+        region = lap_region(pose)
+        out[name] = {LAP_PLACE: Place(LAP_PLACE, LAP_PLACE, {"is_on": region})} if region is not None else {}
+    return out
 
 
 def write_passenger_asset(folder: Path) -> AssetEntry:
@@ -186,4 +290,5 @@ def write_passenger_asset(folder: Path) -> AssetEntry:
                   stage_schema.VARIANT_SET_APPEARANCE: tuple(APPEARANCES)},
         default_variants={stage_schema.VARIANT_SET_POSE: DEFAULT_POSE,
                           stage_schema.VARIANT_SET_APPEARANCE: DEFAULT_APPEARANCE},
-        extent_min_m=lo, extent_max_m=hi, relations=("is_on",))  # type: ignore[arg-type]
+        extent_min_m=lo, extent_max_m=hi, relations=("is_on",),  # type: ignore[arg-type]
+        variant_places={stage_schema.VARIANT_SET_POSE: lap_places()})

@@ -135,7 +135,7 @@ def split_rule(text: str):
 
 
 def add_split_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--split`` and ``--split-seed``, shared by ``export`` and ``run``."""
+    """``--split`` and ``--split-seed``, shared by ``export``, ``run`` and ``generate``."""
     parser.add_argument(
         "--split", type=split_rule, metavar="RULE",
         help="training splits for COCO and YOLO: seeded fractions grouped by frame "

@@ -1,5 +1,6 @@
 """``usdscene export FORMAT... OUT... [--dataset DIR] [--split RULE]``: training sets from
-``OUT/annotations.openlabel.json`` (the exporters are :mod:`usdscene.export`)."""
+``OUT/annotations.openlabel.json`` (the exporters are :mod:`usdscene.export`). Without
+``--split``, the rule the documents carry (``metadata.usdscene.split``) applies."""
 
 from __future__ import annotations
 
@@ -48,10 +49,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from usdscene.errors import OutputError, Problem
-    from usdscene.export import export_dataset, export_formats
+    from usdscene.export import carried_split, export_dataset, export_formats
 
+    # The command line's rule wins over the one the documents carry.
+    split, split_seed = args.split, args.split_seed
+    if split is None:
+        split, split_seed = carried_split(args.outputs) or (None, 0)
     options = dict(extra_assets=args.assets, document_classes=args.document_classes,
-                   copy_images=args.copy_images, split=args.split, split_seed=args.split_seed)
+                   copy_images=args.copy_images, split=split, split_seed=split_seed)
     if args.dataset is None and len(args.outputs) > 1:
         raise OutputError([Problem("--dataset", f"{len(args.outputs)} output folders make one dataset: "
                                                 "name its folder with --dataset DIR")])
@@ -64,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         written = export_dataset(args.outputs, args.format, args.dataset, **options)
     for fmt, target in written.items():
         print(f"{fmt}: {target}")
-    if args.split is not None:
+    if split is not None:
         import json
         from pathlib import Path
 

@@ -23,7 +23,7 @@ def _fraction(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from usdscene.commands._arguments import non_negative_int, output_path, positive_int
+    from usdscene.commands._arguments import add_split_arguments, non_negative_int, output_path, positive_int
 
     parser.add_argument("strategy", choices=_STRATEGIES,
                         help="single-class: one class in one relation at every place it fits, per frame; "
@@ -45,6 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="place name patterns to use, e.g. 'seat_*' 'bin_*' (default: every place)")
     parser.add_argument("--occupancy", type=_fraction, default=0.0,
                         help="fraction of the seats with a passenger in each frame (default 0)")
+    add_split_arguments(parser)  # written into the document; usdscene export uses it
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,7 +55,9 @@ def run(args: argparse.Namespace) -> int:
 
     options = GenerateOptions(strategy=args.strategy, frames=args.frames, seed=args.seed,
                               classes=tuple(args.classes), place_patterns=tuple(args.places),
-                              occupancy=args.occupancy, objects_per_frame=args.objects_per_frame)
+                              occupancy=args.occupancy, objects_per_frame=args.objects_per_frame,
+                              split=args.split.text if args.split is not None else "",
+                              split_seed=args.split_seed)
     result = generate_document(args.setup, args.output, options)
     report = result.report
     coverage = report["coverage"]
