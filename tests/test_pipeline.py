@@ -75,6 +75,20 @@ def test_two_workers_give_byte_identical_outputs(run_output, tmp_path):
     assert (out / "annotations.openlabel.json").read_bytes() == (run_output / "annotations.openlabel.json").read_bytes()
 
 
+def test_run_exports_with_the_documents_split_rule(tmp_path, capsys):
+    document = json.loads(MINIMAL.read_text())
+    metadata = document["openlabel"]["metadata"].setdefault("usdscene", {})
+    metadata["split"] = {"rule": "cameras:val=cam_02", "seed": 0}
+    path = tmp_path / "scene.openlabel.json"
+    path.write_text(json.dumps(document))
+    out = tmp_path / "out"
+    assert main(["run", str(path), "-o", str(out), "--export", "coco", "--no-progress"]) == 0
+    val = json.loads((out / "exports" / "coco" / "annotations_val.json").read_text())
+    train = json.loads((out / "exports" / "coco" / "annotations_train.json").read_text())
+    assert {i["file_name"].split("/")[-2] for i in val["images"]} == {"cam_02"}
+    assert {i["file_name"].split("/")[-2] for i in train["images"]} == {"cam_01"}
+
+
 def test_run_on_missing_document_is_a_clear_error(tmp_path, capsys):
     assert main(["run", str(tmp_path / "nope.json"), "-o", str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err

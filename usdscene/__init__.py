@@ -48,6 +48,8 @@ _LAZY = {
     "write_annotations": ("usdscene.annotation", "write_annotations"),
     "export_formats": ("usdscene.export", "export_formats"),
     "export_dataset": ("usdscene.export", "export_dataset"),
+    "carried_split": ("usdscene.export", "carried_split"),
+    "parse_split": ("usdscene.splits", "parse_split"),
     # the whole job
     "run_pipeline": ("usdscene.pipeline", "run_pipeline"),
     "RunSummary": ("usdscene.pipeline", "RunSummary"),

@@ -118,7 +118,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         retries: times a shard whose worker died is run again (None = the driver's default).
         progress: show progress bars on stderr.
         on_step: called with each step's name as it starts (for a status line).
-        split: training split rule of the COCO/YOLO export (:mod:`usdscene.splits`); None = none.
+        split: training split rule of the COCO/YOLO export (:mod:`usdscene.splits`); None = the
+            document's own rule (``metadata.usdscene.split``), or none.
         split_seed: seed of a fraction split.
 
     Raises:
@@ -172,6 +173,10 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     written: dict[str, Path] = {}
     if formats:
         t = step("export")
+        if split is None and scene.split_rule:  # the document's own rule (metadata.usdscene.split)
+            from usdscene.splits import DOCUMENT_FIELD, parse_split
+
+            split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
         written = export_formats(out, formats, split=split, split_seed=split_seed)
         seconds["export"] = time.perf_counter() - t
 
