@@ -115,6 +115,11 @@ class AmodalProjection:
         return PixelBox(int(cols[0]) + x, int(rows[0]) + y, int(cols[-1]) + x, int(rows[-1]) + y)
 
 
+# The crop of a projection that covers no pixel centre (read-only: shared).
+_EMPTY_CROP = np.zeros((0, 0), dtype=bool)
+_EMPTY_CROP.flags.writeable = False
+
+
 def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
                         valid: np.ndarray | None = None) -> AmodalProjection:
     """Fill projected triangles by pixel-centre sampling (see the module docstring).
@@ -157,20 +162,19 @@ def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, f
     crops, offsets, origin, tight, counts, truncated, cone_cut = rasterize_objects(
         uv, imaged, inside, faces, owner, n_objects, width_px, height_px)
     size = (width_px, height_px)
+    is_truncated = (truncated | cone_cut | cut).tolist()
     projections = []
-    for o in range(n_objects):
-        is_truncated = bool(truncated[o] or cone_cut[o] or cut[o])
-        if not counts[o]:
-            projection = AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, is_truncated)
+    # Python ints from lists: per-element numpy scalars would cost more than the rest here.
+    for o, (x0, y0, w, h), (x_min, y_min, x_max, y_max), count, start in zip(
+            range(n_objects), origin.tolist(), tight.tolist(), counts.tolist(), offsets.tolist()):
+        if not count:
+            projection = AmodalProjection(_EMPTY_CROP, (0, 0), size, is_truncated[o])
             projection.__dict__.update(pixel_count=0, box=None)
-            projections.append(projection)
-            continue
-        x0, y0, w, h = (int(v) for v in origin[o])
-        x_min, y_min, x_max, y_max = (int(v) for v in tight[o])
-        crop = crops[offsets[o]:offsets[o + 1]].reshape(h, w)[y_min - y0:y_max - y0 + 1, x_min - x0:x_max - x0 + 1]
-        projection = AmodalProjection(crop, (x_min, y_min), size, is_truncated)
-        # Known from the fill: spare the cached properties their pass over the crop.
-        projection.__dict__.update(pixel_count=int(counts[o]), box=PixelBox(x_min, y_min, x_max, y_max))
+        else:
+            crop = crops[start:start + w * h].reshape(h, w)[y_min - y0:y_max - y0 + 1, x_min - x0:x_max - x0 + 1]
+            projection = AmodalProjection(crop, (x_min, y_min), size, is_truncated[o])
+            # Known from the fill: spare the cached properties their pass over the crop.
+            projection.__dict__.update(pixel_count=count, box=PixelBox(x_min, y_min, x_max, y_max))
         projections.append(projection)
     return projections
 
@@ -215,7 +219,7 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         uid → AmodalProjection of the image size, for every uid given (empty when the object
         is out of view).
     """
-    from usdscene.amodal_kernels import facing_kept
+    from usdscene.amodal_kernels import faces_to_fill, to_camera, used_vertices
     from usdscene.model import LensModel
 
     intr = camera.intrinsics
@@ -240,8 +244,8 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     faces = np.concatenate([mesh.faces + offset for mesh, offset in zip(indexed, offsets)])
     # Objects by their position among the visible ones.
     owner = np.repeat(np.arange(len(visible)), [len(mesh.faces) for mesh in indexed])
-    # world → camera (OpenCV axes): R^T (p - t), written for row vectors.
-    cam_points = np.ascontiguousarray((points - m[:3, 3]) @ m[:3, :3])
+    # world → camera (OpenCV axes): R^T (p - t).
+    cam_points = to_camera(points, np.ascontiguousarray(m, dtype=np.float64))
     near_cut = np.zeros(len(visible), dtype=bool)
     if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
         cam_points, faces, owner, clipped = _clip_near(cam_points, faces, owner, near_m)
@@ -249,8 +253,9 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     single_facing = (np.array([mesh.closed for mesh in indexed], dtype=bool) & camera_clear[visible]
                      & ~near_cut & (intr.lens is not LensModel.ORTHOGRAPHIC))
     if single_facing.any():
-        kept = facing_kept(cam_points, faces, owner, single_facing)
-        faces, owner = faces[kept], owner[kept]
+        faces, owner = faces_to_fill(cam_points, faces, owner, single_facing)
+        # About half the vertices of a closed mesh belong to faces turned away only.
+        cam_points, faces = used_vertices(cam_points, faces)
     cone = _fisheye_cone_rad(intr)
     uv, ok, inside = _project_points(intr, cam_points, cone)
     if intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion):

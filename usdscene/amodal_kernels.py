@@ -18,9 +18,49 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def facing_kept(points_cam, faces, owner, single_facing):
-    """Which faces to rasterise: every face of an object, or for objects flagged in
-    ``single_facing`` only the faces turned towards the camera (see
+def to_camera(points_world, camera_to_world):
+    """(P, 3) world points → (P, 3) camera-frame points, ``R^T (p - t)`` for the (4, 4) camera
+    pose ``[R t]`` (a compiled loop: numpy's (P, 3) @ (3, 3) is 15 times slower)."""
+    out = np.empty_like(points_world)
+    for i in range(points_world.shape[0]):
+        x = points_world[i, 0] - camera_to_world[0, 3]
+        y = points_world[i, 1] - camera_to_world[1, 3]
+        z = points_world[i, 2] - camera_to_world[2, 3]
+        for j in range(3):
+            out[i, j] = x * camera_to_world[0, j] + y * camera_to_world[1, j] + z * camera_to_world[2, j]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def used_vertices(points, faces):
+    """Drop the vertices no face uses: ``(points (P', 3), faces (T, 3) renumbered)``, vertices
+    in their first order."""
+    new_index = np.full(points.shape[0], -1, dtype=np.int64)
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            new_index[faces[t, k]] = 0
+    n = 0
+    for i in range(points.shape[0]):
+        if new_index[i] == 0:
+            new_index[i] = n
+            n += 1
+    kept = np.empty((n, 3), dtype=points.dtype)
+    for i in range(points.shape[0]):
+        if new_index[i] >= 0:
+            kept[new_index[i], 0] = points[i, 0]
+            kept[new_index[i], 1] = points[i, 1]
+            kept[new_index[i], 2] = points[i, 2]
+    renumbered = np.empty_like(faces)
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            renumbered[t, k] = new_index[faces[t, k]]
+    return kept, renumbered
+
+
+@numba.njit(cache=True, nogil=True)
+def faces_to_fill(points_cam, faces, owner, single_facing):
+    """The faces to rasterise: every face of an object, or for objects flagged in
+    ``single_facing`` only the faces whose winding turns them towards the camera (see
     :func:`usdscene.amodal.amodal_projections` for why that is exact for closed meshes).
 
     Args:
@@ -30,20 +70,24 @@ def facing_kept(points_cam, faces, owner, single_facing):
         single_facing: (N,) bool per object.
 
     Returns:
-        (T,) bool.
+        ``(faces (T', 3), owner (T',))``, in the given order.
     """
-    keep = np.ones(faces.shape[0], dtype=np.bool_)
+    kept_faces = np.empty_like(faces)
+    kept_owner = np.empty_like(owner)
+    n = 0
     for t in range(faces.shape[0]):
-        if not single_facing[owner[t]]:
-            continue
         a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-        ax, ay, az = points_cam[a, 0], points_cam[a, 1], points_cam[a, 2]
-        ux, uy, uz = points_cam[b, 0] - ax, points_cam[b, 1] - ay, points_cam[b, 2] - az
-        vx, vy, vz = points_cam[c, 0] - ax, points_cam[c, 1] - ay, points_cam[c, 2] - az
-        # (u × v) · a: negative when the face's winding turns it towards the camera.
-        facing = (uy * vz - uz * vy) * ax + (uz * vx - ux * vz) * ay + (ux * vy - uy * vx) * az
-        keep[t] = facing <= 0.0
-    return keep
+        if single_facing[owner[t]]:
+            ax, ay, az = points_cam[a, 0], points_cam[a, 1], points_cam[a, 2]
+            ux, uy, uz = points_cam[b, 0] - ax, points_cam[b, 1] - ay, points_cam[b, 2] - az
+            vx, vy, vz = points_cam[c, 0] - ax, points_cam[c, 1] - ay, points_cam[c, 2] - az
+            # (u × v) · a: negative when the face turns towards the camera.
+            if (uy * vz - uz * vy) * ax + (uz * vx - ux * vz) * ay + (ux * vy - uy * vx) * az > 0.0:
+                continue
+        kept_faces[n, 0], kept_faces[n, 1], kept_faces[n, 2] = a, b, c
+        kept_owner[n] = owner[t]
+        n += 1
+    return kept_faces[:n], kept_owner[:n]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -66,6 +110,34 @@ def needs_split(uv, imaged, inside, faces, max_edge, max_cut_edge):
                 out[t] = True
                 break
     return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base):
+    """Set the pixels of one object's (h, w) crop (at ``crops[base:]``, image origin
+    ``(x0, y0)``) whose centre lies inside or on the edge of face ``(a, b, c)``."""
+    ax, ay = uv[a, 0], uv[a, 1]
+    bx, by = uv[b, 0], uv[b, 1]
+    cx, cy = uv[c, 0], uv[c, 1]
+    area2 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    if area2 == 0.0:
+        return
+    sign = 1.0 if area2 > 0.0 else -1.0
+    px0 = max(int(math.ceil(min(ax, bx, cx))), x0)
+    px1 = min(int(math.floor(max(ax, bx, cx))), x0 + w - 1)
+    py0 = max(int(math.ceil(min(ay, by, cy))), y0)
+    py1 = min(int(math.floor(max(ay, by, cy))), y0 + h - 1)
+    for py in range(py0, py1 + 1):
+        row = base + (py - y0) * w - x0
+        for px in range(px0, px1 + 1):
+            # Edge functions at the pixel centre, oriented so the interior is >= 0.
+            if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
+                continue
+            if ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0:
+                continue
+            if ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0:
+                continue
+            crops[row + px] = True
 
 
 @numba.njit(cache=True, nogil=True)
@@ -130,43 +202,31 @@ def rasterize_objects(uv, imaged, inside, faces, owner, n_objects, width, height
         offsets[o + 1] = offsets[o] + w * h
     crops = np.zeros(offsets[n_objects], dtype=np.bool_)
 
-    tight = np.empty((n_objects, 4), dtype=np.int64)
-    tight[:, 0], tight[:, 1], tight[:, 2], tight[:, 3] = width, height, -1, -1
-    counts = np.zeros(n_objects, dtype=np.int64)
     for t in range(n_faces):
-        if not drawn[t]:
-            continue
-        o = owner[t]
-        x0, y0, w = origin[o, 0], origin[o, 1], origin[o, 2]
-        h = origin[o, 3]
-        base = offsets[o]
-        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-        ax, ay = uv[a, 0], uv[a, 1]
-        bx, by = uv[b, 0], uv[b, 1]
-        cx, cy = uv[c, 0], uv[c, 1]
-        area2 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-        if area2 == 0.0:
-            continue
-        sign = 1.0 if area2 > 0.0 else -1.0
-        px0 = max(int(math.ceil(min(ax, bx, cx))), x0)
-        px1 = min(int(math.floor(max(ax, bx, cx))), x0 + w - 1)
-        py0 = max(int(math.ceil(min(ay, by, cy))), y0)
-        py1 = min(int(math.floor(max(ay, by, cy))), y0 + h - 1)
-        for py in range(py0, py1 + 1):
-            for px in range(px0, px1 + 1):
-                # Edge functions at the pixel centre, oriented so the interior is >= 0.
-                if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
-                    continue
-                if ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0:
-                    continue
-                if ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0:
-                    continue
-                index = base + (py - y0) * w + (px - x0)
-                if not crops[index]:
-                    crops[index] = True
-                    counts[o] += 1
-                    tight[o, 0] = min(tight[o, 0], px)
-                    tight[o, 1] = min(tight[o, 1], py)
-                    tight[o, 2] = max(tight[o, 2], px)
-                    tight[o, 3] = max(tight[o, 3], py)
+        if drawn[t]:
+            o = owner[t]
+            _fill_face(uv, faces[t, 0], faces[t, 1], faces[t, 2], origin[o, 0], origin[o, 1], origin[o, 2],
+                       origin[o, 3], crops, offsets[o])
+
+    # Covered pixels and their box, per crop.
+    tight = np.empty((n_objects, 4), dtype=np.int64)
+    counts = np.zeros(n_objects, dtype=np.int64)
+    for o in range(n_objects):
+        x0, y0, w, h = origin[o, 0], origin[o, 1], origin[o, 2], origin[o, 3]
+        x_min, y_min, x_max, y_max, count = w, h, -1, -1, 0
+        for row in range(h):
+            base = offsets[o] + row * w
+            first, last = -1, -1
+            for col in range(w):
+                if crops[base + col]:
+                    if first < 0:
+                        first = col
+                    last = col
+                    count += 1
+            if first >= 0:
+                x_min, x_max = min(x_min, first), max(x_max, last)
+                y_min = min(y_min, row)
+                y_max = row
+        tight[o, 0], tight[o, 1], tight[o, 2], tight[o, 3] = x0 + x_min, y0 + y_min, x0 + x_max, y0 + y_max
+        counts[o] = count
     return crops, offsets, origin, tight, counts, truncated, cut
