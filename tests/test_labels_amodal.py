@@ -144,3 +144,33 @@ def test_camera_inside_a_closed_mesh_sees_it_everywhere():
     # camera, so it must not be filled from one facing.
     proj = amodal_projection(_camera(), _box_mesh((-3.0, -3.0, -3.0), (3.0, 3.0, 3.0)))
     assert proj.pixel_count == W * H
+
+
+@pytest.mark.parametrize("lens, distortion", [
+    (LensModel.FISHEYE_EQUISOLID, ()),
+    (LensModel.FISHEYE_EQUIDISTANT, ()),
+    (LensModel.OPENCV_FISHEYE, (0.05, -0.01, 0.002, 0.0)),
+])
+def test_fisheye_image_circle_cuts_the_projection_where_the_rays_do(lens, distortion):
+    """A wall reaching far beyond a 100° image circle, corner to corner: its projection ends
+    at the circle as the pixel rays do (ground truth: each pixel centre's ray onto the wall)."""
+    from usdscene.projection import pixel_rays
+
+    camera = Camera("cam", Intrinsics(lens, W, H, 22.0, 22.0, (W - 1) / 2, (H - 1) / 2,
+                                      distortion=tuple(distortion), fov_deg=100.0))
+    x0, y0, x1, y1, z = -4.0, -0.6, 0.5, 3.0, 1.0
+    proj = amodal_projection(camera, _quad(x0, y0, x1, y1, z))
+    v, u = np.mgrid[0:H, 0:W]
+    rays, ok = pixel_rays(camera.intrinsics, np.stack([u.ravel(), v.ravel()], axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hit = rays * (z / rays[:, 2:3])
+    truth = (ok & (rays[:, 2] > 0) & (hit[:, 0] >= x0) & (hit[:, 0] <= x1)
+             & (hit[:, 1] >= y0) & (hit[:, 1] <= y1)).reshape(H, W)
+    assert proj.truncated and truth.sum() > 300
+    assert not truth[0, 0] and not truth[H - 1, 0]  # the corners lie beyond the circle
+    # (Moving the vertices beyond the circle onto its cone, as before, missed 14 of the
+    # equisolid's 747 pixels along the circle.)
+    assert (truth ^ proj.mask).sum() <= 0.003 * truth.sum()
+    expected, got = box_of(truth), proj.box
+    assert max(abs(expected.x_min - got.x_min), abs(expected.y_min - got.y_min),
+               abs(expected.x_max - got.x_max), abs(expected.y_max - got.y_max)) <= 1

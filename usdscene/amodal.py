@@ -15,12 +15,12 @@ Exactness, per lens:
   :data:`MAX_PROJECTED_EDGE_PX` long, which keeps the raster within a fraction of a pixel of
   the curved one;
 * fisheye lenses with a field of view (``fov_deg``): the image is empty beyond the image circle.
-  A vertex outside the field of view is moved along its azimuth onto the circle's cone, and
-  triangles that cross the circle are split like curved ones, so an object cut by the circle
-  keeps the part inside it (instead of losing every triangle with a vertex outside); those
-  crossing triangles are split until their projected edges are at most
-  :data:`MAX_CUT_EDGE_PX` long (on the cabin's 39 fisheyes, 702 of 703 boxes lie within 1 px
-  of those of a 16 times finer split, the last within 2 px).
+  The lens model still maps directions beyond the circle's cone, so triangles are projected
+  whole and the fill stops at the circle (exact there); only vertices the model cannot map at
+  all (behind an OpenCV fisheye) are moved along their azimuth onto the cone, and the
+  triangles they belong to are split until their projected edges are at most
+  :data:`MAX_CUT_EDGE_PX` long. On the cabin's 39 fisheyes every box lies within 1 px of that
+  of a 16 times finer split.
 
 Objects whose bounding sphere lies outside a camera's field of view are culled before any
 triangle is projected; closed meshes are filled from the faces of one facing only (exact, see
@@ -45,16 +45,15 @@ if TYPE_CHECKING:
 # Revision of the rasterisation rules; kept labels computed under another revision are
 # computed anew (:class:`usdscene.annotation.ImageLabeller`). Raise it whenever a change can
 # move a projection's pixels.
-RASTER_REVISION = 2
+RASTER_REVISION = 3
 
 # Projected triangle edges of distorting lenses are curves; triangles are split until their
 # projected edges are at most this long (pixels), so the straight-edge raster stays within a
 # fraction of a pixel of the curved one.
 MAX_PROJECTED_EDGE_PX = 8.0
-# Triangles that cross a fisheye's image circle have their outside corners moved onto the
-# circle's cone, which smears them along the circle; they are split further, until their
-# projected edges are at most this long (pixels), which keeps the projection's box within a
-# pixel of the exact one there.
+# Vertices a fisheye model cannot map (behind an OpenCV fisheye) are moved onto the cone of
+# its field of view, which smears their triangles along the image circle; triangles with such
+# a vertex are split further, until their projected edges are at most this long (pixels).
 MAX_CUT_EDGE_PX = 1.0
 _MAX_SUBDIVISIONS = 5
 # Vertices outside a fisheye's field of view are moved to just inside its cone (radians), so
@@ -139,14 +138,13 @@ def rasterize_triangles(uv_px: np.ndarray, width_px: int, height_px: int,
               else np.ascontiguousarray(valid, dtype=np.bool_).reshape(-1))
     faces = np.arange(len(uv), dtype=np.int64).reshape(-1, 3)
     owner = np.zeros(len(faces), dtype=np.int64)
-    inside = np.ones(len(uv), dtype=np.bool_)
-    return _rasterize_objects(uv, imaged, inside, faces, owner, 1, width_px, height_px,
-                              np.zeros(1, dtype=bool))[0]
+    return _rasterize_objects(uv, imaged, np.ones(len(uv), dtype=np.bool_), np.zeros(len(uv), dtype=np.bool_),
+                              faces, owner, 1, width_px, height_px, np.zeros(1, dtype=bool), _NO_CIRCLE)[0]
 
 
-def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, faces: np.ndarray,
-                       owner: np.ndarray, n_objects: int, width_px: int, height_px: int,
-                       cut: np.ndarray) -> list[AmodalProjection]:
+def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, clamped: np.ndarray,
+                       faces: np.ndarray, owner: np.ndarray, n_objects: int, width_px: int, height_px: int,
+                       cut: np.ndarray, circle: np.ndarray) -> list[AmodalProjection]:
     """Rasterise the faces of ``n_objects`` objects in one compiled pass (arguments as in
     :func:`usdscene.amodal_kernels.rasterize_objects`; ``cut`` (N,) bool: objects already
     known to be truncated, e.g. by the near plane).
@@ -160,7 +158,7 @@ def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, f
     from usdscene.labels import PixelBox
 
     crops, offsets, origin, tight, counts, truncated, cone_cut = rasterize_objects(
-        uv, imaged, inside, faces, owner, n_objects, width_px, height_px)
+        uv, imaged, inside, clamped, faces, owner, n_objects, width_px, height_px, circle)
     size = (width_px, height_px)
     is_truncated = (truncated | cone_cut | cut).tolist()
     projections = []
@@ -256,51 +254,52 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         faces, owner = faces_to_fill(cam_points, faces, owner, single_facing)
         # About half the vertices of a closed mesh belong to faces turned away only.
         cam_points, faces = used_vertices(cam_points, faces)
-    cone = _fisheye_cone_rad(intr)
-    uv, ok, inside = _project_points(intr, cam_points, cone)
+    uv, ok, inside, clamped = _project_points(intr, cam_points)
     if intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion):
-        uv, ok, inside, faces, owner = _split_curved(intr, cone, cam_points, uv, ok, inside, faces, owner,
-                                                     float(max_edge_px))
-    projections = _rasterize_objects(uv, ok, inside, faces, owner, len(visible), intr.width_px,
-                                     intr.height_px, near_cut)
+        uv, ok, inside, clamped, faces, owner = _split_curved(intr, cam_points, uv, ok, inside, clamped, faces,
+                                                              owner, float(max_edge_px))
+    projections = _rasterize_objects(uv, ok, inside, clamped, faces, owner, len(visible), intr.width_px,
+                                     intr.height_px, near_cut, _image_circle(intr))
     for index, projection in zip(visible, projections):
         result[uids[index]] = projection
     return result
 
 
-def _split_curved(intrinsics: Intrinsics, cone: float | None, points_cam: np.ndarray, uv: np.ndarray,
-                  imaged: np.ndarray, inside: np.ndarray, faces: np.ndarray, owner: np.ndarray,
+def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray, imaged: np.ndarray,
+                  inside: np.ndarray, clamped: np.ndarray, faces: np.ndarray, owner: np.ndarray,
                   max_edge_px: float) -> tuple[np.ndarray, ...]:
     """Split the faces of a distorting lens whose projected edges are longer than
-    ``max_edge_px`` at their edge midpoints, up to :data:`_MAX_SUBDIVISIONS` times.
+    ``max_edge_px`` (or :data:`MAX_CUT_EDGE_PX` for faces partly clamped onto a fisheye's
+    cone) at their edge midpoints, up to :data:`_MAX_SUBDIVISIONS` times.
 
     Args:
-        intrinsics, cone: the lens and its fisheye cone (radians, or None).
-        points_cam: (P, 3) camera-frame vertices; ``uv`` (P, 2), ``imaged`` (P,) and
-            ``inside`` (P,) their projection; ``faces`` (T, 3) and ``owner`` (T,) the faces
-            to draw.
+        intrinsics: the lens.
+        points_cam: (P, 3) camera-frame vertices; ``uv`` (P, 2), ``imaged``, ``inside`` and
+            ``clamped`` (P,) their projection (:func:`_project_points`); ``faces`` (T, 3) and
+            ``owner`` (T,) the faces to draw.
 
     Returns:
-        ``(uv, imaged, inside, faces, owner)`` with the split faces replaced by their pieces
-        (the pieces' vertices appended after the given ones).
+        ``(uv, imaged, inside, clamped, faces, owner)`` with the split faces replaced by their
+        pieces (the pieces' vertices appended after the given ones).
     """
     from usdscene.amodal_kernels import needs_split
 
-    split = needs_split(uv, imaged, inside, faces, max_edge_px, MAX_CUT_EDGE_PX)
+    split = needs_split(uv, imaged, clamped, faces, max_edge_px, MAX_CUT_EDGE_PX)
     if not split.any():
-        return uv, imaged, inside, faces, owner
-    vertices = [(uv, imaged, inside)]
+        return uv, imaged, inside, clamped, faces, owner
+    vertices = [(uv, imaged, inside, clamped)]
     face_parts, owner_parts = [faces[~split]], [owner[~split]]
     count = len(uv)
     pieces, piece_owner = points_cam[faces[split]], owner[split]
     for level in range(_MAX_SUBDIVISIONS):
         pieces = _subdivide(pieces)
         piece_owner = np.tile(piece_owner, 4)
-        piece_uv, piece_ok, piece_inside = _project_points(intrinsics, pieces.reshape(-1, 3), cone)
+        piece = _project_points(intrinsics, pieces.reshape(-1, 3))
         local_faces = np.arange(3 * len(pieces), dtype=np.int64).reshape(-1, 3)
-        vertices.append((piece_uv, piece_ok, piece_inside))
+        vertices.append(piece)
+        piece_uv, piece_ok, _, piece_clamped = piece
         # The last level keeps every piece, long or not.
-        again = (needs_split(piece_uv, piece_ok, piece_inside, local_faces, max_edge_px, MAX_CUT_EDGE_PX)
+        again = (needs_split(piece_uv, piece_ok, piece_clamped, local_faces, max_edge_px, MAX_CUT_EDGE_PX)
                  if level < _MAX_SUBDIVISIONS - 1 else np.zeros(len(pieces), dtype=bool))
         face_parts.append(local_faces[~again] + count)
         owner_parts.append(piece_owner[~again])
@@ -308,21 +307,67 @@ def _split_curved(intrinsics: Intrinsics, cone: float | None, points_cam: np.nda
         if not again.any():
             break
         pieces, piece_owner = pieces[again], piece_owner[again]
-    uv, imaged, inside = (np.concatenate(parts) for parts in zip(*vertices))
-    return uv, imaged, inside, np.concatenate(face_parts), np.concatenate(owner_parts)
+    uv, imaged, inside, clamped = (np.concatenate(parts) for parts in zip(*vertices))
+    return uv, imaged, inside, clamped, np.concatenate(face_parts), np.concatenate(owner_parts)
 
 
-def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray,
-                    cone: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(N, 3) camera-frame points → uv (N, 2), imaged (N,) bool, inside the field of view (N,)
-    bool; points beyond a fisheye's cone are moved onto it first (:func:`_onto_cone`)."""
+def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Project (N, 3) camera-frame points for rasterising.
+
+    A fisheye with a field of view images nothing beyond its image circle, but its lens model
+    still maps the directions beyond the circle's cone (the rasteriser cuts the image at the
+    circle): points there are projected by the model without its field-of-view limit, and
+    only those the model cannot map at all (behind an OpenCV fisheye, where its radius stops
+    growing) are moved onto the cone (:func:`_onto_cone`).
+
+    Returns:
+        ``(uv (N, 2) float64, imaged (N,), inside (N,), clamped (N,))``, bool arrays: the lens
+        images the point; it lies within the field-of-view cone; it was moved onto the cone.
+    """
     from usdscene.projection import project_camera_points
 
-    inside = np.ones(len(points_cam), dtype=bool)
-    if cone is not None:
-        points_cam, inside = _onto_cone(points_cam, cone)
-    uv, ok = project_camera_points(intrinsics, points_cam)
-    return np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool), inside
+    cone = _fisheye_cone_rad(intrinsics)
+    none = np.zeros(len(points_cam), dtype=bool)
+    if cone is None:
+        uv, ok = project_camera_points(intrinsics, points_cam)
+        return np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool), ~none, none
+    x, y, z = points_cam[:, 0], points_cam[:, 1], points_cam[:, 2]
+    inside = np.arctan2(np.hypot(x, y), z) <= cone
+    uv, ok = project_camera_points(intrinsics if inside.all() else _without_fov(intrinsics), points_cam)
+    uv, ok = np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool)
+    clamped = ~ok & ~inside
+    if clamped.any():
+        uv[clamped], ok[clamped] = project_camera_points(intrinsics, _onto_cone(points_cam[clamped], cone))
+    return uv, ok, inside, clamped
+
+
+@functools.lru_cache(maxsize=256)
+def _without_fov(intrinsics: Intrinsics) -> Intrinsics:
+    """The same lens without its field-of-view limit."""
+    from dataclasses import replace
+
+    return replace(intrinsics, fov_deg=None)
+
+
+# The circle argument of the rasteriser for images without an image circle.
+_NO_CIRCLE = np.zeros(5)
+
+
+@functools.lru_cache(maxsize=256)
+def _image_circle(intrinsics: Intrinsics) -> np.ndarray:
+    """``(cx, cy, fx, fy, r)`` of a fisheye's image circle, r in units of the focal lengths
+    (the image radius of a ray on the field-of-view cone); :data:`_NO_CIRCLE` for other
+    lenses. The fisheye models are radial, so the circle is that ellipse in pixels."""
+    from usdscene.projection import project_camera_points
+
+    cone = _fisheye_cone_rad(intrinsics)
+    if cone is None:
+        return _NO_CIRCLE
+    uv, ok = project_camera_points(_without_fov(intrinsics), np.array([[math.sin(cone), 0.0, math.cos(cone)]]))
+    radius = (float(uv[0, 0]) - intrinsics.cx_px) / intrinsics.fx_px
+    if not ok[0] or not radius > 0.0:
+        return _NO_CIRCLE
+    return np.array([intrinsics.cx_px, intrinsics.cy_px, intrinsics.fx_px, intrinsics.fy_px, radius])
 
 
 # (id of a triangle array) → (weak reference to it, its vertices (P, 3), faces (T, 3)); the
@@ -426,24 +471,16 @@ def _fisheye_cone_rad(intrinsics: Intrinsics) -> float | None:
     return math.radians(intrinsics.fov_deg) / 2.0
 
 
-def _onto_cone(points_cam: np.ndarray, half_angle_rad: float) -> tuple[np.ndarray, np.ndarray]:
-    """Move (N, 3) camera-frame points further than ``half_angle_rad`` from the optical axis
-    onto the cone (same azimuth, unit distance; a lens only images directions).
-
-    Returns:
-        ``(points (N, 3), inside (N,) bool)``; inside = the point was within the cone.
-    """
-    x, y, z = points_cam[:, 0], points_cam[:, 1], points_cam[:, 2]
+def _onto_cone(points_cam: np.ndarray, half_angle_rad: float) -> np.ndarray:
+    """(N, 3) camera-frame points moved onto the cone of ``half_angle_rad`` around the optical
+    axis (same azimuth, unit distance; a lens only images directions) → (N, 3)."""
+    x, y = points_cam[:, 0], points_cam[:, 1]
     rho = np.hypot(x, y)
-    inside = np.arctan2(rho, z) <= half_angle_rad
-    if inside.all():
-        return points_cam, inside
     edge = half_angle_rad - _CONE_MARGIN_RAD
     safe = np.where(rho > 0, rho, 1.0)
-    moved = np.stack([np.where(rho > 0, x / safe, 1.0) * math.sin(edge),
-                      np.where(rho > 0, y / safe, 0.0) * math.sin(edge),
-                      np.full_like(z, math.cos(edge))], axis=1)
-    return np.where(inside[:, None], points_cam, moved), inside
+    return np.stack([np.where(rho > 0, x / safe, 1.0) * math.sin(edge),
+                     np.where(rho > 0, y / safe, 0.0) * math.sin(edge),
+                     np.full(len(points_cam), math.cos(edge))], axis=1)
 
 
 @functools.lru_cache(maxsize=256)

@@ -6,7 +6,11 @@ usdscene.amodal`` should not pay.
 Conventions shared by the kernels: ``uv`` (V, 2) float64 pixel coordinates of projected
 vertices (pixel centres at integers), ``imaged`` (V,) bool (the lens images the vertex),
 ``inside`` (V,) bool (the vertex lies within a fisheye's field-of-view cone; all True for other
-lenses), ``faces`` (T, 3) int64 vertex indices, ``owner`` (T,) int64 object index of each face.
+lenses), ``clamped`` (V,) bool (the vertex lies where the lens model has no image and was moved
+onto the cone), ``faces`` (T, 3) int64 vertex indices, ``owner`` (T,) int64 object index of
+each face, ``circle`` (5,) float64 ``(cx, cy, fx, fy, r)``: the image is empty outside the
+ellipse ``((x - cx) / fx)² + ((y - cy) / fy)² <= r²`` (a fisheye's image circle; r <= 0: no
+circle).
 """
 
 from __future__ import annotations
@@ -91,16 +95,16 @@ def faces_to_fill(points_cam, faces, owner, single_facing):
 
 
 @numba.njit(cache=True, nogil=True)
-def needs_split(uv, imaged, inside, faces, max_edge, max_cut_edge):
+def needs_split(uv, imaged, clamped, faces, max_edge, max_cut_edge):
     """(T,) bool: faces whose three vertices are imaged and one of whose projected edges is
-    longer than ``max_edge`` pixels, or, for faces that cross a fisheye's cone (some vertices
-    inside it, some not), longer than ``max_cut_edge``."""
+    longer than ``max_edge`` pixels, or, for faces with some but not all vertices clamped
+    onto a fisheye's cone, longer than ``max_cut_edge``."""
     out = np.zeros(faces.shape[0], dtype=np.bool_)
     for t in range(faces.shape[0]):
         a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
         if not (imaged[a] and imaged[b] and imaged[c]):
             continue
-        crossing = (inside[a] or inside[b] or inside[c]) and not (inside[a] and inside[b] and inside[c])
+        crossing = (clamped[a] or clamped[b] or clamped[c]) and not (clamped[a] and clamped[b] and clamped[c])
         limit = max_cut_edge * max_cut_edge if crossing else max_edge * max_edge
         for k in range(3):
             i, j = faces[t, k], faces[t, (k + 1) % 3]
@@ -113,9 +117,10 @@ def needs_split(uv, imaged, inside, faces, max_edge, max_cut_edge):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base):
+def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base, circle):
     """Set the pixels of one object's (h, w) crop (at ``crops[base:]``, image origin
-    ``(x0, y0)``) whose centre lies inside or on the edge of face ``(a, b, c)``."""
+    ``(x0, y0)``) whose centre lies inside or on the edge of face ``(a, b, c)`` and inside
+    the image circle."""
     ax, ay = uv[a, 0], uv[a, 1]
     bx, by = uv[b, 0], uv[b, 1]
     cx, cy = uv[c, 0], uv[c, 1]
@@ -129,7 +134,16 @@ def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base):
     py1 = min(int(math.floor(max(ay, by, cy))), y0 + h - 1)
     for py in range(py0, py1 + 1):
         row = base + (py - y0) * w - x0
-        for px in range(px0, px1 + 1):
+        lo, hi = px0, px1
+        if circle[4] > 0.0:  # the row's span inside the image circle
+            dy = (py - circle[1]) / circle[3]
+            room = circle[4] * circle[4] - dy * dy
+            if room < 0.0:
+                continue
+            half = circle[2] * math.sqrt(room)
+            lo = max(lo, int(math.ceil(circle[0] - half)))
+            hi = min(hi, int(math.floor(circle[0] + half)))
+        for px in range(lo, hi + 1):
             # Edge functions at the pixel centre, oriented so the interior is >= 0.
             if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
                 continue
@@ -141,13 +155,14 @@ def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base):
 
 
 @numba.njit(cache=True, nogil=True)
-def rasterize_objects(uv, imaged, inside, faces, owner, n_objects, width, height):
+def rasterize_objects(uv, imaged, inside, clamped, faces, owner, n_objects, width, height, circle):
     """Fill every object's faces by pixel-centre sampling into one crop per object.
 
-    A pixel belongs to an object when its centre lies inside or on the edge of one of the
-    object's projected faces. Faces with a vertex the lens cannot image are skipped and make
-    their object truncated; faces with no vertex inside the fisheye cone are dropped, and a
-    face with some vertex outside it marks its object as cut.
+    A pixel belongs to an object when its centre lies inside the image circle and inside or
+    on the edge of one of the object's projected faces. Faces with a vertex the lens cannot
+    image are skipped and make their object truncated; a face with a vertex outside the
+    fisheye cone marks its object as cut, and faces whose vertices were all clamped onto the
+    cone are dropped.
 
     Returns:
         ``(crops, offsets, origin, tight, counts, truncated, cut)``: ``crops`` a flat bool
@@ -171,7 +186,7 @@ def rasterize_objects(uv, imaged, inside, faces, owner, n_objects, width, height
         a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
         if not (inside[a] and inside[b] and inside[c]):
             cut[o] = True
-            if not (inside[a] or inside[b] or inside[c]):
+            if clamped[a] and clamped[b] and clamped[c]:
                 continue
         if not (imaged[a] and imaged[b] and imaged[c]):
             truncated[o] = True
@@ -192,6 +207,12 @@ def rasterize_objects(uv, imaged, inside, faces, owner, n_objects, width, height
         hi_x[o] = max(hi_x[o], min(width - 1, int(math.floor(max_x))))
         hi_y[o] = max(hi_y[o], min(height - 1, int(math.floor(max_y))))
 
+    if circle[4] > 0.0:  # crops end at the circle's box
+        for o in range(n_objects):
+            lo_x[o] = max(lo_x[o], int(math.ceil(circle[0] - circle[2] * circle[4])))
+            hi_x[o] = min(hi_x[o], int(math.floor(circle[0] + circle[2] * circle[4])))
+            lo_y[o] = max(lo_y[o], int(math.ceil(circle[1] - circle[3] * circle[4])))
+            hi_y[o] = min(hi_y[o], int(math.floor(circle[1] + circle[3] * circle[4])))
     origin = np.zeros((n_objects, 4), dtype=np.int64)
     offsets = np.zeros(n_objects + 1, dtype=np.int64)
     for o in range(n_objects):
@@ -206,7 +227,7 @@ def rasterize_objects(uv, imaged, inside, faces, owner, n_objects, width, height
         if drawn[t]:
             o = owner[t]
             _fill_face(uv, faces[t, 0], faces[t, 1], faces[t, 2], origin[o, 0], origin[o, 1], origin[o, 2],
-                       origin[o, 3], crops, offsets[o])
+                       origin[o, 3], crops, offsets[o], circle)
 
     # Covered pixels and their box, per crop.
     tight = np.empty((n_objects, 4), dtype=np.int64)

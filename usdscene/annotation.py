@@ -161,7 +161,7 @@ class ImageLabeller:
         except (OSError, ValueError, KeyError, TypeError, AttributeError):
             pass  # missing or unreadable: label anew
         payload = image_labels_to_json(self._compute(mask_bytes, mask_file, frame, camera))
-        write_json_atomic(kept_file, {"key": key, "labels": payload})
+        write_json_atomic(kept_file, {"key": key, "labels": payload}, compact=True)
         # What a later run reads back, so that fresh and kept labels give identical documents.
         return image_labels_from_json(payload)
 

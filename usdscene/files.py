@@ -161,9 +161,15 @@ def dumps_json(data: Any) -> str:
     return json.dumps(data, indent=2, ensure_ascii=False, allow_nan=False) + "\n"
 
 
-def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
-    """Serialise ``data`` (fails on NaN/Infinity before touching the file) and write it atomically."""
-    return write_text_atomic(path, dumps_json(data))
+def write_json_atomic(path: str | os.PathLike, data: Any, *, compact: bool = False) -> Path:
+    """Serialise ``data`` (fails on NaN/Infinity before touching the file) and write it atomically.
+
+    ``compact``: one line without indent, for files people do not read (caches); Python's
+    compiled encoder writes it several times faster than the indented text.
+    """
+    text = (json.dumps(data, ensure_ascii=False, allow_nan=False, separators=(",", ":")) + "\n"
+            if compact else dumps_json(data))
+    return write_text_atomic(path, text)
 
 
 def resolve_inside(root: str | os.PathLike, relative: str | os.PathLike, *, what: str = "path") -> Path:
