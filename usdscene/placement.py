@@ -160,11 +160,19 @@ def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> tuple[np.ndarray, 
         ``(centre (3,), axes (3, 3) with the box axes as columns, half_sizes (3,))`` in metres;
         for a seated asset (extent below its origin) only the part above the origin.
     """
-    lo = np.asarray(entry.extent_min_m, dtype=np.float64).copy()
-    hi = np.asarray(entry.extent_max_m, dtype=np.float64)
-    lo[2] = max(lo[2], 0.0) if hi[2] > 0.0 else lo[2]  # seated assets: the part above the origin
+    centre, half = _asset_box(tuple(entry.extent_min_m), tuple(entry.extent_max_m))
     rot = pose_matrix[:3, :3]
-    return rot @ ((lo + hi) / 2.0) + pose_matrix[:3, 3], rot.copy(), (hi - lo) / 2.0
+    return rot @ centre + pose_matrix[:3, 3], rot.copy(), half.copy()
+
+
+@functools.lru_cache(maxsize=1024)
+def _asset_box(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(centre (3,), half sizes (3,)) of an asset's collision box in its own frame, metres;
+    cached because placement asks for every try of every object (callers must not change them)."""
+    lo = np.asarray(extent_min_m, dtype=np.float64).copy()
+    hi = np.asarray(extent_max_m, dtype=np.float64)
+    lo[2] = max(lo[2], 0.0) if hi[2] > 0.0 else lo[2]  # seated assets: the part above the origin
+    return (lo + hi) / 2.0, (hi - lo) / 2.0
 
 
 def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
@@ -504,7 +512,6 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
     states: dict[str, _State] = {}
     warned_unplaced: set[str] = set()
-    orientation_cache: dict[tuple, list[_Orientation]] = {}
     problems = ProblemCollector()
 
     for fi in range(n_frames):
@@ -569,10 +576,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                 exclude = rel.object_uid
                 # On a declared support place (a lap) objects lie as modelled, never on an edge.
                 upright_only = infos[rel.object_uid].entry.declares_support(rel.type)
-            cache_key = (info.obj.class_name, size, upright_only)
-            if cache_key not in orientation_cache:
-                orientation_cache[cache_key] = _orientations(info.entry, size, upright_only)
-            orientations = orientation_cache[cache_key]
+            orientations = _orientations(info.entry, size, upright_only)
             if not orientations:
                 lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
                 dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
@@ -597,9 +601,8 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                     problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
                     problems.raise_if_any(CompositionError)
             world_m = region_pose @ local
-            world = tuple(float(v) for v in world_m.reshape(16))
-            done[uid] = _State(frame, key, local, world, tuple(float(v) for v in region_pose.reshape(16)),
-                               label, size)
+            world = tuple(world_m.reshape(16).tolist())
+            done[uid] = _State(frame, key, local, world, tuple(region_pose.reshape(16).tolist()), label, size)
             boxes.add(uid, info, world_m, label)
         problems.raise_if_any(CompositionError)
         for uid, state in done.items():
@@ -665,24 +668,26 @@ def _region_users(order: list[_Info], fi: int, frame: int, scene: SceneSpec,
 class _FrameBoxes:
     """Oriented boxes of the objects placed so far in one frame."""
 
-    def __init__(self) -> None:
+    def __init__(self, capacity: int = 16) -> None:
         self.uids: list[str] = []
-        self.centres: list[np.ndarray] = []
-        self.axes: list[np.ndarray] = []
-        self.halves: list[np.ndarray] = []
         self.labels: list[str] = []
         self.areas: list[float] = []
-        self.seated: list[bool] = []
         self.blockers: collections.Counter[str] = collections.Counter()  # who was in the way
-        self._arrays: tuple[np.ndarray, ...] | None = None  # the lists above as arrays
+        # Rows [:len(uids)] hold the boxes; grown by doubling, so a frame of n objects costs
+        # O(n) copies rather than one array rebuild per test.
+        self._centres = np.empty((capacity, 3))
+        self._axes = np.empty((capacity, 3, 3))
+        self._halves = np.empty((capacity, 3))
+        self._seated = np.empty(capacity, dtype=np.bool_)
 
     def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
-        centre, axes, half = object_box(info.entry, world)
-        self.seated.append(_seated(info.entry))
+        n = len(self.uids)
+        if n == len(self._seated):
+            self._centres, self._axes, self._halves, self._seated = (
+                np.concatenate([a, np.empty_like(a)]) for a in (self._centres, self._axes, self._halves, self._seated))
+        self._centres[n], self._axes[n], self._halves[n] = object_box(info.entry, world)
+        self._seated[n] = _seated(info.entry)
         self.uids.append(uid)
-        self.centres.append(centre)
-        self.axes.append(axes)
-        self.halves.append(half)
         self.labels.append(label)
         self.areas.append(info.footprint_area_m2)
 
@@ -695,11 +700,12 @@ class _FrameBoxes:
         if not self.uids:
             return False
         centre, axes, half = object_box(info.entry, world)
-        if self._arrays is None or len(self._arrays[0]) != len(self.uids):  # boxes added since
-            self._arrays = (np.asarray(self.centres), np.asarray(self.axes), np.asarray(self.halves),
-                            np.asarray(self.seated))
-        centres, axes_k, halves, seated = self._arrays
-        hits = boxes_overlap(centre, axes, half, centres, axes_k, halves)
+        n = len(self.uids)
+        seated = self._seated[:n]
+        hits = np.zeros(n, dtype=np.bool_)
+        # The compiled test directly: the arrays already have its types and layout.
+        _overlap_kernel()(centre, axes, half, self._centres[:n], self._axes[:n], self._halves[:n],
+                          CONTACT_TOLERANCE_M, hits)
         if not hits.any():
             return False
         if exclude is not None:
@@ -728,6 +734,8 @@ class _Orientation:
         lo, hi: (3,) extent in the upright frame, metres.
         yaw_rad: base yaw about the region's Z axis (0 or a quarter turn).
         seated: rests on its origin (see the module docstring).
+        corners_xy: the (x, y) points, metres, that must stay inside the region: the four
+            footprint corners, or only the origin for a seated asset.
     """
 
     rotation: np.ndarray
@@ -735,6 +743,7 @@ class _Orientation:
     hi: np.ndarray
     yaw_rad: float
     seated: bool
+    corners_xy: tuple[tuple[float, float], ...] = ()
 
 
 _QUARTER = math.pi / 2.0
@@ -760,14 +769,24 @@ def fits_region(entry: AssetEntry, size_m: tuple[float, float, float], upright_o
 
 
 def _orientations(entry: AssetEntry, size: tuple[float, float, float],
-                  upright_only: bool = False) -> list[_Orientation]:
+                  upright_only: bool = False) -> tuple[_Orientation, ...]:
     """Every orientation that fits the region, preferred first: upright, upright turned a
     quarter, then lying on a side (a bag too tall for the space under a seat is laid down, as
     people do), unless ``upright_only``. Seated assets stay upright and only their part above
-    the origin counts for clearance."""
-    lo0 = np.asarray(entry.extent_min_m, dtype=np.float64)
-    hi0 = np.asarray(entry.extent_max_m, dtype=np.float64)
-    if _seated(entry):
+    the origin counts for clearance.
+
+    Cached per (extent, region size, rule): generating asks for the same few sizes tens of
+    thousands of times. The orientations are shared; callers must not change them."""
+    return _orientations_of_extent(tuple(entry.extent_min_m), tuple(entry.extent_max_m), size, upright_only)
+
+
+@functools.lru_cache(maxsize=4096)
+def _orientations_of_extent(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...],
+                            size: tuple[float, float, float], upright_only: bool) -> tuple[_Orientation, ...]:
+    lo0 = np.asarray(extent_min_m, dtype=np.float64)
+    hi0 = np.asarray(extent_max_m, dtype=np.float64)
+    seated = bool(lo0[2] < 0.0)  # as _seated(entry)
+    if seated:
         candidates = [(np.eye(3), lo0, hi0, yaw) for yaw in (0.0, _QUARTER)]
     else:
         corners = np.array([[x, y, z] for x in (lo0[0], hi0[0]) for y in (lo0[1], hi0[1]) for z in (lo0[2], hi0[2])])
@@ -777,30 +796,30 @@ def _orientations(entry: AssetEntry, size: tuple[float, float, float],
             candidates += [(rot, turned.min(axis=0), turned.max(axis=0), yaw) for yaw in (0.0, _QUARTER)]
     fitting = []
     for rot, lo, hi, yaw in candidates:
-        seated = _seated(entry)
         height = hi[2] if seated else hi[2] - lo[2]
         if seated or height <= size[2] + 1e-9:
-            orientation = _Orientation(rot, lo, hi, yaw, seated)
+            # The footprint corners the yaw turns (only the origin for a seated asset).
+            corners = ((0.0, 0.0),) if seated else tuple(
+                (float(x), float(y)) for x, y in ((lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])))
+            orientation = _Orientation(rot, lo, hi, yaw, seated, corners)
             if _footprint_range(orientation, 0.0, size) is not None:
                 fitting.append(orientation)
     # Lying down is only for objects that do not fit upright.
-    upright = [o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated]
-    return upright if upright or upright_only else fitting
+    upright = tuple(o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated)
+    return upright if upright or upright_only else tuple(fitting)
 
 
 def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[float, float, float]):
-    """Allowed origin x/y range in the region for an extra yaw, or None when it does not fit."""
-    lo, hi = orientation.lo, orientation.hi
+    """Allowed origin x/y range in the region for an extra yaw, or None when it does not fit.
+
+    Plain floats on the four corners: the same arithmetic as array code, without its per-call
+    cost (this runs for every try of every object)."""
     angle = orientation.yaw_rad + yaw_rad
     c, s = math.cos(angle), math.sin(angle)
-    if orientation.seated:  # only the contact point (the origin) must be inside
-        corners = np.zeros((1, 2))
-    else:
-        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
-    rx = corners[:, 0] * c - corners[:, 1] * s
-    ry = corners[:, 0] * s + corners[:, 1] * c
-    x_lo, x_hi = -size[0] / 2.0 - rx.min(), size[0] / 2.0 - rx.max()
-    y_lo, y_hi = -size[1] / 2.0 - ry.min(), size[1] / 2.0 - ry.max()
+    rx = [x * c - y * s for x, y in orientation.corners_xy]
+    ry = [x * s + y * c for x, y in orientation.corners_xy]
+    x_lo, x_hi = -size[0] / 2.0 - min(rx), size[0] / 2.0 - max(rx)
+    y_lo, y_hi = -size[1] / 2.0 - min(ry), size[1] / 2.0 - max(ry)
     if x_lo > x_hi + 1e-12 or y_lo > y_hi + 1e-12:
         return None
     return (x_lo, max(x_lo, x_hi)), (y_lo, max(y_lo, y_hi))
@@ -810,7 +829,7 @@ def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[floa
 _CORNERS = ((0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0))
 
 
-def _sample(info: _Info, orientations: list[_Orientation], region_pose: np.ndarray,
+def _sample(info: _Info, orientations: tuple[_Orientation, ...], region_pose: np.ndarray,
             size: tuple[float, float, float], rng: np.random.Generator, boxes: _FrameBoxes,
             exclude: str | None, label: str, alone: bool) -> np.ndarray | None:
     """Local pose (object → region) that fits and collides with nothing, or None.
