@@ -142,27 +142,30 @@ class ObjectPlacement:
 # Oriented boxes
 
 
-@dataclass(frozen=True)
-class _Box:
-    centre: np.ndarray  # (3,) world
-    axes: np.ndarray    # (3, 3) columns = box axes in world
-    half: np.ndarray    # (3,) half sizes, metres
+BOX_ROW = 15
+"""Length of a packed oriented box: centre (3), axes (9, row-major 3 x 3 with the box axes as
+columns), half sizes (3), metres. Placement keeps a frame's boxes as rows of one array, so the
+compiled test takes two arrays instead of six."""
 
 
-def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """World oriented box of an asset at a pose.
+def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> np.ndarray:
+    """World oriented box of an asset at a pose, packed (:data:`BOX_ROW`).
 
     Args:
         entry: catalog entry (its ``extent_min_m``/``extent_max_m`` bound the asset).
         pose_matrix: (4, 4) object → world.
 
     Returns:
-        ``(centre (3,), axes (3, 3) with the box axes as columns, half_sizes (3,))`` in metres;
-        for a seated asset (extent below its origin) only the part above the origin.
+        (15,) centre, axes (box axes as columns, row-major), half sizes, in metres; for a
+        seated asset (extent below its origin) only the part above the origin.
     """
     centre, half = _asset_box(tuple(entry.extent_min_m), tuple(entry.extent_max_m))
     rot = pose_matrix[:3, :3]
-    return rot @ centre + pose_matrix[:3, 3], rot.copy(), half.copy()
+    row = np.empty(BOX_ROW)
+    row[:3] = rot @ centre + pose_matrix[:3, 3]
+    row[3:12] = rot.reshape(9)
+    row[12:] = half
+    return row
 
 
 @functools.lru_cache(maxsize=1024)
@@ -188,45 +191,51 @@ def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
     Returns:
         (K,) bool: True where the boxes interpenetrate by more than ``tolerance_m``.
     """
-    centres = np.ascontiguousarray(centres, dtype=np.float64).reshape(-1, 3)
-    out = np.zeros(centres.shape[0], dtype=np.bool_)
-    if centres.shape[0]:
-        _overlap_kernel()(np.asarray(centre, dtype=np.float64), np.ascontiguousarray(axes, dtype=np.float64),
-                          np.asarray(half, dtype=np.float64), centres,
-                          np.ascontiguousarray(axes_k, dtype=np.float64).reshape(-1, 3, 3),
-                          np.ascontiguousarray(halves, dtype=np.float64).reshape(-1, 3), float(tolerance_m), out)
+    box = np.concatenate([np.asarray(centre, dtype=np.float64).reshape(3), np.asarray(axes, dtype=np.float64).reshape(9),
+                          np.asarray(half, dtype=np.float64).reshape(3)])
+    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
+    others = np.concatenate([centres, np.asarray(axes_k, dtype=np.float64).reshape(-1, 9),
+                             np.asarray(halves, dtype=np.float64).reshape(-1, 3)], axis=1)
+    out = np.zeros(len(others), dtype=np.bool_)
+    if len(others):
+        _overlap_kernel()(box, others, len(others), float(tolerance_m), out)
     return out
 
 
 @functools.cache
 def _overlap_kernel():
-    """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk)."""
+    """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk):
+    ``overlap(box (15,), boxes (>= n, 15), n, tolerance_m, out (n,) bool)`` on packed boxes
+    (:data:`BOX_ROW`)."""
     import numba
 
     @numba.njit(cache=True, nogil=True)
-    def overlap(centre, axes, half, centres, axes_k, halves, tolerance, out):
-        radius = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
+    def overlap(box, boxes, n, tolerance, out):
+        # Packed: centre at 0, axes[r, c] at 3 + 3 r + c, half sizes at 12.
+        radius = math.sqrt(box[12] ** 2 + box[13] ** 2 + box[14] ** 2)
         candidates = np.empty((15, 3))
-        for k in range(centres.shape[0]):
-            d = centres[k] - centre
+        d = np.empty(3)
+        for k in range(n):
+            for i in range(3):
+                d[i] = boxes[k, i] - box[i]
             # Bounding spheres first: most boxes of a frame are far apart.
-            other = math.sqrt(halves[k, 0] ** 2 + halves[k, 1] ** 2 + halves[k, 2] ** 2)
+            other = math.sqrt(boxes[k, 12] ** 2 + boxes[k, 13] ** 2 + boxes[k, 14] ** 2)
             if math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2) >= radius + other - tolerance:
                 continue
             # Candidate separating axes: the 3 + 3 box axes and their 9 cross products.
             for i in range(3):
                 for j in range(3):
-                    candidates[i, j] = axes[j, i]
-                    candidates[3 + i, j] = axes_k[k, j, i]
-            n = 6
+                    candidates[i, j] = box[3 + 3 * j + i]
+                    candidates[3 + i, j] = boxes[k, 3 + 3 * j + i]
+            c = 6
             for i in range(3):
                 for j in range(3):
-                    ax, ay, az = axes[0, i], axes[1, i], axes[2, i]
-                    bx, by, bz = axes_k[k, 0, j], axes_k[k, 1, j], axes_k[k, 2, j]
-                    candidates[n, 0] = ay * bz - az * by
-                    candidates[n, 1] = az * bx - ax * bz
-                    candidates[n, 2] = ax * by - ay * bx
-                    n += 1
+                    ax, ay, az = box[3 + i], box[6 + i], box[9 + i]
+                    bx, by, bz = boxes[k, 3 + j], boxes[k, 6 + j], boxes[k, 9 + j]
+                    candidates[c, 0] = ay * bz - az * by
+                    candidates[c, 1] = az * bx - ax * bz
+                    candidates[c, 2] = ax * by - ay * bx
+                    c += 1
             separated = False
             for c in range(15):
                 norm = math.sqrt(candidates[c, 0] ** 2 + candidates[c, 1] ** 2 + candidates[c, 2] ** 2)
@@ -236,8 +245,8 @@ def _overlap_kernel():
                 r_a = 0.0
                 r_b = 0.0
                 for i in range(3):
-                    r_a += abs(axes[0, i] * nx + axes[1, i] * ny + axes[2, i] * nz) * half[i]
-                    r_b += abs(axes_k[k, 0, i] * nx + axes_k[k, 1, i] * ny + axes_k[k, 2, i] * nz) * halves[k, i]
+                    r_a += abs(box[3 + i] * nx + box[6 + i] * ny + box[9 + i] * nz) * box[12 + i]
+                    r_b += abs(boxes[k, 3 + i] * nx + boxes[k, 6 + i] * ny + boxes[k, 9 + i] * nz) * boxes[k, 12 + i]
                 if abs(nx * d[0] + ny * d[1] + nz * d[2]) >= r_a + r_b - tolerance:
                     separated = True
                     break
@@ -512,6 +521,9 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
     states: dict[str, _State] = {}
     warned_unplaced: set[str] = set()
+    # (place name, relation) → region → world, size, label, the 16 matrix values: places
+    # do not move, and the same few serve thousands of placements.
+    place_supports: dict[tuple[str, str], tuple[np.ndarray, tuple[float, float, float], str, tuple[float, ...]]] = {}
     problems = ProblemCollector()
 
     for fi in range(n_frames):
@@ -557,12 +569,17 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
             rel = scene.relations[key[1]]
             if rel.object_uid in places:
                 place_name = places[rel.object_uid].name
-                region = env_places[place_name].regions[rel.type]
-                region_pose, size = region.pose.as_array(), tuple(float(v) for v in region.size_m)
-                label = f"place {place_name!r} ({rel.type})"
+                if (place_name, rel.type) not in place_supports:
+                    region = env_places[place_name].regions[rel.type]
+                    pose_m = region.pose.as_array()
+                    place_supports[(place_name, rel.type)] = (
+                        pose_m, tuple(float(v) for v in region.size_m), f"place {place_name!r} ({rel.type})",
+                        tuple(pose_m.reshape(16).tolist()))
+                region_pose, size, label, region_values = place_supports[(place_name, rel.type)]
                 exclude = None
                 upright_only = False
             else:
+                region_values = None
                 target = done.get(rel.object_uid)
                 if target is None:
                     problems.add(f"relations.{rel.uid}",
@@ -585,24 +602,26 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                                                "clearance) upright, turned or lying on a side")
                 continue
             prev = states.get(uid)
-            local = None
+            placed = None  # (object → region, object → world)
             if prev is not None and prev.frame == frame - 1 and prev.key == key and prev.local is not None:
                 # Follow a moved support while that stays collision free.
-                world = region_pose @ prev.local
-                if not boxes.collides(info, world, exclude, label):
-                    local = prev.local
-            if local is None:
+                world_m = region_pose @ prev.local
+                if not boxes.collides(info, world_m, exclude, label):
+                    placed = prev.local, world_m
+            if placed is None:
                 boxes.blockers.clear()
                 if shared is None:
                     shared = _region_users(order, fi, frame, scene, explicit)
                 alone = shared[(rel.object_uid, rel.type)] <= 1
-                local = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
-                if local is None:
+                placed = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
+                if placed is None:
                     problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
                     problems.raise_if_any(CompositionError)
-            world_m = region_pose @ local
+            local, world_m = placed
             world = tuple(world_m.reshape(16).tolist())
-            done[uid] = _State(frame, key, local, world, tuple(region_pose.reshape(16).tolist()), label, size)
+            if region_values is None:
+                region_values = tuple(region_pose.reshape(16).tolist())
+            done[uid] = _State(frame, key, local, world, region_values, label, size)
             boxes.add(uid, info, world_m, label)
         problems.raise_if_any(CompositionError)
         for uid, state in done.items():
@@ -673,20 +692,24 @@ class _FrameBoxes:
         self.labels: list[str] = []
         self.areas: list[float] = []
         self.blockers: collections.Counter[str] = collections.Counter()  # who was in the way
-        # Rows [:len(uids)] hold the boxes; grown by doubling, so a frame of n objects costs
-        # O(n) copies rather than one array rebuild per test.
-        self._centres = np.empty((capacity, 3))
-        self._axes = np.empty((capacity, 3, 3))
-        self._halves = np.empty((capacity, 3))
+        # Rows [:len(uids)] hold the packed boxes (BOX_ROW); grown by doubling, so a frame of
+        # n objects costs O(n) copies rather than one array rebuild per test.
+        self._boxes = np.empty((capacity, BOX_ROW))
         self._seated = np.empty(capacity, dtype=np.bool_)
+        self._any_seated = False
+        # The last pose tested and its box: the pose a try accepts is added next.
+        self._tested: tuple[np.ndarray, np.ndarray] | None = None
 
     def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
         n = len(self.uids)
         if n == len(self._seated):
-            self._centres, self._axes, self._halves, self._seated = (
-                np.concatenate([a, np.empty_like(a)]) for a in (self._centres, self._axes, self._halves, self._seated))
-        self._centres[n], self._axes[n], self._halves[n] = object_box(info.entry, world)
-        self._seated[n] = _seated(info.entry)
+            self._boxes = np.concatenate([self._boxes, np.empty_like(self._boxes)])
+            self._seated = np.concatenate([self._seated, np.empty_like(self._seated)])
+        tested = self._tested
+        self._boxes[n] = tested[1] if tested is not None and tested[0] is world else object_box(info.entry, world)
+        seated = _seated(info.entry)
+        self._seated[n] = seated
+        self._any_seated |= seated
         self.uids.append(uid)
         self.labels.append(label)
         self.areas.append(info.footprint_area_m2)
@@ -699,20 +722,18 @@ class _FrameBoxes:
         """
         if not self.uids:
             return False
-        centre, axes, half = object_box(info.entry, world)
+        box = object_box(info.entry, world)
+        self._tested = (world, box)
         n = len(self.uids)
-        seated = self._seated[:n]
         hits = np.zeros(n, dtype=np.bool_)
-        # The compiled test directly: the arrays already have its types and layout.
-        _overlap_kernel()(centre, axes, half, self._centres[:n], self._axes[:n], self._halves[:n],
-                          CONTACT_TOLERANCE_M, hits)
+        _overlap_kernel()(box, self._boxes, n, CONTACT_TOLERANCE_M, hits)
         if not hits.any():
             return False
         if exclude is not None:
             hits &= np.asarray([u != exclude for u in self.uids])
-        if _seated(info.entry) or seated.any():
+        if _seated(info.entry) or self._any_seated:
             same_support = np.asarray([lab == label for lab in self.labels])
-            coarse = seated | _seated(info.entry)
+            coarse = self._seated[:n] | _seated(info.entry)
             hits &= ~coarse | same_support
         if hits.any():
             self.blockers.update(u for u, hit in zip(self.uids, hits) if hit)
@@ -831,8 +852,9 @@ _CORNERS = ((0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0))
 
 def _sample(info: _Info, orientations: tuple[_Orientation, ...], region_pose: np.ndarray,
             size: tuple[float, float, float], rng: np.random.Generator, boxes: _FrameBoxes,
-            exclude: str | None, label: str, alone: bool) -> np.ndarray | None:
-    """Local pose (object → region) that fits and collides with nothing, or None.
+            exclude: str | None, label: str, alone: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    """Local pose (object → region, (4, 4)) that fits and collides with nothing, with the
+    world pose it gives (object → world, (4, 4)); None when no try fits.
 
     Tries, in order: the region centre displaced by the position noise (only for an object
     alone in its region, or seated), the four corners of the free range in each orientation, then
@@ -846,7 +868,7 @@ def _sample(info: _Info, orientations: tuple[_Orientation, ...], region_pose: np
     for attempt in range(MAX_TRIES):
         yaw = float(rng.normal(0.0, sigma_yaw)) if sigma_yaw > 0 else 0.0
         dx, dy = (rng.normal(0.0, sigma_pos, 2) if sigma_pos > 0 else (0.0, 0.0))
-        u, v = (float(w) for w in rng.random(2))
+        u, v = rng.random(2).tolist()
         # Seated assets sit in the middle of their seat whoever else is there.
         k = attempt - 1 if alone or orientations[0].seated else attempt
         if k < 0:
@@ -871,8 +893,9 @@ def _sample(info: _Info, orientations: tuple[_Orientation, ...], region_pose: np
         local = np.eye(4)
         local[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ orientation.rotation
         local[:3, 3] = (x, y, 0.0 if orientation.seated else -float(orientation.lo[2]))
-        if not boxes.collides(info, region_pose @ local, exclude, label):
-            return local
+        world = region_pose @ local
+        if not boxes.collides(info, world, exclude, label):
+            return local, world
     return None
 
 
