@@ -59,7 +59,7 @@ import functools
 import logging
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Iterable, Mapping
 
 import numpy as np
 
@@ -161,11 +161,7 @@ def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> np.ndarray:
     """
     centre, half = _asset_box(tuple(entry.extent_min_m), tuple(entry.extent_max_m))
     rot = pose_matrix[:3, :3]
-    row = np.empty(BOX_ROW)
-    row[:3] = rot @ centre + pose_matrix[:3, 3]
-    row[3:12] = rot.reshape(9)
-    row[12:] = half
-    return row
+    return np.concatenate((rot @ centre + pose_matrix[:3, 3], rot.reshape(9), half))
 
 
 @functools.lru_cache(maxsize=1024)
@@ -205,8 +201,8 @@ def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
 @functools.cache
 def _overlap_kernel():
     """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk):
-    ``overlap(box (15,), boxes (>= n, 15), n, tolerance_m, out (n,) bool)`` on packed boxes
-    (:data:`BOX_ROW`)."""
+    ``overlap(box (15,), boxes (>= n, 15), n, tolerance_m, out (n,) bool) -> hits`` on packed
+    boxes (:data:`BOX_ROW`); it sets ``out`` and returns how many are True."""
     import numba
 
     @numba.njit(cache=True, nogil=True)
@@ -215,6 +211,7 @@ def _overlap_kernel():
         radius = math.sqrt(box[12] ** 2 + box[13] ** 2 + box[14] ** 2)
         candidates = np.empty((15, 3))
         d = np.empty(3)
+        hits = 0
         for k in range(n):
             for i in range(3):
                 d[i] = boxes[k, i] - box[i]
@@ -251,6 +248,8 @@ def _overlap_kernel():
                     separated = True
                     break
             out[k] = not separated
+            hits += not separated
+        return hits
 
     return overlap
 
@@ -526,17 +525,18 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     place_supports: dict[tuple[str, str], tuple[np.ndarray, tuple[float, float, float], str, tuple[float, ...]]] = {}
     problems = ProblemCollector()
 
+    presence = np.array([info.present for info in order]).reshape(len(order), n_frames)  # (objects, frames)
     for fi in range(n_frames):
         frame = frame_start + fi
         boxes = _FrameBoxes()
         done: dict[str, _State] = {}
         pending: list[_Info] = []
+        keys: dict[str, tuple] = {}  # uid → _key of every object present in this frame
         # Phase A: objects that keep exactly what they had (same key, support unchanged).
-        for info in order:
+        for index in np.flatnonzero(presence[:, fi]).tolist():
+            info = order[index]
             uid = info.obj.uid
-            if not info.present[fi]:
-                continue
-            key = _key(info, fi, frame, scene, explicit)
+            key = keys[uid] = _key(info, fi, frame, scene, explicit)
             prev = states.get(uid)
             if prev is not None and prev.frame == frame - 1 and prev.key == key:
                 ri = int(info.relation_index[fi])
@@ -552,7 +552,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
         shared = None  # (target, relation) → objects using that region in this frame, on demand
         for info in pending:
             uid = info.obj.uid
-            key = _key(info, fi, frame, scene, explicit)
+            key = keys[uid]
             if key[0] == "explicit":
                 world = key[1]
                 done[uid] = _State(frame, key, None, world, None, "", None)
@@ -611,7 +611,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
             if placed is None:
                 boxes.blockers.clear()
                 if shared is None:
-                    shared = _region_users(order, fi, frame, scene, explicit)
+                    shared = _region_users(keys.values(), scene)
                 alone = shared[(rel.object_uid, rel.type)] <= 1
                 placed = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
                 if placed is None:
@@ -633,12 +633,19 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                 runs.append([frame, frame, state.world, rel_uid, state.label, state.region, state.size])
         states.update(done)
 
+    support_poses: dict[tuple[float, ...], Pose] = {}  # one Pose per support region: places serve thousands
+
+    def support_pose(region: tuple[float, ...]) -> Pose:
+        if region not in support_poses:
+            support_poses[region] = Pose(region)
+        return support_poses[region]
+
     return {
         o.uid: ObjectPlacement(
             uid=o.uid, class_name=o.class_name,
             spans=tuple(PoseSpan(frame_start=s, frame_end=e, pose=Pose(world), relation_uid=rel_uid,
-                                 support=label, support_pose=Pose(region) if region is not None else None,
-                                 support_size_m=size)
+                                 support=label, support_size_m=size,
+                                 support_pose=None if region is None else support_pose(region))
                         for s, e, world, rel_uid, label, region, size in spans[o.uid]))
         for o in scene.objects}
 
@@ -671,16 +678,14 @@ def _key(info: _Info, fi: int, frame: int, scene: SceneSpec,
     return ("rel", ri)
 
 
-def _region_users(order: list[_Info], fi: int, frame: int, scene: SceneSpec,
-                  explicit: Mapping[str, Mapping[int, tuple[float, ...]]]) -> collections.Counter:
-    """(target uid, relation) → number of objects placed there in this frame."""
+def _region_users(keys: Iterable[tuple], scene: SceneSpec) -> collections.Counter:
+    """(target uid, relation) → number of objects placed there in a frame, from the
+    :func:`_key` of every object present in it."""
     users: collections.Counter = collections.Counter()
-    for info in order:
-        if info.present[fi]:
-            key = _key(info, fi, frame, scene, explicit)
-            if key[0] == "rel":
-                rel = scene.relations[key[1]]
-                users[(rel.object_uid, rel.type)] += 1
+    for key in keys:
+        if key[0] == "rel":
+            rel = scene.relations[key[1]]
+            users[(rel.object_uid, rel.type)] += 1
     return users
 
 
@@ -726,8 +731,7 @@ class _FrameBoxes:
         self._tested = (world, box)
         n = len(self.uids)
         hits = np.zeros(n, dtype=np.bool_)
-        _overlap_kernel()(box, self._boxes, n, CONTACT_TOLERANCE_M, hits)
-        if not hits.any():
+        if not _overlap_kernel()(box, self._boxes, n, CONTACT_TOLERANCE_M, hits):
             return False
         if exclude is not None:
             hits &= np.asarray([u != exclude for u in self.uids])
