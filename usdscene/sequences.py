@@ -969,11 +969,17 @@ def generate_document(setup_path: str | os.PathLike, out_path: str | os.PathLike
         AssetError: bad asset catalog.
         CompositionError: the generated document would not compose (a defect of the generator).
     """
+    from usdscene.bulk import paused_collection
+
+    with paused_collection():  # the document is millions of live containers (see usdscene.bulk)
+        return _generate_document(Path(setup_path), Path(out_path), options)
+
+
+def _generate_document(setup_path: Path, out_path: Path, options: GenerateOptions) -> GeneratedSequence:
     from usdscene.catalog import load_catalog
     from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
     from usdscene.files import write_json_atomic
 
-    setup_path, out_path = Path(setup_path), Path(out_path)
     document, provenance = load_with_provenance(setup_path)
     setup = read_loaded(document, provenance)
     base = setup_path.resolve().parent
