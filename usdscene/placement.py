@@ -520,8 +520,8 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
     states: dict[str, _State] = {}
     warned_unplaced: set[str] = set()
-    # (place name, relation) → region → world, size, label, the 16 matrix values: places
-    # do not move, and the same few serve thousands of placements.
+    # (place name, relation) → (region → world (4, 4), size, label, that matrix as 16 floats):
+    # places do not move, and a few hundred of them serve tens of thousands of placements.
     place_supports: dict[tuple[str, str], tuple[np.ndarray, tuple[float, float, float], str, tuple[float, ...]]] = {}
     problems = ProblemCollector()
 
