@@ -28,6 +28,7 @@ import os
 import re
 from typing import TYPE_CHECKING, Mapping
 
+from usdscene.bulk import paused_collection
 from usdscene.errors import DocumentError
 from usdscene.model import FrameInterval, Provenance, SceneSpec, union_intervals
 
@@ -47,6 +48,7 @@ ROOT_KEYS = frozenset({"metadata", "streams", "coordinate_systems", "objects", "
                        "tags"})
 
 
+@paused_collection()  # a document holds up to millions of containers (see usdscene.bulk)
 def read_openlabel(source: str | os.PathLike | Mapping, *, catalog: Catalog | None = None) -> SceneSpec:
     """Read a scene document into a :class:`SceneSpec`.
 

@@ -11,6 +11,7 @@ PURE_MODULES = [
     "usdscene.stage_schema",
     "usdscene.layout",
     "usdscene.files",
+    "usdscene.bulk",
     "usdscene.catalog",
     "usdscene.cli",
     "usdscene.placement",

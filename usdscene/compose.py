@@ -74,6 +74,7 @@ import numpy as np
 
 from usdscene import __version__
 from usdscene import stage_schema as ss
+from usdscene.bulk import paused_collection
 from usdscene.catalog import Catalog
 from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCollector
 from usdscene.files import make_folder, write_text_atomic
@@ -129,6 +130,7 @@ def _place_json(place) -> dict:
     return out
 
 
+@paused_collection()  # placement and layers build up to millions of containers (see usdscene.bulk)
 def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike, *,
                   rng: np.random.Generator | None = None) -> ComposeResult:
     """Write the layered USD stage of ``scene`` into ``out_dir``.

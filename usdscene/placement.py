@@ -59,7 +59,7 @@ import functools
 import logging
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Iterable, Mapping
 
 import numpy as np
 
@@ -142,29 +142,36 @@ class ObjectPlacement:
 # Oriented boxes
 
 
-@dataclass(frozen=True)
-class _Box:
-    centre: np.ndarray  # (3,) world
-    axes: np.ndarray    # (3, 3) columns = box axes in world
-    half: np.ndarray    # (3,) half sizes, metres
+BOX_ROW = 15
+"""Length of a packed oriented box: centre (3), axes (9, row-major 3 x 3 with the box axes as
+columns), half sizes (3), metres. Placement keeps a frame's boxes as rows of one array, so the
+compiled test takes two arrays instead of six."""
 
 
-def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """World oriented box of an asset at a pose.
+def object_box(entry: AssetEntry, pose_matrix: np.ndarray) -> np.ndarray:
+    """World oriented box of an asset at a pose, packed (:data:`BOX_ROW`).
 
     Args:
         entry: catalog entry (its ``extent_min_m``/``extent_max_m`` bound the asset).
         pose_matrix: (4, 4) object → world.
 
     Returns:
-        ``(centre (3,), axes (3, 3) with the box axes as columns, half_sizes (3,))`` in metres;
-        for a seated asset (extent below its origin) only the part above the origin.
+        (15,) centre, axes (box axes as columns, row-major), half sizes, in metres; for a
+        seated asset (extent below its origin) only the part above the origin.
     """
-    lo = np.asarray(entry.extent_min_m, dtype=np.float64).copy()
-    hi = np.asarray(entry.extent_max_m, dtype=np.float64)
-    lo[2] = max(lo[2], 0.0) if hi[2] > 0.0 else lo[2]  # seated assets: the part above the origin
+    centre, half = _asset_box(tuple(entry.extent_min_m), tuple(entry.extent_max_m))
     rot = pose_matrix[:3, :3]
-    return rot @ ((lo + hi) / 2.0) + pose_matrix[:3, 3], rot.copy(), (hi - lo) / 2.0
+    return np.concatenate((rot @ centre + pose_matrix[:3, 3], rot.reshape(9), half))
+
+
+@functools.lru_cache(maxsize=1024)
+def _asset_box(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(centre (3,), half sizes (3,)) of an asset's collision box in its own frame, metres;
+    cached because placement asks for every try of every object (callers must not change them)."""
+    lo = np.asarray(extent_min_m, dtype=np.float64).copy()
+    hi = np.asarray(extent_max_m, dtype=np.float64)
+    lo[2] = max(lo[2], 0.0) if hi[2] > 0.0 else lo[2]  # seated assets: the part above the origin
+    return (lo + hi) / 2.0, (hi - lo) / 2.0
 
 
 def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
@@ -180,45 +187,52 @@ def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
     Returns:
         (K,) bool: True where the boxes interpenetrate by more than ``tolerance_m``.
     """
-    centres = np.ascontiguousarray(centres, dtype=np.float64).reshape(-1, 3)
-    out = np.zeros(centres.shape[0], dtype=np.bool_)
-    if centres.shape[0]:
-        _overlap_kernel()(np.asarray(centre, dtype=np.float64), np.ascontiguousarray(axes, dtype=np.float64),
-                          np.asarray(half, dtype=np.float64), centres,
-                          np.ascontiguousarray(axes_k, dtype=np.float64).reshape(-1, 3, 3),
-                          np.ascontiguousarray(halves, dtype=np.float64).reshape(-1, 3), float(tolerance_m), out)
+    box = np.concatenate([np.asarray(centre, dtype=np.float64).reshape(3), np.asarray(axes, dtype=np.float64).reshape(9),
+                          np.asarray(half, dtype=np.float64).reshape(3)])
+    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
+    others = np.concatenate([centres, np.asarray(axes_k, dtype=np.float64).reshape(-1, 9),
+                             np.asarray(halves, dtype=np.float64).reshape(-1, 3)], axis=1)
+    out = np.zeros(len(others), dtype=np.bool_)
+    if len(others):
+        _overlap_kernel()(box, others, len(others), float(tolerance_m), out)
     return out
 
 
 @functools.cache
 def _overlap_kernel():
-    """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk)."""
+    """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk):
+    ``overlap(box (15,), boxes (>= n, 15), n, tolerance_m, out (n,) bool) -> hits`` on packed
+    boxes (:data:`BOX_ROW`); it sets ``out`` and returns how many are True."""
     import numba
 
     @numba.njit(cache=True, nogil=True)
-    def overlap(centre, axes, half, centres, axes_k, halves, tolerance, out):
-        radius = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
+    def overlap(box, boxes, n, tolerance, out):
+        # Packed: centre at 0, axes[r, c] at 3 + 3 r + c, half sizes at 12.
+        radius = math.sqrt(box[12] ** 2 + box[13] ** 2 + box[14] ** 2)
         candidates = np.empty((15, 3))
-        for k in range(centres.shape[0]):
-            d = centres[k] - centre
+        d = np.empty(3)
+        hits = 0
+        for k in range(n):
+            for i in range(3):
+                d[i] = boxes[k, i] - box[i]
             # Bounding spheres first: most boxes of a frame are far apart.
-            other = math.sqrt(halves[k, 0] ** 2 + halves[k, 1] ** 2 + halves[k, 2] ** 2)
+            other = math.sqrt(boxes[k, 12] ** 2 + boxes[k, 13] ** 2 + boxes[k, 14] ** 2)
             if math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2) >= radius + other - tolerance:
                 continue
             # Candidate separating axes: the 3 + 3 box axes and their 9 cross products.
             for i in range(3):
                 for j in range(3):
-                    candidates[i, j] = axes[j, i]
-                    candidates[3 + i, j] = axes_k[k, j, i]
-            n = 6
+                    candidates[i, j] = box[3 + 3 * j + i]
+                    candidates[3 + i, j] = boxes[k, 3 + 3 * j + i]
+            c = 6
             for i in range(3):
                 for j in range(3):
-                    ax, ay, az = axes[0, i], axes[1, i], axes[2, i]
-                    bx, by, bz = axes_k[k, 0, j], axes_k[k, 1, j], axes_k[k, 2, j]
-                    candidates[n, 0] = ay * bz - az * by
-                    candidates[n, 1] = az * bx - ax * bz
-                    candidates[n, 2] = ax * by - ay * bx
-                    n += 1
+                    ax, ay, az = box[3 + i], box[6 + i], box[9 + i]
+                    bx, by, bz = boxes[k, 3 + j], boxes[k, 6 + j], boxes[k, 9 + j]
+                    candidates[c, 0] = ay * bz - az * by
+                    candidates[c, 1] = az * bx - ax * bz
+                    candidates[c, 2] = ax * by - ay * bx
+                    c += 1
             separated = False
             for c in range(15):
                 norm = math.sqrt(candidates[c, 0] ** 2 + candidates[c, 1] ** 2 + candidates[c, 2] ** 2)
@@ -228,12 +242,14 @@ def _overlap_kernel():
                 r_a = 0.0
                 r_b = 0.0
                 for i in range(3):
-                    r_a += abs(axes[0, i] * nx + axes[1, i] * ny + axes[2, i] * nz) * half[i]
-                    r_b += abs(axes_k[k, 0, i] * nx + axes_k[k, 1, i] * ny + axes_k[k, 2, i] * nz) * halves[k, i]
+                    r_a += abs(box[3 + i] * nx + box[6 + i] * ny + box[9 + i] * nz) * box[12 + i]
+                    r_b += abs(boxes[k, 3 + i] * nx + boxes[k, 6 + i] * ny + boxes[k, 9 + i] * nz) * boxes[k, 12 + i]
                 if abs(nx * d[0] + ny * d[1] + nz * d[2]) >= r_a + r_b - tolerance:
                     separated = True
                     break
             out[k] = not separated
+            hits += not separated
+        return hits
 
     return overlap
 
@@ -504,20 +520,23 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
     states: dict[str, _State] = {}
     warned_unplaced: set[str] = set()
-    orientation_cache: dict[tuple, list[_Orientation]] = {}
+    # (place name, relation) → (region → world (4, 4), size, label, that matrix as 16 floats):
+    # places do not move, and a few hundred of them serve tens of thousands of placements.
+    place_supports: dict[tuple[str, str], tuple[np.ndarray, tuple[float, float, float], str, tuple[float, ...]]] = {}
     problems = ProblemCollector()
 
+    presence = np.array([info.present for info in order]).reshape(len(order), n_frames)  # (objects, frames)
     for fi in range(n_frames):
         frame = frame_start + fi
         boxes = _FrameBoxes()
         done: dict[str, _State] = {}
         pending: list[_Info] = []
+        keys: dict[str, tuple] = {}  # uid → _key of every object present in this frame
         # Phase A: objects that keep exactly what they had (same key, support unchanged).
-        for info in order:
+        for index in np.flatnonzero(presence[:, fi]).tolist():
+            info = order[index]
             uid = info.obj.uid
-            if not info.present[fi]:
-                continue
-            key = _key(info, fi, frame, scene, explicit)
+            key = keys[uid] = _key(info, fi, frame, scene, explicit)
             prev = states.get(uid)
             if prev is not None and prev.frame == frame - 1 and prev.key == key:
                 ri = int(info.relation_index[fi])
@@ -533,7 +552,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
         shared = None  # (target, relation) → objects using that region in this frame, on demand
         for info in pending:
             uid = info.obj.uid
-            key = _key(info, fi, frame, scene, explicit)
+            key = keys[uid]
             if key[0] == "explicit":
                 world = key[1]
                 done[uid] = _State(frame, key, None, world, None, "", None)
@@ -550,12 +569,17 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
             rel = scene.relations[key[1]]
             if rel.object_uid in places:
                 place_name = places[rel.object_uid].name
-                region = env_places[place_name].regions[rel.type]
-                region_pose, size = region.pose.as_array(), tuple(float(v) for v in region.size_m)
-                label = f"place {place_name!r} ({rel.type})"
+                if (place_name, rel.type) not in place_supports:
+                    region = env_places[place_name].regions[rel.type]
+                    pose_m = region.pose.as_array()
+                    place_supports[(place_name, rel.type)] = (
+                        pose_m, tuple(float(v) for v in region.size_m), f"place {place_name!r} ({rel.type})",
+                        tuple(pose_m.reshape(16).tolist()))
+                region_pose, size, label, region_values = place_supports[(place_name, rel.type)]
                 exclude = None
                 upright_only = False
             else:
+                region_values = None
                 target = done.get(rel.object_uid)
                 if target is None:
                     problems.add(f"relations.{rel.uid}",
@@ -569,10 +593,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                 exclude = rel.object_uid
                 # On a declared support place (a lap) objects lie as modelled, never on an edge.
                 upright_only = infos[rel.object_uid].entry.declares_support(rel.type)
-            cache_key = (info.obj.class_name, size, upright_only)
-            if cache_key not in orientation_cache:
-                orientation_cache[cache_key] = _orientations(info.entry, size, upright_only)
-            orientations = orientation_cache[cache_key]
+            orientations = _orientations(info.entry, size, upright_only)
             if not orientations:
                 lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
                 dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
@@ -581,25 +602,26 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                                                "clearance) upright, turned or lying on a side")
                 continue
             prev = states.get(uid)
-            local = None
+            placed = None  # (object → region, object → world)
             if prev is not None and prev.frame == frame - 1 and prev.key == key and prev.local is not None:
                 # Follow a moved support while that stays collision free.
-                world = region_pose @ prev.local
-                if not boxes.collides(info, world, exclude, label):
-                    local = prev.local
-            if local is None:
+                world_m = region_pose @ prev.local
+                if not boxes.collides(info, world_m, exclude, label):
+                    placed = prev.local, world_m
+            if placed is None:
                 boxes.blockers.clear()
                 if shared is None:
-                    shared = _region_users(order, fi, frame, scene, explicit)
+                    shared = _region_users(keys.values(), scene)
                 alone = shared[(rel.object_uid, rel.type)] <= 1
-                local = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
-                if local is None:
+                placed = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
+                if placed is None:
                     problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
                     problems.raise_if_any(CompositionError)
-            world_m = region_pose @ local
-            world = tuple(float(v) for v in world_m.reshape(16))
-            done[uid] = _State(frame, key, local, world, tuple(float(v) for v in region_pose.reshape(16)),
-                               label, size)
+            local, world_m = placed
+            world = tuple(world_m.reshape(16).tolist())
+            if region_values is None:
+                region_values = tuple(region_pose.reshape(16).tolist())
+            done[uid] = _State(frame, key, local, world, region_values, label, size)
             boxes.add(uid, info, world_m, label)
         problems.raise_if_any(CompositionError)
         for uid, state in done.items():
@@ -611,12 +633,19 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
                 runs.append([frame, frame, state.world, rel_uid, state.label, state.region, state.size])
         states.update(done)
 
+    support_poses: dict[tuple[float, ...], Pose] = {}  # one Pose per support region: places serve thousands
+
+    def support_pose(region: tuple[float, ...]) -> Pose:
+        if region not in support_poses:
+            support_poses[region] = Pose(region)
+        return support_poses[region]
+
     return {
         o.uid: ObjectPlacement(
             uid=o.uid, class_name=o.class_name,
             spans=tuple(PoseSpan(frame_start=s, frame_end=e, pose=Pose(world), relation_uid=rel_uid,
-                                 support=label, support_pose=Pose(region) if region is not None else None,
-                                 support_size_m=size)
+                                 support=label, support_size_m=size,
+                                 support_pose=None if region is None else support_pose(region))
                         for s, e, world, rel_uid, label, region, size in spans[o.uid]))
         for o in scene.objects}
 
@@ -649,40 +678,44 @@ def _key(info: _Info, fi: int, frame: int, scene: SceneSpec,
     return ("rel", ri)
 
 
-def _region_users(order: list[_Info], fi: int, frame: int, scene: SceneSpec,
-                  explicit: Mapping[str, Mapping[int, tuple[float, ...]]]) -> collections.Counter:
-    """(target uid, relation) → number of objects placed there in this frame."""
+def _region_users(keys: Iterable[tuple], scene: SceneSpec) -> collections.Counter:
+    """(target uid, relation) → number of objects placed there in a frame, from the
+    :func:`_key` of every object present in it."""
     users: collections.Counter = collections.Counter()
-    for info in order:
-        if info.present[fi]:
-            key = _key(info, fi, frame, scene, explicit)
-            if key[0] == "rel":
-                rel = scene.relations[key[1]]
-                users[(rel.object_uid, rel.type)] += 1
+    for key in keys:
+        if key[0] == "rel":
+            rel = scene.relations[key[1]]
+            users[(rel.object_uid, rel.type)] += 1
     return users
 
 
 class _FrameBoxes:
     """Oriented boxes of the objects placed so far in one frame."""
 
-    def __init__(self) -> None:
+    def __init__(self, capacity: int = 16) -> None:
         self.uids: list[str] = []
-        self.centres: list[np.ndarray] = []
-        self.axes: list[np.ndarray] = []
-        self.halves: list[np.ndarray] = []
         self.labels: list[str] = []
         self.areas: list[float] = []
-        self.seated: list[bool] = []
         self.blockers: collections.Counter[str] = collections.Counter()  # who was in the way
-        self._arrays: tuple[np.ndarray, ...] | None = None  # the lists above as arrays
+        # Rows [:len(uids)] hold the packed boxes (BOX_ROW); grown by doubling, so a frame of
+        # n objects costs O(n) copies rather than one array rebuild per test.
+        self._boxes = np.empty((capacity, BOX_ROW))
+        self._seated = np.empty(capacity, dtype=np.bool_)
+        self._any_seated = False
+        # The last pose tested and its box: the pose a try accepts is added next.
+        self._tested: tuple[np.ndarray, np.ndarray] | None = None
 
     def add(self, uid: str, info: _Info, world: np.ndarray, label: str) -> None:
-        centre, axes, half = object_box(info.entry, world)
-        self.seated.append(_seated(info.entry))
+        n = len(self.uids)
+        if n == len(self._seated):
+            self._boxes = np.concatenate([self._boxes, np.empty_like(self._boxes)])
+            self._seated = np.concatenate([self._seated, np.empty_like(self._seated)])
+        tested = self._tested
+        self._boxes[n] = tested[1] if tested is not None and tested[0] is world else object_box(info.entry, world)
+        seated = _seated(info.entry)
+        self._seated[n] = seated
+        self._any_seated |= seated
         self.uids.append(uid)
-        self.centres.append(centre)
-        self.axes.append(axes)
-        self.halves.append(half)
         self.labels.append(label)
         self.areas.append(info.footprint_area_m2)
 
@@ -694,19 +727,17 @@ class _FrameBoxes:
         """
         if not self.uids:
             return False
-        centre, axes, half = object_box(info.entry, world)
-        if self._arrays is None or len(self._arrays[0]) != len(self.uids):  # boxes added since
-            self._arrays = (np.asarray(self.centres), np.asarray(self.axes), np.asarray(self.halves),
-                            np.asarray(self.seated))
-        centres, axes_k, halves, seated = self._arrays
-        hits = boxes_overlap(centre, axes, half, centres, axes_k, halves)
-        if not hits.any():
+        box = object_box(info.entry, world)
+        self._tested = (world, box)
+        n = len(self.uids)
+        hits = np.zeros(n, dtype=np.bool_)
+        if not _overlap_kernel()(box, self._boxes, n, CONTACT_TOLERANCE_M, hits):
             return False
         if exclude is not None:
             hits &= np.asarray([u != exclude for u in self.uids])
-        if _seated(info.entry) or seated.any():
+        if _seated(info.entry) or self._any_seated:
             same_support = np.asarray([lab == label for lab in self.labels])
-            coarse = seated | _seated(info.entry)
+            coarse = self._seated[:n] | _seated(info.entry)
             hits &= ~coarse | same_support
         if hits.any():
             self.blockers.update(u for u, hit in zip(self.uids, hits) if hit)
@@ -728,6 +759,8 @@ class _Orientation:
         lo, hi: (3,) extent in the upright frame, metres.
         yaw_rad: base yaw about the region's Z axis (0 or a quarter turn).
         seated: rests on its origin (see the module docstring).
+        corners_xy: the (x, y) points, metres, that must stay inside the region: the four
+            footprint corners, or only the origin for a seated asset.
     """
 
     rotation: np.ndarray
@@ -735,6 +768,7 @@ class _Orientation:
     hi: np.ndarray
     yaw_rad: float
     seated: bool
+    corners_xy: tuple[tuple[float, float], ...] = ()
 
 
 _QUARTER = math.pi / 2.0
@@ -760,14 +794,24 @@ def fits_region(entry: AssetEntry, size_m: tuple[float, float, float], upright_o
 
 
 def _orientations(entry: AssetEntry, size: tuple[float, float, float],
-                  upright_only: bool = False) -> list[_Orientation]:
+                  upright_only: bool = False) -> tuple[_Orientation, ...]:
     """Every orientation that fits the region, preferred first: upright, upright turned a
     quarter, then lying on a side (a bag too tall for the space under a seat is laid down, as
     people do), unless ``upright_only``. Seated assets stay upright and only their part above
-    the origin counts for clearance."""
-    lo0 = np.asarray(entry.extent_min_m, dtype=np.float64)
-    hi0 = np.asarray(entry.extent_max_m, dtype=np.float64)
-    if _seated(entry):
+    the origin counts for clearance.
+
+    Cached per (extent, region size, rule): generating asks for the same few sizes tens of
+    thousands of times. The orientations are shared; callers must not change them."""
+    return _orientations_of_extent(tuple(entry.extent_min_m), tuple(entry.extent_max_m), size, upright_only)
+
+
+@functools.lru_cache(maxsize=4096)
+def _orientations_of_extent(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...],
+                            size: tuple[float, float, float], upright_only: bool) -> tuple[_Orientation, ...]:
+    lo0 = np.asarray(extent_min_m, dtype=np.float64)
+    hi0 = np.asarray(extent_max_m, dtype=np.float64)
+    seated = bool(lo0[2] < 0.0)  # as _seated(entry)
+    if seated:
         candidates = [(np.eye(3), lo0, hi0, yaw) for yaw in (0.0, _QUARTER)]
     else:
         corners = np.array([[x, y, z] for x in (lo0[0], hi0[0]) for y in (lo0[1], hi0[1]) for z in (lo0[2], hi0[2])])
@@ -777,30 +821,30 @@ def _orientations(entry: AssetEntry, size: tuple[float, float, float],
             candidates += [(rot, turned.min(axis=0), turned.max(axis=0), yaw) for yaw in (0.0, _QUARTER)]
     fitting = []
     for rot, lo, hi, yaw in candidates:
-        seated = _seated(entry)
         height = hi[2] if seated else hi[2] - lo[2]
         if seated or height <= size[2] + 1e-9:
-            orientation = _Orientation(rot, lo, hi, yaw, seated)
+            # The footprint corners the yaw turns (only the origin for a seated asset).
+            corners = ((0.0, 0.0),) if seated else tuple(
+                (float(x), float(y)) for x, y in ((lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])))
+            orientation = _Orientation(rot, lo, hi, yaw, seated, corners)
             if _footprint_range(orientation, 0.0, size) is not None:
                 fitting.append(orientation)
     # Lying down is only for objects that do not fit upright.
-    upright = [o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated]
-    return upright if upright or upright_only else fitting
+    upright = tuple(o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated)
+    return upright if upright or upright_only else tuple(fitting)
 
 
 def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[float, float, float]):
-    """Allowed origin x/y range in the region for an extra yaw, or None when it does not fit."""
-    lo, hi = orientation.lo, orientation.hi
+    """Allowed origin x/y range in the region for an extra yaw, or None when it does not fit.
+
+    Plain floats on the four corners: the same arithmetic as array code, without its per-call
+    cost (this runs for every try of every object)."""
     angle = orientation.yaw_rad + yaw_rad
     c, s = math.cos(angle), math.sin(angle)
-    if orientation.seated:  # only the contact point (the origin) must be inside
-        corners = np.zeros((1, 2))
-    else:
-        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
-    rx = corners[:, 0] * c - corners[:, 1] * s
-    ry = corners[:, 0] * s + corners[:, 1] * c
-    x_lo, x_hi = -size[0] / 2.0 - rx.min(), size[0] / 2.0 - rx.max()
-    y_lo, y_hi = -size[1] / 2.0 - ry.min(), size[1] / 2.0 - ry.max()
+    rx = [x * c - y * s for x, y in orientation.corners_xy]
+    ry = [x * s + y * c for x, y in orientation.corners_xy]
+    x_lo, x_hi = -size[0] / 2.0 - min(rx), size[0] / 2.0 - max(rx)
+    y_lo, y_hi = -size[1] / 2.0 - min(ry), size[1] / 2.0 - max(ry)
     if x_lo > x_hi + 1e-12 or y_lo > y_hi + 1e-12:
         return None
     return (x_lo, max(x_lo, x_hi)), (y_lo, max(y_lo, y_hi))
@@ -810,10 +854,11 @@ def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[floa
 _CORNERS = ((0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0))
 
 
-def _sample(info: _Info, orientations: list[_Orientation], region_pose: np.ndarray,
+def _sample(info: _Info, orientations: tuple[_Orientation, ...], region_pose: np.ndarray,
             size: tuple[float, float, float], rng: np.random.Generator, boxes: _FrameBoxes,
-            exclude: str | None, label: str, alone: bool) -> np.ndarray | None:
-    """Local pose (object → region) that fits and collides with nothing, or None.
+            exclude: str | None, label: str, alone: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    """Local pose (object → region, (4, 4)) that fits and collides with nothing, with the
+    world pose it gives (object → world, (4, 4)); None when no try fits.
 
     Tries, in order: the region centre displaced by the position noise (only for an object
     alone in its region, or seated), the four corners of the free range in each orientation, then
@@ -827,7 +872,7 @@ def _sample(info: _Info, orientations: list[_Orientation], region_pose: np.ndarr
     for attempt in range(MAX_TRIES):
         yaw = float(rng.normal(0.0, sigma_yaw)) if sigma_yaw > 0 else 0.0
         dx, dy = (rng.normal(0.0, sigma_pos, 2) if sigma_pos > 0 else (0.0, 0.0))
-        u, v = (float(w) for w in rng.random(2))
+        u, v = rng.random(2).tolist()
         # Seated assets sit in the middle of their seat whoever else is there.
         k = attempt - 1 if alone or orientations[0].seated else attempt
         if k < 0:
@@ -852,8 +897,9 @@ def _sample(info: _Info, orientations: list[_Orientation], region_pose: np.ndarr
         local = np.eye(4)
         local[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ orientation.rotation
         local[:3, 3] = (x, y, 0.0 if orientation.seated else -float(orientation.lo[2]))
-        if not boxes.collides(info, region_pose @ local, exclude, label):
-            return local
+        world = region_pose @ local
+        if not boxes.collides(info, world, exclude, label):
+            return local, world
     return None
 
 

@@ -388,7 +388,9 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         n_frames = options.frames or frames_for_coverage(combos, classes, per_frame)
         seated = _draw_seats([_taken_at(fixed_taken, f) for f in range(n_frames)], setup, catalog,
                              passenger_classes, options, conflicts, rng)
-        taken = [_taken_at(fixed_taken, f) | _seated_taken(row, laps, conflicts) for f, row in enumerate(seated)]
+        seat_laps = _laps_by_seat(laps)
+        taken = [_taken_at(fixed_taken, f) | _seated_taken(row, laps, seat_laps, conflicts)
+                 for f, row in enumerate(seated)]
         plan = plan_balanced(combos, classes, n_frames, per_frame, taken, conflicts, rng)
 
     slots = _pool_indices(plan, options.strategy)
@@ -684,12 +686,27 @@ def _draw_seats(busy: Sequence[set[Region]], setup: SceneSpec, catalog: Catalog,
     return out
 
 
+def _laps_by_seat(laps: Mapping[Region, Lap]) -> dict[str, list[tuple[Region, Lap]]]:
+    """Seat → its lap regions (sorted): those whose place name starts with ``<seat>/``
+    (:func:`lap_place_name`). Built once, so the per-frame steps look a seat's laps up instead
+    of scanning every lap for every passenger."""
+    out: dict[str, list[tuple[Region, Lap]]] = collections.defaultdict(list)
+    for region, lap in sorted(laps.items()):
+        name = region[0]
+        # Every "/" may end the seat's name (a seat name could hold one itself).
+        for cut in (i for i, ch in enumerate(name) if ch == "/"):
+            out[name[:cut]].append((region, lap))
+    return dict(out)
+
+
 def _seated_taken(row: Sequence[tuple[str, str]], laps: Mapping[Region, Lap],
+                  seat_laps: Mapping[str, Sequence[tuple[Region, Lap]]],
                   conflicts: Mapping[Region, frozenset[Region]]) -> set[Region]:
     """Regions a frame's passengers take: their seats and what overlaps them, except their own
-    laps; and the laps of every seat without a passenger offering one."""
-    offered = {region for region, lap in laps.items() for cls, seat in row
-               if lap.passenger_class == cls and region[0].startswith(seat + "/")}
+    laps; and the laps of every seat without a passenger offering one. ``seat_laps`` is
+    :func:`_laps_by_seat` of ``laps``."""
+    offered = {region for cls, seat in row for region, lap in seat_laps.get(seat, ())
+               if lap.passenger_class == cls}
     taken = set(laps) - offered
     for _, seat in row:
         taken |= set(conflicts.get((seat, PASSENGER_RELATION), {(seat, PASSENGER_RELATION)})) - offered
@@ -711,6 +728,7 @@ def _dress_passengers(seated: Sequence[Sequence[tuple[str, str]]], plan: list[li
     from usdscene.stage_schema import VARIANT_SET_POSE
 
     looks: dict[tuple[str, str | None, int], str | None] = {}
+    seat_laps = _laps_by_seat(laps)
     out = []
     for frame, row in enumerate(seated):
         on_lap = {c.place: catalog[c.class_name] for c in plan[frame] if (c.place, c.relation) in laps}
@@ -719,8 +737,8 @@ def _dress_passengers(seated: Sequence[Sequence[tuple[str, str]]], plan: list[li
         for class_name, seat in row:
             entry = catalog[class_name]
             poses = entry.variants.get(VARIANT_SET_POSE, ())
-            for (place, _), lap in sorted(laps.items()):
-                if place in on_lap and place.startswith(seat + "/") and lap.passenger_class == class_name:
+            for (place, _), lap in seat_laps.get(seat, ()):
+                if place in on_lap and lap.passenger_class == class_name:
                     poses = tuple(p for p in poses if p in lap.by_variant
                                   and fits_region(on_lap[place], lap.by_variant[p].size_m, upright_only=True))
             pose = poses[int(rng.integers(len(poses)))] if poses else None
@@ -951,11 +969,17 @@ def generate_document(setup_path: str | os.PathLike, out_path: str | os.PathLike
         AssetError: bad asset catalog.
         CompositionError: the generated document would not compose (a defect of the generator).
     """
+    from usdscene.bulk import paused_collection
+
+    with paused_collection():  # the document is millions of live containers (see usdscene.bulk)
+        return _generate_document(Path(setup_path), Path(out_path), options)
+
+
+def _generate_document(setup_path: Path, out_path: Path, options: GenerateOptions) -> GeneratedSequence:
     from usdscene.catalog import load_catalog
     from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
     from usdscene.files import write_json_atomic
 
-    setup_path, out_path = Path(setup_path), Path(out_path)
     document, provenance = load_with_provenance(setup_path)
     setup = read_loaded(document, provenance)
     base = setup_path.resolve().parent

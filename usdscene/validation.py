@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
+from usdscene.bulk import paused_collection
+
 if TYPE_CHECKING:
     from usdscene.catalog import Catalog
     from usdscene.model import SceneSpec
@@ -51,6 +53,7 @@ def resolve_schema(schema: str | os.PathLike | None) -> Path | None:
     return Path(schema)
 
 
+@paused_collection()  # a document holds up to millions of containers (see usdscene.bulk)
 def validate_document(path: str | os.PathLike, *,
                       schema: str | os.PathLike | None | Literal["default"] = DEFAULT_SCHEMA,
                       use_catalog: bool = True) -> ValidatedDocument:
