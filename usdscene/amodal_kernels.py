@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from usdscene.compiled import njit
 
-@numba.njit(cache=True, nogil=True)
+
+@njit(nogil=True)
 def to_camera(points_world, camera_to_world):
     """(P, 3) world points → (P, 3) camera-frame points, ``R^T (p - t)`` for the (4, 4) camera
     pose ``[R t]`` (a compiled loop: numpy's (P, 3) @ (3, 3) is 15 times slower)."""
@@ -35,7 +36,7 @@ def to_camera(points_world, camera_to_world):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def used_vertices(points, faces):
     """Drop the vertices no face uses: ``(points (P', 3), faces (T, 3) renumbered)``, vertices
     in their first order."""
@@ -61,7 +62,7 @@ def used_vertices(points, faces):
     return kept, renumbered
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def faces_to_fill(points_cam, faces, owner, single_facing):
     """The faces to rasterise: every face of an object, or for objects flagged in
     ``single_facing`` only the faces whose winding turns them towards the camera (see
@@ -94,7 +95,7 @@ def faces_to_fill(points_cam, faces, owner, single_facing):
     return kept_faces[:n], kept_owner[:n]
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def needs_split(uv, imaged, clamped, faces, max_edge, max_cut_edge):
     """(T,) bool: faces whose three vertices are imaged and one of whose projected edges is
     longer than ``max_edge`` pixels, or, for faces with some but not all vertices clamped
@@ -116,7 +117,7 @@ def needs_split(uv, imaged, clamped, faces, max_edge, max_cut_edge):
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@njit(nogil=True, inline="always")
 def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base, circle):
     """Set the pixels of one object's (h, w) crop (at ``crops[base:]``, image origin
     ``(x0, y0)``) whose centre lies inside or on the edge of face ``(a, b, c)`` and inside
@@ -154,7 +155,7 @@ def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base, circle):
             crops[row + px] = True
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def rasterize_objects(uv, imaged, inside, clamped, faces, owner, n_objects, width, height, circle):
     """Fill every object's faces by pixel-centre sampling into one crop per object.
 

@@ -205,9 +205,9 @@ def _boxes_of_ids(mask: np.ndarray, ids: np.ndarray) -> dict[int, PixelBox]:
 def _id_bounds_kernel():
     """Compiled (numba, cached on disk): per id of a (H, W) integer mask, the first and last
     column and row holding it (``hi_x = -1`` for absent ids)."""
-    import numba
+    from usdscene.compiled import njit
 
-    @numba.njit(cache=True, nogil=True)
+    @njit(nogil=True)
     def id_bounds(mask, count):
         height, width = mask.shape
         lo_x = np.full(count, width, dtype=np.int64)

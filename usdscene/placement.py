@@ -203,9 +203,9 @@ def _overlap_kernel():
     """The compiled separating-axis test behind :func:`boxes_overlap` (numba, cached on disk):
     ``overlap(box (15,), boxes (>= n, 15), n, tolerance_m, out (n,) bool) -> hits`` on packed
     boxes (:data:`BOX_ROW`); it sets ``out`` and returns how many are True."""
-    import numba
+    from usdscene.compiled import njit
 
-    @numba.njit(cache=True, nogil=True)
+    @njit(nogil=True)
     def overlap(box, boxes, n, tolerance, out):
         # Packed: centre at 0, axes[r, c] at 3 + 3 r + c, half sizes at 12.
         radius = math.sqrt(box[12] ** 2 + box[13] ** 2 + box[14] ** 2)
