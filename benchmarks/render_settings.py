@@ -82,7 +82,8 @@ BASELINE = {"samples": 8, "adaptive_threshold": 0.0, "adaptive_min_samples": 0, 
             "denoiser": "openimagedenoise", "denoising_quality": "high", "denoising_prefilter": "accurate",
             "denoising_input_passes": "rgb_albedo_normal", "light_tree": True, "path_guiding": False,
             "clamp_indirect": 10.0, "sampling_pattern": "tabulated_sobol", "max_bounces": 1, "caustics": False,
-            "tile_size_px": 2048}
+            "tile_size_px": 2048, "fast_gi": False, "fast_gi_method": "replace", "fast_gi_ao_bounces": 1,
+            "fast_gi_distance_m": 10.0, "scrambling_distance": 1.0, "auto_scrambling_distance": False}
 CANDIDATES = {  # label -> knobs changed from BASELINE
     "OIDN high / fast prefilter": {"denoising_prefilter": "fast"},
     "OIDN balanced / fast": {"denoising_quality": "balanced", "denoising_prefilter": "fast"},
@@ -103,6 +104,11 @@ CANDIDATES = {  # label -> knobs changed from BASELINE
     "16 spp adaptive 0.05 min 4, OIDN balanced / fast": {"samples": 16, "adaptive_threshold": 0.05,
                                                           "adaptive_min_samples": 4, "denoising_quality": "balanced",
                                                           "denoising_prefilter": "fast"},
+    "fast GI replace": {"fast_gi": True},
+    "fast GI add": {"fast_gi": True, "fast_gi_method": "add"},
+    "fast GI replace, 4 spp": {"fast_gi": True, "samples": 4},
+    "scrambling distance 0.5": {"scrambling_distance": 0.5},
+    "scrambling distance 0.5, 4 spp": {"scrambling_distance": 0.5, "samples": 4},
 }
 
 

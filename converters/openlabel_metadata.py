@@ -28,8 +28,9 @@ from usdscene.errors import ProblemCollector
 METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split")
 RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
-               "path_guiding", "clamp_indirect", "sampling_pattern", "max_bounces", "caustics", "tile_size_px", "resolution_px",
-               "seed")
+               "path_guiding", "clamp_indirect", "sampling_pattern", "fast_gi", "fast_gi_method",
+               "fast_gi_ao_bounces", "fast_gi_distance_m", "scrambling_distance", "auto_scrambling_distance",
+               "max_bounces", "caustics", "tile_size_px", "resolution_px", "seed")
 ENGINES = ("cycles", "eevee", "workbench")
 DEVICES = ("cpu", "gpu")
 DENOISERS = ("openimagedenoise", "optix")
@@ -37,10 +38,12 @@ DENOISING_QUALITIES = ("high", "balanced", "fast")
 DENOISING_PREFILTERS = ("accurate", "fast", "none")
 DENOISING_INPUT_PASSES = ("rgb_albedo_normal", "rgb_albedo", "rgb")
 SAMPLING_PATTERNS = ("tabulated_sobol", "blue_noise")
+FAST_GI_METHODS = ("replace", "add")
 EXPORT_FORMATS = ("coco", "yolo", "rois")
 RENDER_LIMITS = {"samples": (MAX_SAMPLES, "Cycles' most samples"),
                  "tile_size_px": (MAX_TILE_SIZE_PX, "Cycles' largest tile"),
                  "max_bounces": (MAX_BOUNCES, "Cycles' most bounces"),
+                 "fast_gi_ao_bounces": (MAX_BOUNCES, "Cycles' most bounces"),
                  "seed": (MAX_RENDER_SEED, "Cycles' largest seed")}
 
 
@@ -147,25 +150,31 @@ def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSet
             continue
         parsed: Any
         if key in ("engine", "device", "denoiser", "denoising_quality", "denoising_prefilter",
-                   "denoising_input_passes", "sampling_pattern"):
+                   "denoising_input_passes", "sampling_pattern", "fast_gi_method"):
             choices = {"engine": ENGINES, "device": DEVICES, "denoiser": DENOISERS,
                        "denoising_quality": DENOISING_QUALITIES,
                        "denoising_prefilter": DENOISING_PREFILTERS,
                        "denoising_input_passes": DENOISING_INPUT_PASSES,
-                       "sampling_pattern": SAMPLING_PATTERNS}[key]
+                       "sampling_pattern": SAMPLING_PATTERNS, "fast_gi_method": FAST_GI_METHODS}[key]
             parsed = read_text(item, here, P)
             if parsed is not None and parsed not in choices:
                 problems.add(here, f"unknown {key} {parsed!r}; expected one of {', '.join(choices)}")
                 parsed = None
         elif key in ("samples", "tile_size_px"):
             parsed = read_int(item, here, P, positive=True, maximum=RENDER_LIMITS[key])
-        elif key in ("max_bounces", "seed"):
+        elif key in ("max_bounces", "seed", "fast_gi_ao_bounces"):
             parsed = read_int(item, here, P, non_negative=True, maximum=RENDER_LIMITS[key])
         elif key == "adaptive_min_samples":
             parsed = read_int(item, here, P, non_negative=True, maximum=RENDER_LIMITS["samples"])
-        elif key in ("adaptive_threshold", "clamp_indirect"):
+        elif key in ("adaptive_threshold", "clamp_indirect", "fast_gi_distance_m"):
             parsed = read_number(item, here, P, non_negative=True)
-        elif key in ("denoise", "caustics", "light_tree", "path_guiding"):
+        elif key == "scrambling_distance":
+            parsed = read_number(item, here, P, non_negative=True)
+            if parsed is not None and parsed > 1:
+                problems.add(here, f"scrambling distance {parsed:g} is above 1; expected a number in [0, 1] "
+                                   "(1 = Cycles' full per-pixel scrambling, larger values change nothing)")
+                parsed = None
+        elif key in ("denoise", "caustics", "light_tree", "path_guiding", "fast_gi", "auto_scrambling_distance"):
             parsed = read_bool(item, here, P)
         else:  # resolution_px
             parsed = read_resolution(item, here, P)

@@ -279,6 +279,10 @@ def _metadata(scene: SceneSpec) -> dict:
         "adaptive_min_samples": int(render.adaptive_min_samples), "light_tree": bool(render.light_tree),
         "path_guiding": bool(render.path_guiding), "clamp_indirect": float(render.clamp_indirect),
         "sampling_pattern": render.sampling_pattern,
+        "fast_gi": bool(render.fast_gi), "fast_gi_method": render.fast_gi_method,
+        "fast_gi_ao_bounces": int(render.fast_gi_ao_bounces), "fast_gi_distance_m": float(render.fast_gi_distance_m),
+        "scrambling_distance": float(render.scrambling_distance),
+        "auto_scrambling_distance": bool(render.auto_scrambling_distance),
         "max_bounces": int(render.max_bounces), "caustics": bool(render.caustics),
         "tile_size_px": int(render.tile_size_px), "resolution_px": [int(v) for v in render.resolution_px],
         "seed": int(render.seed)}

@@ -263,6 +263,12 @@ class _StageReader:
                   ("path_guiding", ss.ATTR_RENDER_PATH_GUIDING, bool),
                   ("clamp_indirect", ss.ATTR_RENDER_CLAMP_INDIRECT, float),
                   ("sampling_pattern", ss.ATTR_RENDER_SAMPLING_PATTERN, str),
+                  ("fast_gi", ss.ATTR_RENDER_FAST_GI, bool),
+                  ("fast_gi_method", ss.ATTR_RENDER_FAST_GI_METHOD, str),
+                  ("fast_gi_ao_bounces", ss.ATTR_RENDER_FAST_GI_AO_BOUNCES, int),
+                  ("fast_gi_distance_m", ss.ATTR_RENDER_FAST_GI_DISTANCE, float),
+                  ("scrambling_distance", ss.ATTR_RENDER_SCRAMBLING_DISTANCE, float),
+                  ("auto_scrambling_distance", ss.ATTR_RENDER_AUTO_SCRAMBLING_DISTANCE, bool),
                   ("max_bounces", ss.ATTR_RENDER_MAX_BOUNCES, int), ("caustics", ss.ATTR_RENDER_CAUSTICS, bool),
                   ("tile_size_px", ss.ATTR_RENDER_TILE_SIZE, int), ("seed", ss.ATTR_RENDER_SEED, int))
         for field_name, attr, kind in fields:

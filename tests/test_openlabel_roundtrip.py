@@ -98,7 +98,9 @@ def full_scene() -> SceneSpec:
                      places=places, relations=relations,
                      render=RenderSettings(engine="cycles", device="gpu", samples=64, adaptive_threshold=0.01,
                                            denoise=False, denoiser="optix", max_bounces=6, caustics=True,
-                                           tile_size_px=256, resolution_px=(1280, 960), seed=5),
+                                           tile_size_px=256, resolution_px=(1280, 960), seed=5, fast_gi=True,
+                                           fast_gi_method="add", fast_gi_ao_bounces=3, fast_gi_distance_m=2.5,
+                                           scrambling_distance=0.25, auto_scrambling_distance=True),
                      seed=1234, environment="aircraft_cabin", asset_paths=("extra_assets",),
                      exports=("coco", "yolo", "rois"), roi_rules={"is_below": "correct", "is_on": "incorrect"},
                      description="every feature once")

@@ -25,6 +25,23 @@ def test_settings_override_and_every_problem_reported():
     assert len(err.value.problems) == 4
 
 
+def test_fast_gi_and_scrambling_overrides_are_checked():
+    s = resolve_settings(RenderSettings(), {"fast_gi": True, "fast_gi_method": "add", "fast_gi_ao_bounces": 2,
+                                            "fast_gi_distance_m": 0.5, "scrambling_distance": 0.25,
+                                            "auto_scrambling_distance": True})
+    assert (s["fast_gi"], s["fast_gi_method"], s["fast_gi_ao_bounces"]) == (True, "add", 2)
+    assert (s["fast_gi_distance_m"], s["scrambling_distance"], s["auto_scrambling_distance"]) == (0.5, 0.25, True)
+    with pytest.raises(RenderError) as err:
+        resolve_settings(RenderSettings(), {"fast_gi": "on", "fast_gi_method": "multiply", "fast_gi_ao_bounces": -1,
+                                            "fast_gi_distance_m": -3.0, "scrambling_distance": 1.5,
+                                            "auto_scrambling_distance": 1})
+    wheres = [p.where for p in err.value.problems]
+    assert wheres == ["render.fast_gi_method", "render.fast_gi_distance_m", "render.scrambling_distance",
+                      "render.fast_gi_ao_bounces", "render.fast_gi", "render.auto_scrambling_distance"]
+    text = str(err.value)
+    assert "'multiply'" in text and "-3.0" in text and "1.5 must be in [0, 1]" in text and "-1 must be an integer" in text
+
+
 def test_scale_intrinsics_keeps_the_pixel_convention():
     intr = Intrinsics(LensModel.OPENCV_PINHOLE, 640, 480, 500.0, 500.0, 321.7, 238.2, (-0.1, 0.01, 0.0, 0.0))
     half = scale_intrinsics(intr, 0.5)

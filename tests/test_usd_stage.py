@@ -123,7 +123,10 @@ def random_scenes(draw) -> m.SceneSpec:
                               max_bounces=int(rng.integers(0, 12)), caustics=draw(st.booleans()),
                               tile_size_px=int(rng.integers(16, 4096)),
                               resolution_px=(int(rng.integers(16, 4000)), int(rng.integers(16, 4000))),
-                              seed=int(rng.integers(0, 1000)))
+                              seed=int(rng.integers(0, 1000)), fast_gi=draw(st.booleans()),
+                              fast_gi_method=draw(st.sampled_from(["replace", "add"])),
+                              fast_gi_ao_bounces=int(rng.integers(0, 8)), fast_gi_distance_m=float(rng.uniform(0, 20)),
+                              scrambling_distance=float(rng.uniform(0, 1)), auto_scrambling_distance=draw(st.booleans()))
     return m.SceneSpec(name="random", frame_start=start, frame_end=end, cameras=tuple(cameras), lights=tuple(lights),
                        objects=tuple(objects), places=places, relations=tuple(relations), render=render,
                        seed=int(rng.integers(0, 2**31)), environment="test_cabin", asset_paths=("cat",),

@@ -75,6 +75,12 @@ ATTR_RENDER_LIGHT_TREE = "usdscene:render:lightTree"         # bool
 ATTR_RENDER_PATH_GUIDING = "usdscene:render:pathGuiding"     # bool
 ATTR_RENDER_CLAMP_INDIRECT = "usdscene:render:clampIndirect"  # float, 0 = off
 ATTR_RENDER_SAMPLING_PATTERN = "usdscene:render:samplingPattern"  # token
+ATTR_RENDER_FAST_GI = "usdscene:render:fastGi"               # bool
+ATTR_RENDER_FAST_GI_METHOD = "usdscene:render:fastGiMethod"  # token: replace / add
+ATTR_RENDER_FAST_GI_AO_BOUNCES = "usdscene:render:fastGiAoBounces"  # int, 0 = no approximation
+ATTR_RENDER_FAST_GI_DISTANCE = "usdscene:render:fastGiDistanceM"    # float, metres
+ATTR_RENDER_SCRAMBLING_DISTANCE = "usdscene:render:scramblingDistance"  # float in [0, 1], 1 = off
+ATTR_RENDER_AUTO_SCRAMBLING_DISTANCE = "usdscene:render:autoScramblingDistance"  # bool
 ATTR_RENDER_MAX_BOUNCES = "usdscene:render:maxBounces"       # int
 ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
 ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int

@@ -25,7 +25,7 @@ from typing import Any, Callable, Mapping, Sequence
 from usdscene import __version__, layout
 from usdscene.errors import Problem, RenderError
 from usdscene.files import write_json_atomic
-from usdscene.model import RenderSettings
+from usdscene.model import MAX_BOUNCES, RenderSettings
 from usdscene.projection import undistorted_render_intrinsics
 from usdscene.render.executors import ShardExit
 from usdscene.render.job import intrinsics_to_json
@@ -140,15 +140,24 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
         settings[key] = str(settings[key]).lower()
         if settings[key] not in allowed:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
-    from usdscene.converters.openlabel_metadata import DENOISING_INPUT_PASSES, SAMPLING_PATTERNS
+    from usdscene.converters.openlabel_metadata import DENOISING_INPUT_PASSES, FAST_GI_METHODS, SAMPLING_PATTERNS
 
-    for key, allowed in (("denoising_input_passes", DENOISING_INPUT_PASSES), ("sampling_pattern", SAMPLING_PATTERNS)):
+    for key, allowed in (("denoising_input_passes", DENOISING_INPUT_PASSES), ("sampling_pattern", SAMPLING_PATTERNS),
+                         ("fast_gi_method", FAST_GI_METHODS)):
         if settings[key] not in allowed:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
-    for key in ("clamp_indirect", "adaptive_min_samples"):
+    for key in ("clamp_indirect", "adaptive_min_samples", "fast_gi_distance_m", "scrambling_distance"):
         if not isinstance(settings[key], (int, float)) or isinstance(settings[key], bool) or settings[key] < 0:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} must be a number >= 0"))
-    for key in ("light_tree", "path_guiding"):
+        elif key == "scrambling_distance" and settings[key] > 1:
+            problems.append(Problem("render.scrambling_distance",
+                                    f"scrambling_distance {settings[key]!r} must be in [0, 1] "
+                                    "(1 = Cycles' full per-pixel scrambling, larger values change nothing)"))
+    bounces = settings["fast_gi_ao_bounces"]
+    if not isinstance(bounces, int) or isinstance(bounces, bool) or not 0 <= bounces <= MAX_BOUNCES:
+        problems.append(Problem("render.fast_gi_ao_bounces",
+                                f"fast_gi_ao_bounces {bounces!r} must be an integer in [0, {MAX_BOUNCES}]"))
+    for key in ("light_tree", "path_guiding", "fast_gi", "auto_scrambling_distance"):
         if not isinstance(settings[key], bool):
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} must be true or false"))
     if not 0 < float(settings["resolution_scale"]) <= 4:

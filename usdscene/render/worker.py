@@ -178,6 +178,16 @@ class Session:
         cycles.use_light_tree = bool(s["light_tree"])
         cycles.sample_clamp_indirect = float(s["clamp_indirect"])
         cycles.sampling_pattern = str(s["sampling_pattern"]).upper()
+        # Cycles reads the fast GI factor and distance from the world, which the import may
+        # have rebuilt for a dome light: set after it. Both bounce fields are written so that a
+        # .blend for camera design previews in the viewport what the render gets.
+        cycles.use_fast_gi = bool(s["fast_gi"])
+        cycles.fast_gi_method = str(s["fast_gi_method"]).upper()
+        cycles.ao_bounces = cycles.ao_bounces_render = int(s["fast_gi_ao_bounces"])
+        if scene.world is not None:
+            scene.world.light_settings.distance = float(s["fast_gi_distance_m"])
+        cycles.scrambling_distance = float(s["scrambling_distance"])
+        cycles.auto_scrambling_distance = bool(s["auto_scrambling_distance"])
         # Path guiding exists on the CPU only; Cycles ignores it on a GPU.
         cycles.use_guiding = bool(s["path_guiding"])
         cycles.use_surface_guiding = True
