@@ -25,7 +25,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from usdscene.converters.openlabel_annotations import image_records, label_classes, labels_in
+from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene import layout
 from usdscene.files import write_json_atomic
 from usdscene.labels import bridge_rings
@@ -63,7 +63,7 @@ def _coco_polygon(ring: np.ndarray) -> list[float]:
 
 def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[str, int],
                  image_ids: Iterable[int], first_annotation_id: int = 1,
-                 uri_prefix: str = "") -> tuple[list[dict], list[dict]]:
+                 uri_prefix: str = "", index: LabelIndex | None = None) -> tuple[list[dict], list[dict]]:
     """COCO image and annotation records of some images of one document.
 
     Args:
@@ -74,17 +74,19 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
         first_annotation_id: id of the first annotation written, then +1 each.
         uri_prefix: prepended (``prefix/uri``) to each image uri for ``file_name``, so images
             of several output folders can share one ``image_root``.
+        index: the document's :class:`LabelIndex` when the caller exports many images of it.
 
     Returns:
         ``(images, annotations)`` lists of COCO dicts.
     """
     images, annotations = [], []
+    index = index or LabelIndex(document)
     for image_id, record in zip(image_ids, records):
         file_name = f"{uri_prefix}/{record['uri']}" if uri_prefix else record["uri"]
         images.append({"id": image_id, "file_name": file_name, "width": record["width_px"],
                        "height": record["height_px"], "camera": record["camera"],
                        "frame": record["frame"]})
-        for label in labels_in(document, record["frame"], record["camera"]):
+        for label in index.labels(record["frame"], record["camera"]):
             if label["bbox"] is None or label["type"] not in category_ids:
                 continue
             attrs = label["attributes"]

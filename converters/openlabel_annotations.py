@@ -486,42 +486,80 @@ def labels_in(document: dict, frame: int, camera: str) -> list[dict]:
         "polygons": [{"points": [x0, y0, ...], "is_hole": bool, "parent": int}],
         "attributes": {name: value}}``; ``attributes`` merges those of the visible and amodal boxes.
     """
-    root = document.get("openlabel", {})
-    objects = root.get("objects", {})
-    frame_objects = (root.get("frames", {}).get(str(int(frame)), {}) or {}).get("objects", {}) or {}
-    out = []
-    for uid, entry in frame_objects.items():
-        data = (entry or {}).get("object_data", {}) or {}
-        bbox = amodal = None
-        attributes: dict[str, Any] = {}
-        for item in data.get("bbox", []):
-            if item.get("name") == amodal_bbox_name(camera):
-                amodal = list(item["val"])
-            elif item.get("name") == bbox_name(camera):
-                bbox = list(item["val"])
-            else:
-                continue
-            for kind_items in (item.get("attributes") or {}).values():
-                for attr in kind_items:
-                    attributes.setdefault(attr["name"], attr["val"])
-        polygons = []
-        prefix = f"{camera}{POLY2D_INFIX}"
-        for item in data.get("poly2d", []):
-            name = item.get("name", "")
-            if not name.startswith(prefix) or not name[len(prefix):].isdigit():
-                continue
-            hierarchy = item.get("hierarchy") or [-1, -1, -1, -1]
-            polygons.append((int(name[len(prefix):]), {
-                "points": [float(v) for v in item["val"]], "parent": int(hierarchy[3]),
-                "is_hole": int(hierarchy[3]) >= 0}))
-        if bbox is None and amodal is None and not polygons:
-            continue
-        element = objects.get(uid, {})
-        out.append({"uid": uid, "type": element.get("type", ""), "name": element.get("name", ""),
-                    "bbox": bbox, "amodal_bbox": amodal,
-                    "polygons": [p for _, p in sorted(polygons, key=lambda kp: kp[0])],
-                    "attributes": attributes})
-    return sorted(out, key=lambda o: (o["attributes"].get("mask_id", 0), o["uid"]))
+    return LabelIndex(document).labels(frame, camera)
+
+
+class LabelIndex:
+    """:func:`labels_in` for many images of one document: each frame's objects are read once
+    for all its cameras (reading them per image costs cameras × cameras passes over a frame).
+    Keeps every frame read; the document must not change meanwhile."""
+
+    def __init__(self, document: dict) -> None:
+        root = document.get("openlabel", {})
+        self._objects = root.get("objects", {})
+        self._frames = root.get("frames", {})
+        self._read: dict[int, dict[str, list[dict]]] = {}  # frame → camera → labels
+
+    def labels(self, frame: int, camera: str) -> list[dict]:
+        """As :func:`labels_in` (fresh dicts on every call)."""
+        frame = int(frame)
+        if frame not in self._read:
+            self._read[frame] = self._read_frame(frame)
+        return [dict(label, attributes=dict(label["attributes"]), polygons=[dict(p) for p in label["polygons"]])
+                for label in self._read[frame].get(camera, [])]
+
+    def _read_frame(self, frame: int) -> dict[str, list[dict]]:
+        frame_objects = (self._frames.get(str(frame), {}) or {}).get("objects", {}) or {}
+        by_camera: dict[str, list[dict]] = {}
+        for uid, entry in frame_objects.items():
+            data = (entry or {}).get("object_data", {}) or {}
+            found: dict[str, dict] = {}  # camera → {"bbox", "amodal_bbox", "attributes", "polygons"}
+
+            def of(camera: str) -> dict:
+                return found.setdefault(camera, {"bbox": None, "amodal_bbox": None, "attributes": {},
+                                                 "polygons": []})
+
+            for item in data.get("bbox", []):
+                name = item.get("name", "")
+                # A name can be the visible box of one camera and the amodal box of another
+                # (cameras "c" and "c_amodal"): both readings count, as they would per camera.
+                if name.endswith(AMODAL_BBOX_SUFFIX):
+                    label = of(name[:-len(AMODAL_BBOX_SUFFIX)])
+                    label["amodal_bbox"] = list(item["val"])
+                    _merge_attributes(label["attributes"], item)
+                if name.endswith(BBOX_SUFFIX):
+                    label = of(name[:-len(BBOX_SUFFIX)])
+                    label["bbox"] = list(item["val"])
+                    _merge_attributes(label["attributes"], item)
+            for item in data.get("poly2d", []):
+                name = item.get("name", "")
+                cut = name.rfind(POLY2D_INFIX)
+                index = name[cut + len(POLY2D_INFIX):]
+                if cut < 0 or not index.isdigit():
+                    continue
+                hierarchy = item.get("hierarchy") or [-1, -1, -1, -1]
+                of(name[:cut])["polygons"].append((int(index), {
+                    "points": [float(v) for v in item["val"]], "parent": int(hierarchy[3]),
+                    "is_hole": int(hierarchy[3]) >= 0}))
+            element = self._objects.get(uid, {})
+            for camera, label in found.items():
+                if label["bbox"] is None and label["amodal_bbox"] is None and not label["polygons"]:
+                    continue
+                by_camera.setdefault(camera, []).append({
+                    "uid": uid, "type": element.get("type", ""), "name": element.get("name", ""),
+                    "bbox": label["bbox"], "amodal_bbox": label["amodal_bbox"],
+                    "polygons": [p for _, p in sorted(label["polygons"], key=lambda kp: kp[0])],
+                    "attributes": label["attributes"]})
+        for labels in by_camera.values():
+            labels.sort(key=lambda o: (o["attributes"].get("mask_id", 0), o["uid"]))
+        return by_camera
+
+
+def _merge_attributes(into: dict, item: dict) -> None:
+    """Add an object data item's attributes (first value of each name wins)."""
+    for kind_items in (item.get("attributes") or {}).values():
+        for attr in kind_items:
+            into.setdefault(attr["name"], attr["val"])
 
 
 def label_classes(document: dict, classes: Iterable[str] | None = None) -> list[str]:

@@ -27,7 +27,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from usdscene.converters.coco import corner_box, object_rings
-from usdscene.converters.openlabel_annotations import image_records, label_classes, labels_in
+from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene import layout
 from usdscene.files import write_bytes_atomic, write_text_atomic
 from usdscene.labels import bridge_rings
@@ -43,11 +43,12 @@ def _fmt(values: Iterable[float]) -> str:
 
 
 def yolo_lines(document: dict, frame: int, camera: str, width_px: int, height_px: int,
-               class_ids: dict[str, int]) -> tuple[list[str], list[str]]:
-    """Detection and segmentation label lines of one image."""
+               class_ids: dict[str, int], index: LabelIndex | None = None) -> tuple[list[str], list[str]]:
+    """Detection and segmentation label lines of one image (``index``: the document's
+    :class:`LabelIndex` when the caller reads many images of it)."""
     detect, segment = [], []
     scale = np.array([width_px, height_px], dtype=np.float64)
-    for label in labels_in(document, frame, camera):
+    for label in (index or LabelIndex(document)).labels(frame, camera):
         if label["bbox"] is None or label["type"] not in class_ids:
             continue
         cls = class_ids[label["type"]]
@@ -80,7 +81,8 @@ def _link_or_copy(source: Path, target: Path, copy: bool) -> None:
 
 def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os.PathLike,
                       records: Iterable[dict], class_ids: Mapping[str, int], *, prefix: str = "",
-                      link_images: bool = True, copy_images: bool = False) -> list[str]:
+                      link_images: bool = True, copy_images: bool = False,
+                      index: LabelIndex | None = None) -> list[str]:
     """Write the label files (and image links) of some images of one document, both tasks.
 
     Args:
@@ -100,9 +102,10 @@ def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os
     """
     out, root = Path(out_dir), Path(root)
     paths = []
+    index = index or LabelIndex(document)
     for record in records:
         detect, segment = yolo_lines(document, record["frame"], record["camera"],
-                                     record["width_px"], record["height_px"], class_ids)
+                                     record["width_px"], record["height_px"], class_ids, index)
         stem = Path(prefix) / record["camera"] / Path(record["uri"]).stem
         image = stem.with_suffix(Path(record["uri"]).suffix)
         for task, lines in zip(TASKS, (detect, segment)):

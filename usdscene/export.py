@@ -39,13 +39,19 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
     """The catalog for an annotated document (see the module docstring)."""
     from pathlib import Path
 
-    from usdscene.converters.openlabel import read_openlabel
     from usdscene.catalog import load_catalog
+    from usdscene.converters.openlabel_load import DocumentBody
+    from usdscene.converters.openlabel_metadata import read_metadata
+    from usdscene.errors import DocumentError
 
-    scene = read_openlabel(document)
+    # Only the metadata's asset paths: reading the whole scene (every frame's labels) would
+    # cost a second on a run's document. ``document`` comes from load_document (root openlabel).
+    body = DocumentBody(document["openlabel"])
+    asset_paths = read_metadata(body)["asset_paths"]
+    body.problems.raise_if_any(DocumentError)
     base = _source_folder(out_dir) or Path(out_dir)
     extra = [Path(p).resolve() for p in extra_folders]  # given on the command line: consented
-    return load_catalog([*scene.asset_paths, *extra], base_dir=base, consented=extra)
+    return load_catalog([*asset_paths, *extra], base_dir=base, consented=extra)
 
 
 def _export_classes(document: dict, catalog, document_classes: bool) -> list[str] | None:
@@ -206,7 +212,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
     from pathlib import Path
 
     from usdscene.converters.coco import COCO_DIR, COCO_FILE, coco_document, coco_entries
-    from usdscene.converters.openlabel_annotations import image_records, label_classes
+    from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
     from usdscene.converters.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
     from usdscene.errors import OutputError
     from usdscene.files import write_json_atomic, write_text_atomic
@@ -235,6 +241,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
     names = sorted({n for document, catalog in loaded
                     for n in label_classes(document, _export_classes(document, catalog, document_classes))})
     records = [image_records(document) for document, _ in loaded]
+    # Each frame's labels read once for every camera and format.
+    label_indexes = [LabelIndex(document) for document, _ in loaded]
 
     # Global order: folder as given, then frame, then camera (image_records' order).
     items, image_id = [], 0
@@ -270,7 +278,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         entries, next_id = {}, 1
         for _, image_id, index, record in items:
             entries[image_id] = coco_entries(loaded[index][0], [record], category_ids, [image_id],
-                                             first_annotation_id=next_id, uri_prefix=prefixes[index])
+                                             first_annotation_id=next_id, uri_prefix=prefixes[index],
+                                             index=label_indexes[index])
             next_id += len(entries[image_id][1])
         for split_name, members in groups.items():
             images = [e for _, image_id, _, _ in members for e in entries[image_id][0]]
@@ -287,7 +296,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
             paths = []
             for _, _, index, record in members:
                 paths += write_yolo_images(loaded[index][0], outs[index], root, [record], class_ids,
-                                           prefix=prefixes[index], copy_images=copy_images)
+                                           prefix=prefixes[index], copy_images=copy_images,
+                                           index=label_indexes[index])
             if split_name is not None:
                 # "./" makes Ultralytics resolve each line against the list file's folder
                 text = "".join(f"./{p}\n" for p in paths)

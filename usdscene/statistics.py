@@ -26,7 +26,7 @@ def label_statistics(document: dict) -> dict:
         visible fractions in [0, 0.1), ..., [0.9, 1.0]], "visibility_unknown": int}``; classes and
         cameras sorted by name. Hidden objects count in the first visibility bin.
     """
-    from usdscene.converters.openlabel_annotations import image_records, labels_in
+    from usdscene.converters.openlabel_annotations import LabelIndex, image_records
 
     classes: dict[str, dict] = {}
     cameras: dict[str, dict] = {}
@@ -34,10 +34,11 @@ def label_statistics(document: dict) -> dict:
     unknown = 0
     objects_per_class: dict[str, set] = {}
     records = image_records(document)
+    index = LabelIndex(document)
     for record in records:
         cam = cameras.setdefault(record["camera"], {"images": 0, "labels": 0, "hidden": 0})
         cam["images"] += 1
-        for label in labels_in(document, record["frame"], record["camera"]):
+        for label in index.labels(record["frame"], record["camera"]):
             cls = classes.setdefault(label["type"], {"labels": 0, "hidden": 0, "objects": 0})
             key = "labels" if label["bbox"] is not None else "hidden"
             cls[key] += 1
