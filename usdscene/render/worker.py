@@ -1,6 +1,8 @@
 """The Blender worker process: the only module of usdscene that imports ``bpy``.
 
-Run as ``python -m usdscene.render.worker JOB.json``; never imported by the parent (bpy breaks
+Run as ``python -m usdscene.render.worker JOB.json`` (or with ``--wait-for-job``: import bpy
+first, then read the job file's path from stdin, for a worker started before its job exists,
+see :func:`usdscene.render.executors.prestart_workers`); never imported by the parent (bpy breaks
 ``multiprocessing`` and owns process-wide state). The job file (written by
 :mod:`usdscene.render.driver`, see :mod:`usdscene.render.job`) says which stage to import,
 which prims the shard needs, which objects are visible on which frames with which mask ids, the
@@ -657,8 +659,14 @@ def _die_with_parent(parent_pid: int | None) -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
-        sys.stderr.write("usage: python -m usdscene.render.worker JOB.json\n")
+        sys.stderr.write("usage: python -m usdscene.render.worker JOB.json | --wait-for-job\n")
         return 2
+    if argv[0] == "--wait-for-job":  # pre-started (executors.prestart_workers): bpy first
+        _import_bpy()
+        job_path = sys.stdin.readline().strip()
+        if not job_path:  # not needed after all
+            return 0
+        argv = [job_path]
     job = json.loads(Path(argv[0]).read_text())
     _die_with_parent(job.get("parent_pid"))
     for o in job.get("objects", ()):
