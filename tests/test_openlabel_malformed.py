@@ -456,3 +456,37 @@ def test_fast_schema_screen_agrees_with_the_full_validator(openlabel_schema_path
         assert screened_valid == fully_valid, document
         verdicts.add(fully_valid)
     assert verdicts == {True, False}
+
+
+def test_the_compiled_schema_check_is_cached_and_a_bad_cache_is_regenerated(openlabel_schema_path, tmp_path,
+                                                                           monkeypatch):
+    import fastjsonschema
+
+    from usdscene.converters.openlabel_checks import _compiled_check
+
+    monkeypatch.setenv("USDSCENE_CACHE_DIR", str(tmp_path / "cache"))
+    schema_bytes = openlabel_schema_path.read_bytes()
+    schema = json.loads(schema_bytes)
+    bad = json.loads(json.dumps(edit(_set("metadata/schema_version", 1))))
+    good = json.loads(json.dumps(edit(lambda body: None)))
+
+    def verdicts(check) -> list[bool]:
+        out = []
+        for document in (good, bad):
+            try:
+                check(document)
+                out.append(True)
+            except fastjsonschema.JsonSchemaValueException:
+                out.append(False)
+        return out
+
+    generated = _compiled_check(schema, schema_bytes)
+    [cached] = (tmp_path / "cache").glob("openlabel-schema-check-*.marshal")
+    assert verdicts(generated) == [True, False]
+    assert verdicts(_compiled_check(schema, schema_bytes)) == [True, False]  # from the cache
+    cached.write_bytes(b"not marshal data")
+    assert verdicts(_compiled_check(schema, schema_bytes)) == [True, False]
+    assert cached.read_bytes() != b"not marshal data"  # written anew
+    # An unwritable cache folder costs nothing but the time.
+    monkeypatch.setenv("USDSCENE_CACHE_DIR", str(cached / "not-a-folder"))
+    assert verdicts(_compiled_check(schema, schema_bytes)) == [True, False]

@@ -277,6 +277,17 @@ def write_json_atomic(path: str | os.PathLike, data: Any, *, compact: bool = Fal
     return write_text_atomic(path, text)
 
 
+def user_cache_folder() -> Path:
+    """Where usdscene keeps caches that only save time (compiled schema checks):
+    ``$USDSCENE_CACHE_DIR``, else ``$XDG_CACHE_HOME/usdscene``, else ``~/.cache/usdscene``.
+    Not created here; writers must treat any failure as "no cache"."""
+    explicit = os.environ.get("USDSCENE_CACHE_DIR")
+    if explicit:
+        return Path(explicit)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "usdscene"
+
+
 def resolve_inside(root: str | os.PathLike, relative: str | os.PathLike, *, what: str = "path") -> Path:
     """``root / relative`` resolved, refusing anything that escapes ``root``.
 
