@@ -23,6 +23,19 @@ def _quad(x0, y0, x1, y1, z) -> np.ndarray:
     return np.array([[a, b, c], [a, c, d]], dtype=np.float64)
 
 
+def _ray_cast_quad(camera: Camera, x0, y0, x1, y1, z) -> np.ndarray:
+    """(H, W) bool ground truth: pixels whose centre's ray (the lens model inverted) meets the
+    axis-aligned quad [x0, x1] × [y0, y1] on the plane z (camera frame, metres)."""
+    from usdscene.projection import pixel_rays
+
+    v, u = np.mgrid[0:H, 0:W]
+    rays, ok = pixel_rays(camera.intrinsics, np.stack([u.ravel(), v.ravel()], axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hit = rays * (z / rays[:, 2:3])
+    return (ok & (rays[:, 2] > 0) & (hit[:, 0] >= x0) & (hit[:, 0] <= x1)
+            & (hit[:, 1] >= y0) & (hit[:, 1] <= y1)).reshape(H, W)
+
+
 def test_perspective_box_matches_analytic_projection():
     proj = amodal_projection(_camera(), _quad(-0.5, -0.25, 0.5, 0.25, 2.0))
     # x = ±0.5 m at 2 m → ±10 px around cx = 31.5: pixel centres 22..41 inclusive.
@@ -51,17 +64,10 @@ def test_near_plane_clipping_keeps_front_part_only():
 ])
 def test_curved_lenses_match_per_pixel_ray_casting(lens, distortion, fov):
     """Ground truth: cast each pixel centre's ray onto the quad's plane (z = 1.2 m)."""
-    from usdscene.projection import pixel_rays
-
     camera = _camera(lens, distortion, fov)
     x0, y0, x1, y1, z = -0.8, -0.5, 0.6, 0.55, 1.2
     proj = amodal_projection(camera, _quad(x0, y0, x1, y1, z))
-    v, u = np.mgrid[0:H, 0:W]
-    rays, ok = pixel_rays(camera.intrinsics, np.stack([u.ravel(), v.ravel()], axis=1))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hit = rays * (z / rays[:, 2:3])
-    truth = (ok & (rays[:, 2] > 0) & (hit[:, 0] >= x0) & (hit[:, 0] <= x1)
-             & (hit[:, 1] >= y0) & (hit[:, 1] <= y1)).reshape(H, W)
+    truth = _ray_cast_quad(camera, x0, y0, x1, y1, z)
     # Triangles are split until projected edges are <= 8 px; the straight chords then stay
     # within a small fraction of a pixel of the curved edges.
     assert truth.sum() > 200
@@ -154,18 +160,11 @@ def test_camera_inside_a_closed_mesh_sees_it_everywhere():
 def test_fisheye_image_circle_cuts_the_projection_where_the_rays_do(lens, distortion):
     """A wall reaching far beyond a 100° image circle, corner to corner: its projection ends
     at the circle as the pixel rays do (ground truth: each pixel centre's ray onto the wall)."""
-    from usdscene.projection import pixel_rays
-
     camera = Camera("cam", Intrinsics(lens, W, H, 22.0, 22.0, (W - 1) / 2, (H - 1) / 2,
                                       distortion=tuple(distortion), fov_deg=100.0))
     x0, y0, x1, y1, z = -4.0, -0.6, 0.5, 3.0, 1.0
     proj = amodal_projection(camera, _quad(x0, y0, x1, y1, z))
-    v, u = np.mgrid[0:H, 0:W]
-    rays, ok = pixel_rays(camera.intrinsics, np.stack([u.ravel(), v.ravel()], axis=1))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hit = rays * (z / rays[:, 2:3])
-    truth = (ok & (rays[:, 2] > 0) & (hit[:, 0] >= x0) & (hit[:, 0] <= x1)
-             & (hit[:, 1] >= y0) & (hit[:, 1] <= y1)).reshape(H, W)
+    truth = _ray_cast_quad(camera, x0, y0, x1, y1, z)
     assert proj.truncated and truth.sum() > 300
     assert not truth[0, 0] and not truth[H - 1, 0]  # the corners lie beyond the circle
     # (Moving the vertices beyond the circle onto its cone, as before, missed 14 of the
