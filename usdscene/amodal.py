@@ -45,7 +45,7 @@ if TYPE_CHECKING:
 # Revision of the rasterisation rules; kept labels computed under another revision are
 # computed anew (:class:`usdscene.annotation.ImageLabeller`). Raise it whenever a change can
 # move a projection's pixels.
-RASTER_REVISION = 3
+RASTER_REVISION = 4
 
 # Projected triangle edges of distorting lenses are curves; triangles are split until their
 # projected edges are at most this long (pixels), so the straight-edge raster stays within a
@@ -287,27 +287,31 @@ def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray
     split = needs_split(uv, imaged, clamped, faces, max_edge_px, MAX_CUT_EDGE_PX)
     if not split.any():
         return uv, imaged, inside, clamped, faces, owner
-    vertices = [(uv, imaged, inside, clamped)]
+    # Pieces are vertex index triples into a pool that grows by each level's edge midpoints:
+    # a corner is projected once, not again in every piece that shares it.
+    pool = [points_cam, uv, imaged, inside, clamped]
     face_parts, owner_parts = [faces[~split]], [owner[~split]]
-    count = len(uv)
-    pieces, piece_owner = points_cam[faces[split]], owner[split]
+    pieces, piece_owner = faces[split], owner[split]
     for level in range(_MAX_SUBDIVISIONS):
-        pieces = _subdivide(pieces)
+        a, b, c = pieces[:, 0], pieces[:, 1], pieces[:, 2]
+        points, count, k = pool[0], len(pool[0]), len(pieces)
+        midpoints = np.concatenate([(points[a] + points[b]) / 2, (points[b] + points[c]) / 2,
+                                    (points[c] + points[a]) / 2])
+        pool = [np.concatenate([old, new]) for old, new in
+                zip(pool, (midpoints, *_project_points(intrinsics, midpoints)))]
+        ab, bc, ca = (count + np.arange(k) + offset for offset in (0, k, 2 * k))
+        pieces = np.concatenate([np.stack(corners, axis=1) for corners in
+                                 ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
         piece_owner = np.tile(piece_owner, 4)
-        piece = _project_points(intrinsics, pieces.reshape(-1, 3))
-        local_faces = np.arange(3 * len(pieces), dtype=np.int64).reshape(-1, 3)
-        vertices.append(piece)
-        piece_uv, piece_ok, _, piece_clamped = piece
         # The last level keeps every piece, long or not.
-        again = (needs_split(piece_uv, piece_ok, piece_clamped, local_faces, max_edge_px, MAX_CUT_EDGE_PX)
+        again = (needs_split(pool[1], pool[2], pool[4], pieces, max_edge_px, MAX_CUT_EDGE_PX)
                  if level < _MAX_SUBDIVISIONS - 1 else np.zeros(len(pieces), dtype=bool))
-        face_parts.append(local_faces[~again] + count)
+        face_parts.append(pieces[~again])
         owner_parts.append(piece_owner[~again])
-        count += len(piece_uv)
         if not again.any():
             break
         pieces, piece_owner = pieces[again], piece_owner[again]
-    uv, imaged, inside, clamped = (np.concatenate(parts) for parts in zip(*vertices))
+    _, uv, imaged, inside, clamped = pool
     return uv, imaged, inside, clamped, np.concatenate(face_parts), np.concatenate(owner_parts)
 
 
@@ -532,14 +536,6 @@ def _objects_in_view(intrinsics: Intrinsics, camera_to_world: np.ndarray, meshes
     off_axis = np.arctan2(np.hypot(centres[:, 0], centres[:, 1]), centres[:, 2])
     spread = np.arcsin(np.clip(radii / np.maximum(distance, 1e-300), 0.0, 1.0))
     return has_faces & ((distance <= radii) | (off_axis - spread <= half_angle)), clear
-
-
-def _subdivide(tris: np.ndarray) -> np.ndarray:
-    """Split (T, 3, 3) triangles at their edge midpoints → (4T, 3, 3)."""
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-    ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
-    return np.concatenate([np.stack(t, axis=1) for t in
-                           ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
 
 
 def _clip_polygon(poly: np.ndarray, axis: int, bound: float, keep_greater: bool) -> np.ndarray:
