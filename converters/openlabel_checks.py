@@ -62,14 +62,15 @@ def _validator(path: str):
     import jsonschema
 
     try:
-        schema = json.loads(Path(path).read_text(encoding="utf-8"))
+        schema_bytes = Path(path).read_bytes()
+        schema = json.loads(schema_bytes.decode("utf-8"))
     except OSError as exc:
         raise DocumentError(f"cannot read the OpenLABEL schema: {exc.strerror or exc}", where=path) from None
     except json.JSONDecodeError as exc:
         raise DocumentError(f"the OpenLABEL schema is not valid JSON (line {exc.lineno}, column {exc.colno})",
                             where=path) from None
     try:
-        fast = _compiled_check(schema, Path(path).read_bytes())
+        fast = _compiled_check(schema, schema_bytes)
     except Exception:  # noqa: BLE001 - any schema it cannot compile: jsonschema alone decides
         fast = None
     return fast, jsonschema.Draft7Validator(schema)
