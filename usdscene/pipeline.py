@@ -126,24 +126,17 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
             composition or render (nothing half-written).
     """
-    from usdscene.render.executors import LocalExecutor, discard_prestarted_workers, prestart_workers
+    from usdscene.render.executors import workers_started_early
 
-    local_slots = (workers or 1 if executor == "local"
-                   else executor.slots if isinstance(executor, LocalExecutor) else 0)
-    if not local_slots:
-        return _run_steps(document, out_dir, frames, cameras, exports, samples, workers, executor, retries,
-                          progress, on_step, split, split_seed)
-    # The local workers start now: their start-up (interpreter, import bpy) overlaps validating
+    # Local workers start now: their start-up (interpreter, import bpy) overlaps validating
     # and composing, which are single-threaded.
-    prestart_workers(local_slots)
-    try:
-        return _run_steps(document, out_dir, frames, cameras, exports, samples, workers, executor, retries,
-                          progress, on_step, split, split_seed)
-    finally:
-        discard_prestarted_workers()
+    with workers_started_early(executor, workers):
+        return _run_steps(document, out_dir, frames=frames, cameras=cameras, exports=exports, samples=samples,
+                          workers=workers, executor=executor, retries=retries, progress=progress,
+                          on_step=on_step, split=split, split_seed=split_seed)
 
 
-def _run_steps(document, out_dir, frames, cameras, exports, samples, workers, executor, retries, progress,
+def _run_steps(document, out_dir, *, frames, cameras, exports, samples, workers, executor, retries, progress,
                on_step, split, split_seed) -> RunSummary:
     """The steps of :func:`run_pipeline` (same arguments)."""
     from usdscene.annotation import LabelsWhileRendering, write_annotations

@@ -18,6 +18,7 @@ The driver owns planning, retries, the manifest and progress.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import logging
@@ -120,6 +121,21 @@ def discard_prestarted_workers() -> None:
             proc.wait()
         proc.stdout.close()
         shutil.rmtree(log_path.parent, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def workers_started_early(executor, workers: int | None):
+    """Within the block, the worker processes of a local executor (``"local"`` with
+    ``workers`` slots, or a :class:`LocalExecutor`) are started ahead of their jobs
+    (:func:`prestart_workers`); those no shard took end with the block. Other executors:
+    nothing."""
+    slots = (workers or 1 if executor == "local"
+             else executor.slots if isinstance(executor, LocalExecutor) else 0)
+    prestart_workers(slots)
+    try:
+        yield
+    finally:
+        discard_prestarted_workers()
 
 
 def _take_prestarted(job_path: Path) -> tuple[subprocess.Popen, Path] | None:
