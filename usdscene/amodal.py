@@ -20,7 +20,7 @@ Exactness, per lens:
   all (behind an OpenCV fisheye) are moved along their azimuth onto the cone, and the
   triangles they belong to are split until their projected edges are at most
   :data:`MAX_CUT_EDGE_PX` long. On the cabin's 39 fisheyes every box lies within 1 px of that
-  of a 16 times finer split.
+  of a 16 times finer split (``benchmarks/amodal_precision.py``).
 
 Objects whose bounding sphere lies outside a camera's field of view are culled before any
 triangle is projected; closed meshes are filled from the faces of one facing only (exact, see
