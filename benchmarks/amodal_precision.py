@@ -1,7 +1,7 @@
 """How close the amodal projections of a rendered output are to a much finer rasterisation.
 
 For every camera of one frame of an output folder (e.g. the README's cabin run), projects
-every labelled object twice with :func:`usdscene.amodal.amodal_projections`:
+every labelled object twice with :func:`usdscene.labels.amodal.amodal_projections`:
 
 * as ``usdscene run`` does (curved edges split to 8 px, closed meshes from one facing);
 * a reference: every face, curved edges split to 0.5 px and up to 8 levels (16 times finer),
@@ -20,10 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from usdscene import amodal, layout
-from usdscene.cross_camera import camera_for_image
+from usdscene.labels.image_labels import amodal
+
+from usdscene.document import output_layout as layout
+from usdscene.labels.cross_camera import camera_for_image
 from usdscene.render.stage_reader import read_stage_plan
-from usdscene.stage_geometry import StageGeometry
+from usdscene.scene.stage_geometry import StageGeometry
 
 
 def projections(cameras, triangles, frame, size, *, reference: bool) -> dict:

@@ -10,7 +10,7 @@ mask (boxes, polygons, visible fractions).
     python benchmarks/annotate_speed.py [--repeat 50] [--objects 60] [--stage-frames 500] [--output OUT]
 
 With ``--output OUT`` (a rendered output folder, e.g. of ``usdscene run`` on the cabin example)
-it labels every image of it anew with :class:`usdscene.annotation.ImageLabeller` (as ``usdscene
+it labels every image of it anew with :class:`usdscene.dataset.annotation.ImageLabeller` (as ``usdscene
 run`` does while rendering, its kept labels ignored) and reports the time per image.
 
 With ``--stage-frames N`` (needs usd-core) it also times reading world triangles from a
@@ -27,9 +27,9 @@ import time
 import cv2
 import numpy as np
 
-from usdscene.amodal import amodal_projections
-from usdscene.labels import DEFAULT_EPSILON_PX, label_image
-from usdscene.model import Camera, Intrinsics, LensModel
+from usdscene.labels.amodal import amodal_projections
+from usdscene.labels.image_labels import DEFAULT_EPSILON_PX, label_image
+from usdscene.document.model import Camera, Intrinsics, LensModel
 
 W, H = 640, 480
 
@@ -158,8 +158,8 @@ def output_benchmark(out: str) -> None:
     import tempfile
     from pathlib import Path
 
-    from usdscene import layout
-    from usdscene.annotation import ImageLabeller
+    from usdscene.document import output_layout as layout
+    from usdscene.dataset.annotation import ImageLabeller
 
     # A copy without out/labels, so nothing is read back; beside the original (same depth), so
     # that the stage's relative asset paths resolve the same.
@@ -191,7 +191,7 @@ def stage_benchmark(objects: int, frames: int, camera: Camera) -> None:
     from pathlib import Path
 
     from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
-    from usdscene.stage_geometry import StageGeometry
+    from usdscene.scene.stage_geometry import StageGeometry
 
     rng = np.random.default_rng(2)
     spheres = []

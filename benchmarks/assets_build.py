@@ -28,7 +28,7 @@ def main() -> int:
     from pxr import Usd, UsdGeom
 
     from usdscene.assetgen.library import build_library
-    from usdscene.catalog import default_asset_folder
+    from usdscene.shipped import default_asset_folder
 
     with tempfile.TemporaryDirectory() as tmp:
         best, median = _timed(lambda: build_library(Path(tmp)), args.repeat)

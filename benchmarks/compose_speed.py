@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from usdscene.converters.usd_stage import scene_from_stage
-from usdscene import model as m
-from usdscene.catalog import load_catalog
-from usdscene.compose import compose_stage
-from usdscene.placement import place_objects
+from usdscene.document import model as m
+from usdscene.scene.catalog import load_catalog
+from usdscene.scene.compose import compose_stage
+from usdscene.scene.placement import place_objects
 
 SPOTS = (  # (class, relation, place pattern)
     ("laptop", "is_on", "seat_{row:02d}{seat}"),

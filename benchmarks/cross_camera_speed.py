@@ -22,18 +22,18 @@ import numpy as np
 
 from usdscene.converters.openlabel import write_openlabel
 from usdscene.converters.openlabel_annotations import add_annotations
-from usdscene.cross_camera import cross_camera_table, object_densities
-from usdscene.labels import ImageLabels, ObjectLabel, PixelBox, label_images
-from usdscene.model import Camera, Intrinsics, LensModel, Pose, SceneObject, SceneSpec
+from usdscene.labels.cross_camera import cross_camera_table, object_densities
+from usdscene.labels.image_labels import ImageLabels, ObjectLabel, PixelBox, label_images
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose, SceneObject, SceneSpec
 from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
-from usdscene.stage_geometry import StageGeometry
+from usdscene.scene.stage_geometry import StageGeometry
 
 W, H = 640, 480
 
 
 def _cameras(count: int) -> tuple[Camera, ...]:
     """Cameras on a circle of 8 m around the origin, 2 m up, looking at the origin."""
-    from usdscene.coverage import look_rotation
+    from usdscene.design.candidates import look_rotation
 
     cameras = []
     for k in range(count):

@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from render_settings import psnr, run  # noqa: E402
 from render_throughput import scene_stage  # noqa: E402
 
-from usdscene.model import RenderSettings  # noqa: E402
+from usdscene.document.model import RenderSettings  # noqa: E402
 
 PAPER_T4_SECONDS = 9.3
 SCALE = 2.0  # the example is authored at 320x240; the paper's table is at 640x480

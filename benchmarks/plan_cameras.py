@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from usdscene.camera_design import plan_cameras, verify_plan
+from usdscene.design.camera_design import plan_cameras, verify_plan
 
 CABIN = Path(__file__).resolve().parents[1] / "examples" / "aircraft_cabin" / "cabin.openlabel.json"
 TARGETS = ["seat_*:on,below,in_front"]

@@ -32,7 +32,7 @@ from pathlib import Path
 def scene(frames: int, width: int, height: int):
     import numpy as np
 
-    from usdscene.model import Camera, Intrinsics, LensModel, Pose
+    from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
     from usdscene.render.synthetic import BoxSpec, PointLightSpec, SphereSpec, SyntheticScene
 
     r = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # looking along +x

@@ -19,8 +19,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from usdscene import layout
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.document import output_layout as layout
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
 from usdscene.render.driver import render
 from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
 

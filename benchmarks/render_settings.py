@@ -41,7 +41,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from render_throughput import scene_stage  # noqa: E402
 
-from usdscene import layout  # noqa: E402
+from usdscene.document import output_layout as layout  # noqa: E402
 from usdscene.render.driver import render  # noqa: E402
 
 

@@ -1,3 +1,3 @@
 """Format converters around the SceneSpec hub: OpenLABEL/VCD ↔ SceneSpec, USD stage ↔
 SceneSpec, and dataset exporters (COCO, YOLO, ROI crops). Every format converts to and from
-``usdscene.model.SceneSpec``, never directly to another format."""
+``usdscene.document.model.SceneSpec``, never directly to another format."""

@@ -26,9 +26,9 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
-from usdscene.labels import bridge_rings
+from usdscene.labels.image_labels import bridge_rings
 
 COCO_DIR = "coco"
 COCO_FILE = "annotations.json"

@@ -1,4 +1,4 @@
-"""OpenLABEL 1.0.0 / VCD 4.3 ↔ :class:`usdscene.model.SceneSpec` (the public entry module).
+"""OpenLABEL 1.0.0 / VCD 4.3 ↔ :class:`usdscene.document.model.SceneSpec` (the public entry module).
 
 ::
 

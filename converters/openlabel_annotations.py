@@ -32,7 +32,7 @@ for moving cameras; a friendly-form camera block becomes calibrated intrinsics) 
     attribute ``boolean`` ``is_hole``.
 
 Per labelled frame, every object present in that frame (or labelled in it) gets the cross-camera
-table of :mod:`usdscene.cross_camera`: ``vec`` object data named ``usdscene_cameras`` whose value
+table of :mod:`usdscene.labels.cross_camera`: ``vec`` object data named ``usdscene_cameras`` whose value
 is the names of the cameras that see it (at least one visible pixel), sorted, ``[]`` when none
 does. Attributes: ``num`` ``camera_count``; ``vec`` ``visible_fractions``, ``px_per_m`` (pixel
 density at the object's centre) and ``dori`` (IEC 62676-4 image-detail class, ``""`` below the
@@ -58,12 +58,12 @@ import os
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.coverage import DoriClass, load_dori
-from usdscene.cross_camera import CrossCameraRow, Densities, cross_camera_table
-from usdscene.labels import Annotations, ObjectLabel
-from usdscene.model import FrameInterval, RelationType, SceneSpec, union_intervals
+from usdscene.labels.pixel_density import DoriClass, load_dori
+from usdscene.labels.cross_camera import CrossCameraRow, Densities, cross_camera_table
+from usdscene.labels.image_labels import Annotations, ObjectLabel
+from usdscene.document.model import FrameInterval, RelationType, SceneSpec, union_intervals
 
 ANNOTATION_METADATA_KEY = "usdscene_annotations"
 FRAME_PROPERTIES_KEY = "usdscene"
@@ -317,7 +317,7 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
         annotations: labels of every labelled (frame, camera).
         out_dir: the output folder; uris are relative to it (the document is written there).
         densities: pixel densities of the cross-camera table
-            (:func:`usdscene.cross_camera.object_densities`); None = unknown (no ``px_per_m``
+            (:func:`usdscene.labels.cross_camera.object_densities`); None = unknown (no ``px_per_m``
             and ``dori`` attributes).
         dori_table: ascending DORI classes; None = the shipped IEC 62676-4:2015 table.
 

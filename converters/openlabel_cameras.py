@@ -1,4 +1,4 @@
-"""Camera streams of an OpenLABEL document → :class:`usdscene.model.Camera`. Pure module.
+"""Camera streams of an OpenLABEL document → :class:`usdscene.document.model.Camera`. Pure module.
 
 A camera is a ``stream`` of type ``camera`` with its intrinsics in ``stream_properties``
 (:mod:`usdscene.converters.openlabel_intrinsics`) and its pose from the coordinate system of
@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 from typing import Mapping
 
-from usdscene.model import Camera, Pose, RenderSettings
+from usdscene.document.model import Camera, Pose, RenderSettings
 
 from usdscene.converters.openlabel_carry import stream_residue
 from usdscene.converters.openlabel_intrinsics import FRIENDLY_KEYS, read_intrinsics

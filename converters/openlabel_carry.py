@@ -1,9 +1,9 @@
 """Other people's data: what a document holds that the scene model does not represent. Pure module.
 
 A converted document must not lose the annotations it came with. The reader keeps what it
-reads past as canonical JSON text in the ``extra`` fields of :class:`usdscene.model.SceneSpec`,
-:class:`~usdscene.model.Camera` and :class:`~usdscene.model.SceneObject`
-(:func:`usdscene.model.canonical_json`), and the writer merges it back unchanged:
+reads past as canonical JSON text in the ``extra`` fields of :class:`usdscene.document.model.SceneSpec`,
+:class:`~usdscene.document.model.Camera` and :class:`~usdscene.document.model.SceneObject`
+(:func:`usdscene.document.model.canonical_json`), and the writer merges it back unchanged:
 
 * per object: object data of names outside usdscene's vocabulary (bboxes, cuboids, poly2d, a
   vec ``Position``, ...), their ``object_data_pointers``, other keys of the element
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Mapping
 
-from usdscene.model import Camera, Relation, canonical_json, extra_data
+from usdscene.document.model import Camera, Relation, canonical_json, extra_data
 
 # Keys the readers consume; everything else is carried.
 OBJECT_KEYS = frozenset({"name", "type", "frame_intervals", "object_data", "object_data_pointers"})

@@ -12,7 +12,7 @@ Instead of a calibration, the friendly block ``stream_properties.usdscene`` desc
 as people do (lens model, resolution, sensor size mm, focal length mm, FOV deg); the block also
 names the lens model of a calibration (``fisheye_equidistant``, ``fisheye_equisolid``) and
 carries ``fov_deg``, the image circle of a fisheye. :func:`read_intrinsics` turns either into
-:class:`usdscene.model.Intrinsics` (pixels).
+:class:`usdscene.document.model.Intrinsics` (pixels).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import math
 from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
-from usdscene.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
+from usdscene.document.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
 
 from usdscene.converters.openlabel_values import (
     IMAGE_SIDE_LIMIT,

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import MAX_FRAME, Provenance
+from usdscene.document.model import MAX_FRAME, Provenance
 
 from usdscene.converters.openlabel_values import describe
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from usdscene.model import MAX_BOUNCES, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
+from usdscene.document.model import MAX_BOUNCES, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
 
 from usdscene.converters.openlabel_load import SCHEMA_VERSION, DocumentBody
 from usdscene.converters.openlabel_values import (
@@ -54,7 +54,7 @@ def read_metadata(doc: DocumentBody) -> dict:
         ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
         ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``,
         ``frame_range`` (a :class:`FrameInterval` or None), ``split_rule`` and ``split_seed``
-        (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.splits`), with defaults for what is absent
+        (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.document.splits`), with defaults for what is absent
         or bad (the problem is recorded in ``doc``).
     """
     problems = doc.problems
@@ -110,7 +110,7 @@ def read_metadata(doc: DocumentBody) -> dict:
         out["roi_rules"] = {k: v for k, v in rules.items()
                             if read_text(v, f"{where}.roi_rules.{k}", problems, non_empty=True)}
     if "split" in block:
-        from usdscene.splits import read_document_split
+        from usdscene.document.splits import read_document_split
 
         rule, seed = read_document_split(block["split"], f"{where}.split", problems)
         if rule is not None:

@@ -19,7 +19,8 @@ import re
 from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
-from usdscene.model import (
+from usdscene.document.model import (
+    PLACEMENT_RELATIONS,
     DeclaredRegion,
     FrameInterval,
     Light,
@@ -68,8 +69,6 @@ def _declared_regions(obj: Mapping, where: str, problems: ProblemCollector) -> t
     """Regions a place object declares as OpenLABEL ``cuboid`` object data: name = placement
     relation, val = ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]`` (centre in world metres, rotation
     quaternion, full sizes in metres); the region's support surface is the cuboid's bottom face."""
-    from usdscene.converters.openlabel_relations import PLACEMENT_RELATIONS
-
     data = obj.get("object_data")
     cuboids = data.get("cuboid", []) if isinstance(data, dict) else []
     if not isinstance(cuboids, list):

@@ -9,7 +9,7 @@
 * Lights and objects carry their pose as object data (``pose_matrix4x4``, or ``position_m``
   with ``rotation_xyz_deg`` or ``rotation_quaternion_xyzw``): :func:`pose_from_object_data`.
 
-Every ``Pose`` maps child → parent coordinates (``usdscene.model`` conventions).
+Every ``Pose`` maps child → parent coordinates (``usdscene.document.model`` conventions).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
-from usdscene.model import Pose, euler_zyx_to_rotation, quaternion_to_rotation
+from usdscene.document.model import Pose, euler_zyx_to_rotation, quaternion_to_rotation
 
 from usdscene.converters.openlabel_load import DocumentBody
 from usdscene.converters.openlabel_values import (

@@ -1,4 +1,4 @@
-"""OpenLABEL 1.0.0 / VCD 4.3 documents → :class:`usdscene.model.SceneSpec`. Pure module.
+"""OpenLABEL 1.0.0 / VCD 4.3 documents → :class:`usdscene.document.model.SceneSpec`. Pure module.
 
 The vocabulary is documented in ``docs/scene-format.md``. Every problem of a document is
 collected with its JSON path (``openlabel.streams.cam_01.stream_properties.usdscene.fov_deg``)
@@ -30,18 +30,18 @@ from typing import TYPE_CHECKING, Mapping
 
 from usdscene.bulk import paused_collection
 from usdscene.errors import DocumentError
-from usdscene.model import FrameInterval, Provenance, SceneSpec, union_intervals
+from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, Provenance, SceneSpec, union_intervals
 
 from usdscene.converters.openlabel_cameras import read_cameras
 from usdscene.converters.openlabel_carry import scene_residue
 from usdscene.converters.openlabel_load import DocumentBody, load_with_provenance
 from usdscene.converters.openlabel_metadata import read_metadata
 from usdscene.converters.openlabel_objects import read_objects
-from usdscene.converters.openlabel_relations import PLACEMENT_RELATIONS, check_frame_relations, read_relations
+from usdscene.converters.openlabel_relations import check_frame_relations, read_relations
 from usdscene.converters.openlabel_values import read_intervals, suggest
 
 if TYPE_CHECKING:
-    from usdscene.catalog import Catalog
+    from usdscene.scene.catalog import Catalog
 
 ROOT_KEYS = frozenset({"metadata", "streams", "coordinate_systems", "objects", "relations", "frames",
                        "frame_intervals", "actions", "events", "contexts", "ontologies", "resources",
@@ -54,7 +54,7 @@ def read_openlabel(source: str | os.PathLike | Mapping, *, catalog: Catalog | No
 
     Args:
         source: path of an OpenLABEL 1.0.0 / VCD 4.3 JSON file, or the parsed document.
-        catalog: a :class:`usdscene.catalog.Catalog`; when given, object classes, place names
+        catalog: a :class:`usdscene.scene.catalog.Catalog`; when given, object classes, place names
             and placement relations are checked against it. Without one those checks are
             skipped.
 

@@ -1,7 +1,7 @@
 """Relations of an OpenLABEL document (``is_on``, ``is_below``, ...). Pure module.
 
 A relation links one subject to one object by uid. The placement relations of
-:class:`usdscene.model.RelationType` put a dynamic object on a place or on another object; other
+:class:`usdscene.document.model.RelationType` put a dynamic object on a place or on another object; other
 relation types are carried as they are. ``frames[f].relations`` markers must name existing
 relations.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 from typing import Mapping
 
-from usdscene.model import FrameInterval, Relation, RelationType
+from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, Relation
 
 from usdscene.converters.openlabel_load import DocumentBody
 from usdscene.converters.openlabel_objects import UID_PATTERN
@@ -19,7 +19,6 @@ from usdscene.converters.openlabel_values import describe, read_intervals
 
 log = logging.getLogger(__name__)
 
-PLACEMENT_RELATIONS = frozenset(r.value for r in RelationType)
 
 
 def read_relations(doc: DocumentBody, uids: Mapping[str, str]) -> list[Relation]:

@@ -18,7 +18,7 @@ import math
 from typing import Any, Iterable, Sequence
 
 from usdscene.errors import ProblemCollector
-from usdscene.model import (
+from usdscene.document.model import (
     MAX_FRAME,
     MAX_IMAGE_SIDE_PX,
     FrameInterval,

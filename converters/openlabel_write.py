@@ -1,4 +1,4 @@
-""":class:`usdscene.model.SceneSpec` → OpenLABEL 1.0.0 document. Pure module.
+""":class:`usdscene.document.model.SceneSpec` → OpenLABEL 1.0.0 document. Pure module.
 
 The output validates against the official OpenLABEL 1.0.0 JSON schema, serialises with
 ``allow_nan=False`` and reads back into an equal scene (``read_openlabel(write_openlabel(s))
@@ -26,7 +26,7 @@ import os
 from typing import Any, Iterable
 
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import (
+from usdscene.document.model import (
     FISHEYE_LENSES,
     FrameInterval,
     LensModel,

@@ -2,8 +2,8 @@
 
 For every image of the document (frame × camera) and every region of every place the document
 names (``seat_03A`` → its ``is_on``, ``is_below``, ``is_in_front_of`` ... regions in the asset
-catalog), the region's box (catalog pose and size, see :class:`usdscene.catalog.PlaceRegion`)
-is projected through the camera (:func:`usdscene.projection.project_points`, every lens model)
+catalog), the region's box (catalog pose and size, see :class:`usdscene.scene.catalog.PlaceRegion`)
+is projected through the camera (:func:`usdscene.labels.projection.project_points`, every lens model)
 and cropped from the image when the camera sees it:
 
 * all 8 corners are valid for the lens (in front of the camera, inside its field of view);
@@ -38,11 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from usdscene.converters.openlabel_annotations import image_records, resolve_places_over
-from usdscene import layout
-from usdscene.catalog import Catalog, PlaceRegion
+from usdscene.document import output_layout as layout
+from usdscene.scene.catalog import Catalog, PlaceRegion
 from usdscene.errors import AssetError, DocumentError, OutputError
 from usdscene.files import write_png_atomic, write_text_atomic
-from usdscene.model import Camera
+from usdscene.document.model import Camera
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +90,7 @@ def region_crop_box(camera: Camera, region: PlaceRegion, frame: int, *, min_size
                     min_inside_fraction: float = 0.5) -> tuple[int, int, int, int] | None:
     """Inclusive pixel bounds ``(x_min, y_min, x_max, y_max)`` of the region's projected box
     clipped to the image, or None when the camera does not see it (see the module docstring)."""
-    from usdscene.projection import project_points
+    from usdscene.labels.projection import project_points
 
     uv, valid = project_points(camera, region_corners(region), frame)
     if not valid.all():
@@ -140,7 +140,7 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
     if scene.environment is None or scene.environment not in catalog:
         raise AssetError(f"environment {scene.environment!r} is not in the asset catalog",
                          where="openlabel.metadata.usdscene.environment")
-    from usdscene.catalog import scene_catalog
+    from usdscene.scene.catalog import scene_catalog
 
     env_places = scene_catalog(catalog, scene).places(scene.environment)  # declared places too
     missing = [p.name for p in scene.places if p.name not in env_places]

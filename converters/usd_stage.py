@@ -1,8 +1,8 @@
-"""Scene2VCD: read any USD stage back into a :class:`~usdscene.model.SceneSpec`.
+"""Scene2VCD: read any USD stage back into a :class:`~usdscene.document.model.SceneSpec`.
 
 ``scene_from_stage(stage_or_path)`` reads
 
-* a stage written by :func:`usdscene.compose.compose_stage`: the result equals
+* a stage written by :func:`usdscene.scene.compose.compose_stage`: the result equals
   ``ComposeResult.resolved`` (explicit per-frame poses, appearance and colour fixed);
 * the same stage after cameras, lights or objects were moved in a DCC tool: transforms are
   always evaluated (``UsdGeom.XformCache`` at every time code of the frame range), and an exact
@@ -42,9 +42,9 @@ from typing import Any, Iterable
 import numpy as np
 
 from usdscene import __version__
-from usdscene import stage_schema as ss
+from usdscene.document import stage_schema as ss
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
+from usdscene.document.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
                             Provenance, Relation, RenderSettings, SceneObject, SceneSpec, usd_pose_to_cv_pose)
 
 log = logging.getLogger(__name__)
@@ -338,7 +338,7 @@ class _StageReader:
     def _intrinsics(self, prim, resolution: tuple[int, int] | None, default_width: int) -> Intrinsics:
         from pxr import UsdGeom
 
-        from usdscene.compose import camera_apertures
+        from usdscene.scene.compose import camera_apertures
 
         geom = UsdGeom.Camera(prim)
         usd = {
@@ -577,7 +577,7 @@ def _intervals(visible: list[bool], frame_start: int) -> tuple[FrameInterval, ..
 
 def _derive_intrinsics(usd: dict, ortho: bool, width: int, height: int, mpu: float) -> Intrinsics:
     """PERSPECTIVE/ORTHOGRAPHIC intrinsics from plain UsdGeom.Camera attributes (lengths in
-    tenths of a scene unit; see usdscene.compose for the offset convention)."""
+    tenths of a scene unit; see usdscene.scene.compose for the offset convention)."""
     h_ap = float(usd["horizontalAperture"] or 20.955)
     v_ap = float(usd["verticalAperture"] or 15.2908)
     h_off = float(usd["horizontalApertureOffset"] or 0.0)

@@ -28,9 +28,9 @@ import numpy as np
 
 from usdscene.converters.coco import corner_box, object_rings
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.files import write_bytes_atomic, write_text_atomic
-from usdscene.labels import bridge_rings
+from usdscene.labels.image_labels import bridge_rings
 
 log = logging.getLogger(__name__)
 

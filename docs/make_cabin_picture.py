@@ -77,8 +77,8 @@ def build_stage(folder: Path) -> Path:
     """Write ``folder/scene.usda`` referencing the shipped library; returns its path."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
-    from usdscene import stage_schema
-    from usdscene.catalog import load_catalog
+    from usdscene.document import stage_schema
+    from usdscene.scene.catalog import load_catalog
 
     catalog = load_catalog()
     cabin = catalog["aircraft_cabin"]

@@ -23,9 +23,9 @@ import numpy as np
 
 from usdscene.converters.openlabel import load_document
 from usdscene.converters.openlabel_annotations import image_records, labels_in
-from usdscene import layout
-from usdscene.contact_sheet import contact_sheet
-from usdscene.statistics import draw_chart, label_statistics
+from usdscene.document import output_layout as layout
+from usdscene.dataset.contact_sheet import contact_sheet
+from usdscene.dataset.statistics import draw_chart, label_statistics
 from usdscene.files import write_png_atomic
 
 IMG = Path(__file__).resolve().parent / "img"

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from usdscene import stage_schema
-from usdscene.catalog import load_catalog
+from usdscene.document import stage_schema
+from usdscene.scene.catalog import load_catalog
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 

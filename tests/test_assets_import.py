@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdscene.catalog import load_catalog
+from usdscene.scene.catalog import load_catalog
 from usdscene.cli import main
 
 pytestmark = pytest.mark.usd

@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdscene import stage_schema
-from usdscene.catalog import REGION_RELATIONS, default_asset_folder, load_catalog
+from usdscene.document import stage_schema
+from usdscene.scene.catalog import REGION_RELATIONS, load_catalog
+from usdscene.shipped import default_asset_folder
 
 ASSETS = default_asset_folder()
 RELATIONS = set(REGION_RELATIONS.values())

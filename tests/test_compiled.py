@@ -13,8 +13,8 @@ SCRIPT = textwrap.dedent("""
     import numpy as np
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # as the command line does: EFBIG, not a kill
     resource.setrlimit(resource.RLIMIT_FSIZE, (512, 512))
-    from usdscene.amodal import amodal_projection
-    from usdscene.model import Camera, Intrinsics, LensModel
+    from usdscene.labels.amodal import amodal_projection
+    from usdscene.document.model import Camera, Intrinsics, LensModel
     camera = Camera("cam", Intrinsics(LensModel.FISHEYE_EQUISOLID, 64, 48, 20.0, 20.0, 31.5, 23.5, fov_deg=120.0))
     square = np.array([[[-0.5, -0.5, 2.0], [0.5, -0.5, 2.0], [0.5, 0.5, 2.0]],
                        [[-0.5, -0.5, 2.0], [0.5, 0.5, 2.0], [-0.5, 0.5, 2.0]]])

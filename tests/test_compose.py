@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from test_compose_support import build_test_catalog, load_test_catalog, look_at_cv, small_scene
-from usdscene import model as m
-from usdscene import stage_schema as ss
-from usdscene.compose import compose_stage, light_intensity
+from usdscene.document import model as m
+from usdscene.document import stage_schema as ss
+from usdscene.scene.compose import compose_stage, light_intensity
 from usdscene.errors import CompositionError
 
 pytestmark = pytest.mark.usd
@@ -267,7 +267,7 @@ def test_render_layer(composed):
 
 
 def test_interrupted_compose_leaves_no_valid_looking_stage(tmp_path, catalog, monkeypatch):
-    import usdscene.compose as compose_module
+    import usdscene.scene.compose as compose_module
 
     stage_dir = tmp_path / "stage"
     compose_stage(small_scene(), catalog, stage_dir)

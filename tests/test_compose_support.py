@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdscene import model as m
-from usdscene.catalog import load_catalog
+from usdscene.document import model as m
+from usdscene.scene.catalog import load_catalog
 
 OBJECT_CLASSES = {
     # class: (extent min, extent max, appearance variants)

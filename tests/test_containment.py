@@ -13,7 +13,7 @@ import pytest
 
 from test_compose_support import build_test_catalog, small_scene
 from usdscene.cli import main
-from usdscene.containment import ASSET_PATH_ENV, is_inside, reading_roots
+from usdscene.document.containment import ASSET_PATH_ENV, is_inside, reading_roots
 
 pytestmark = pytest.mark.usd
 

@@ -10,47 +10,53 @@ import math
 import numpy as np
 import pytest
 
-from usdscene import coverage as cov
+from usdscene.design.candidates import look_rotation
+from usdscene.design.lenses import lens_intrinsics, load_lenses
+from usdscene.design.occluders import Occluders
+from usdscene.design.selection import select_cameras
+from usdscene.design.targets import SURFACE_LIFT_M, box_points, parse_target_spec, targets_from_places
+from usdscene.design.visibility import evaluate_visibility
+from usdscene.labels.pixel_density import dori_class, dori_index, load_dori, pixel_density
 from usdscene.errors import DocumentError
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
 
 # --------------------------------------------------------------------------------------------
 # Pure parts
 
 
 def test_dori_classes_follow_iec_62676_4_thresholds():
-    table = cov.load_dori()
+    table = load_dori()
     assert [c.name for c in table] == ["monitor", "detect", "observe", "recognise", "identify", "inspect"]
-    assert cov.dori_class(62.5, table) == "observe" and cov.dori_class(62.4, table) == "detect"
-    assert cov.dori_class(12.0, table) is None and cov.dori_class(5000, table) == "inspect"
-    assert cov.dori_index(np.array([[0.0, 125.0], [np.nan, 250.0]]), table).tolist() == [[-1, 3], [-1, 4]]
+    assert dori_class(62.5, table) == "observe" and dori_class(62.4, table) == "detect"
+    assert dori_class(12.0, table) is None and dori_class(5000, table) == "inspect"
+    assert dori_index(np.array([[0.0, 125.0], [np.nan, 250.0]]), table).tolist() == [[-1, 3], [-1, 4]]
 
 
 def test_a_user_dori_table_replaces_the_shipped_one_and_bad_entries_are_named(tmp_path):
     path = tmp_path / "dori.json"
     path.write_text(json.dumps({"classes": [{"name": "see", "px_per_m": 40}, {"name": "read", "px_per_m": 400}]}))
-    assert [c.name for c in cov.load_dori(path)] == ["see", "read"]
+    assert [c.name for c in load_dori(path)] == ["see", "read"]
     path.write_text(json.dumps({"classes": [{"name": "see", "px_per_m": -1}]}))
     with pytest.raises(DocumentError) as err:
-        cov.load_dori(path)
+        load_dori(path)
     assert "classes[0].px_per_m" in str(err.value) and "-1" in str(err.value)
 
 
 def test_shipped_lenses_include_the_papers_fisheye_and_user_lenses_extend_them(tmp_path):
-    lenses = cov.load_lenses()
+    lenses = load_lenses()
     paper = lenses["fisheye_118_2.13mm"]
-    intr = cov.lens_intrinsics(paper)
+    intr = lens_intrinsics(paper)
     assert intr.lens is LensModel.FISHEYE_EQUISOLID and intr.fov_deg == 118.0
     assert intr.fx_px == pytest.approx(2.13 * 640 / 4.0)
     extra = tmp_path / "mine.json"
     extra.write_text(json.dumps({"lenses": {"tele": {"model": "perspective", "focal_length_mm": 12,
                                                      "sensor_width_mm": 6.4, "resolution_px": [1920, 1080]}}}))
-    both = cov.load_lenses(extra)
+    both = load_lenses(extra)
     assert "tele" in both and "cctv_4mm" in both
     extra.write_text(json.dumps({"lenses": {"bad": {"model": "fisheye_equisolid", "focal_length_mm": 2,
                                                     "sensor_width_mm": 4, "resolution_px": [640, 480]}}}))
     with pytest.raises(DocumentError) as err:
-        cov.load_lenses(extra)
+        load_lenses(extra)
     assert "lenses.bad.fov_deg" in str(err.value)
 
 
@@ -62,26 +68,26 @@ def test_shipped_lenses_include_the_papers_fisheye_and_user_lenses_extend_them(t
 ])
 def test_bad_target_specs_are_named(text, message):
     with pytest.raises(DocumentError) as err:
-        cov.parse_target_spec(text)
+        parse_target_spec(text)
     assert message in str(err.value) and err.value.problems[0].where == "--targets"
 
 
 def test_box_points_stay_inside_the_box_on_two_layers():
-    pts = cov.box_points((0.4, 0.6, 0.5), 0.2)
+    pts = box_points((0.4, 0.6, 0.5), 0.2)
     assert np.all(np.abs(pts[:, 0]) < 0.2) and np.all(np.abs(pts[:, 1]) < 0.3)
-    assert sorted(set(np.round(pts[:, 2], 6))) == [cov.SURFACE_LIFT_M, 0.25]
+    assert sorted(set(np.round(pts[:, 2], 6))) == [SURFACE_LIFT_M, 0.25]
 
 
 def test_pixel_density_of_a_pinhole_is_focal_over_distance():
     intr = Intrinsics(LensModel.PERSPECTIVE, 640, 480, 500.0, 500.0, 319.5, 239.5)
     cam = Camera("c", intr)  # at the origin looking down +z
-    d = cov.pixel_density(cam, np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 5.0]]))
+    d = pixel_density(cam, np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 5.0]]))
     assert d == pytest.approx([250.0, 100.0], rel=1e-3)
 
 
 def test_look_rotation_is_a_right_handed_opencv_frame():
     for forward in ([1, 0, 0], [0, 0, -1], [0.3, -0.5, -0.8]):
-        r = cov.look_rotation(forward)
+        r = look_rotation(forward)
         assert np.allclose(r.T @ r, np.eye(3)) and np.linalg.det(r) == pytest.approx(1.0)
         assert np.allclose(r[:, 2], np.asarray(forward) / np.linalg.norm(forward))
         assert r[2, 1] <= 1e-9  # image down never points to the sky
@@ -99,7 +105,7 @@ def _brute_force_minimum(cover: np.ndarray, demand: np.ndarray) -> int:
 def test_selection_is_the_smallest_cover_and_greedy_is_never_smaller(seed, k):
     rng = np.random.default_rng(seed)
     cover = rng.random((10, 14)) < 0.3
-    selection = cov.select_cameras(cover, k, time_limit_s=10)
+    selection = select_cameras(cover, k, time_limit_s=10)
     demand = np.minimum(cover.sum(axis=0), k)
     assert np.all(cover[list(selection.chosen)].sum(axis=0) >= demand)
     assert len(selection.chosen) == _brute_force_minimum(cover, demand)
@@ -110,7 +116,7 @@ def test_selection_is_the_smallest_cover_and_greedy_is_never_smaller(seed, k):
 
 def test_ray_casting_blocks_only_before_the_end_point():
     tri = np.array([[[0.0, -1.0, -1.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]]])
-    occ = cov.Occluders(tri)
+    occ = Occluders(tri)
     blocked = occ.blocked(np.array([-1.0, 0.0, 0.0]), np.array([[1.0, 0.0, 0.0], [-0.1, 0.0, 0.0],
                                                                  [1.0, 0.0, 5.0]]))
     assert blocked.tolist() == [True, False, False]
@@ -168,13 +174,13 @@ def _wall_camera(name: str, x: float) -> Camera:
     intr = Intrinsics(LensModel.PERSPECTIVE, 160, 120, 80.0, 80.0, 79.5, 59.5, sensor_width_mm=6.4)
     target = np.array([0.0, 0.0, 0.0])
     position = np.array([x, 0.0, 2.2])
-    return Camera(name, intr, pose=Pose.from_rotation_translation(cov.look_rotation(target - position), position))
+    return Camera(name, intr, pose=Pose.from_rotation_translation(look_rotation(target - position), position))
 
 
 @pytest.fixture(scope="module")
 def room_setup(tmp_path_factory):
     from usdscene.converters.openlabel import write_document, write_openlabel
-    from usdscene.model import RenderSettings, SceneSpec
+    from usdscene.document.model import RenderSettings, SceneSpec
 
     root = tmp_path_factory.mktemp("pillar_room")
     _room_catalog(root / "assets")
@@ -189,7 +195,7 @@ def room_setup(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def rescored(room_setup):
-    from usdscene.camera_design import plan_cameras
+    from usdscene.design.camera_design import plan_cameras
 
     root, document = room_setup
     return plan_cameras(document, root / "rescored", targets=["spot_*:on"], mounts="setup", dori="monitor",
@@ -210,17 +216,17 @@ def test_target_behind_the_pillar_is_occluded_for_the_camera_that_cannot_see_it(
 
 @pytest.mark.usd
 def test_visibility_matrix_of_the_room(room_setup):
-    from usdscene.camera_design import occluder_scene, stage_triangles, _read_setup
-    from usdscene.compose import compose_stage
+    from usdscene.design.camera_design import occluder_scene, stage_triangles, _read_setup
+    from usdscene.scene.compose import compose_stage
 
     root, document = room_setup
     setup, catalog = _read_setup(document)
     composed = compose_stage(occluder_scene(setup, catalog, "setup"), catalog, root / "stage_vis")
-    occ = cov.Occluders(stage_triangles(composed.root_layer, 0))
-    targets = cov.targets_from_places(catalog.places("pillar_room"), [cov.parse_target_spec("spot_*:on")],
+    occ = Occluders(stage_triangles(composed.root_layer, 0))
+    targets = targets_from_places(catalog.places("pillar_room"), [parse_target_spec("spot_*:on")],
                                       spacing_m=0.1)
     assert [t.name for t in targets] == ["spot_hidden:on", "spot_open:on"]
-    vis = cov.evaluate_visibility(setup.cameras, targets, occ, cov.load_dori())
+    vis = evaluate_visibility(setup.cameras, targets, occ, load_dori())
     west, east = 0, 1
     assert vis.in_image[west, 0] == 1.0 and vis.visible[west, 0] == 0.0  # in view, behind the pillar
     assert vis.visible[west, 1] == 1.0 and vis.visible[east].tolist() == [1.0, 1.0]
@@ -229,7 +235,7 @@ def test_visibility_matrix_of_the_room(room_setup):
 
 @pytest.mark.usd
 def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(room_setup, openlabel_schema_path):
-    from usdscene.camera_design import plan_cameras
+    from usdscene.design.camera_design import plan_cameras
     from usdscene.converters.openlabel import read_openlabel, schema_problems
 
     root, document = room_setup
@@ -256,7 +262,7 @@ def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(ro
 @pytest.mark.usd
 @pytest.mark.blender
 def test_predicted_and_rendered_visibility_agree(room_setup, monkeypatch):
-    from usdscene.camera_design import plan_cameras, verify_plan
+    from usdscene.design.camera_design import plan_cameras, verify_plan
 
     root, document = room_setup
     # The plan document in root/both names ../assets: outside its folder, so consent to root.

@@ -9,9 +9,9 @@ import shutil
 import numpy as np
 import pytest
 
-from usdscene.cross_camera import camera_for_image, cross_camera_table, object_centre
-from usdscene.labels import ImageLabels, ObjectLabel, PixelBox, label_images
-from usdscene.model import Camera, FrameInterval, Intrinsics, LensModel, Pose, SceneObject, SceneSpec
+from usdscene.labels.cross_camera import camera_for_image, cross_camera_table, object_centre
+from usdscene.labels.image_labels import ImageLabels, ObjectLabel, PixelBox, label_images
+from usdscene.document.model import Camera, FrameInterval, Intrinsics, LensModel, Pose, SceneObject, SceneSpec
 
 W, H, F = 64, 48, 100.0
 # Top camera 4 m above z = 1 looking down; side camera 5 m in front (-y) of the origin at z = 1.
@@ -53,7 +53,7 @@ def test_table_from_labels_counts_present_objects_no_camera_sees():
 def test_density_follows_the_image_size_and_the_frame_pose():
     moving = Camera("m", TOP.intrinsics, pose=TOP.pose,
                     frame_poses=((1, Pose.from_rotation_translation(np.diag([1.0, -1.0, -1.0]), (0.0, 0.0, 3.0))),))
-    from usdscene.coverage import pixel_density
+    from usdscene.labels.pixel_density import pixel_density
 
     centre = np.array([[0.0, 0.0, 1.0]])
     assert pixel_density(camera_for_image(moving, 0, W, H), centre)[0] == pytest.approx(F / 3, rel=1e-6)
@@ -71,7 +71,7 @@ def test_density_follows_the_image_size_and_the_frame_pose():
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
-    from usdscene.annotation import LabelsWhileRendering, annotate_output
+    from usdscene.dataset.annotation import LabelsWhileRendering, annotate_output
     from usdscene.render.driver import render
     from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
 
@@ -114,8 +114,8 @@ def test_rendered_table_is_in_the_document_and_valid(rendered, openlabel_schema_
 
 
 def test_table_is_the_same_when_labelled_afterwards(rendered, tmp_path):
-    from usdscene import layout
-    from usdscene.annotation import annotate_output
+    from usdscene.document import output_layout as layout
+    from usdscene.dataset.annotation import annotate_output
 
     out, during = rendered
     copy = tmp_path / "out"
@@ -128,10 +128,10 @@ def test_table_is_the_same_when_labelled_afterwards(rendered, tmp_path):
 def test_stats_shows_the_cross_camera_summary(rendered, tmp_path, capsys):
     import cv2
 
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.cli import main
     from usdscene.files import write_json_atomic
-    from usdscene.statistics import cross_camera_statistics
+    from usdscene.dataset.statistics import cross_camera_statistics
 
     out, document = rendered
     summary = cross_camera_statistics(document)

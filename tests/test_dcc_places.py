@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from test_compose_support import look_at_cv
-from usdscene import model as m
-from usdscene.asset_import import ImportOptions, import_asset
-from usdscene.catalog import load_catalog
+from usdscene.document import model as m
+from usdscene.assetgen.asset_import import ImportOptions, import_asset
+from usdscene.scene.catalog import load_catalog
 from usdscene.cli import main
 from usdscene.errors import AssetError
 
@@ -331,7 +331,7 @@ def test_places_from_a_blend_file(tmp_path):
     import subprocess
     import sys
 
-    from usdscene.asset_import import ImportOptions, import_asset
+    from usdscene.assetgen.asset_import import ImportOptions, import_asset
 
     blend = tmp_path / "garage.blend"
     subprocess.run([sys.executable, "-c", BLEND_SCENE, str(blend)], check=True, capture_output=True)
@@ -350,7 +350,7 @@ def test_places_from_a_blend_file(tmp_path):
 
 @pytest.mark.blender
 def test_a_broken_blend_file_is_one_error(tmp_path):
-    from usdscene.asset_import import ImportOptions, import_asset
+    from usdscene.assetgen.asset_import import ImportOptions, import_asset
     from usdscene.errors import AssetError
 
     broken = tmp_path / "broken.blend"

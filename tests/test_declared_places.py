@@ -48,8 +48,8 @@ def test_declared_place_reads_writes_back_and_passes_the_schema(openlabel_schema
 
 @pytest.mark.usd
 def test_objects_rest_on_a_declared_place_and_the_stage_reads_it_back(tmp_path):
-    from usdscene.catalog import load_catalog
-    from usdscene.compose import compose_stage
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.scene.compose import compose_stage
     from usdscene.converters.usd_stage import scene_from_stage
     from usdscene.validation import validate_document
 
@@ -83,7 +83,7 @@ def test_bad_cuboids_are_named(change, message):
 
 
 def test_an_undeclared_unknown_place_is_still_refused(tmp_path):
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
     from usdscene.errors import DocumentError
 
     document = _document()

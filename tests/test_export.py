@@ -12,9 +12,9 @@ import pytest
 from usdscene.converters.coco import coco_dataset, export_coco
 from usdscene.converters.openlabel_annotations import add_annotations, image_records, labels_in
 from usdscene.converters.yolo import export_yolo
-from usdscene.amodal import AmodalProjection
-from usdscene.labels import box_of, label_image, label_images, rasterize_contours, Contour
-from usdscene.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
+from usdscene.labels.amodal import AmodalProjection
+from usdscene.labels.image_labels import box_of, label_image, label_images, rasterize_contours, Contour
+from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
 
 W, H = 64, 48
 CAMERAS = ("cam_a", "cam_b")
@@ -245,7 +245,7 @@ def test_annotated_document_from_writer_validates_and_reads_back(openlabel_schem
 
 
 def test_label_statistics_counts(annotated):
-    from usdscene.statistics import draw_chart, label_statistics
+    from usdscene.dataset.statistics import draw_chart, label_statistics
 
     _, document, annotations, _ = annotated
     stats = label_statistics(document)
@@ -293,7 +293,7 @@ def test_cameras_are_written_in_exact_calibrated_form(openlabel_schema_path, tmp
 
 def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
     from usdscene.converters.openlabel import read_openlabel, write_openlabel
-    from usdscene.model import Pose
+    from usdscene.document.model import Pose
 
     base = _scene()
     moving = Camera("cam_a", base.cameras[0].intrinsics, Pose(),
@@ -310,7 +310,7 @@ def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
 
 def test_resolve_places_follows_chains_and_stops_at_cycles():
     from usdscene.converters.openlabel_annotations import resolve_places
-    from usdscene.model import FrameInterval, PlaceRef, Relation
+    from usdscene.document.model import FrameInterval, PlaceRef, Relation
 
     objects = tuple(SceneObject(uid, uid, "backpack", (FrameInterval(0, 5),)) for uid in "abcxy")
     scene = SceneSpec(objects=objects, places=(PlaceRef("p", "seat_03A"),), relations=(

@@ -12,11 +12,11 @@ import pytest
 from usdscene.converters.openlabel import write_openlabel
 from usdscene.converters.openlabel_annotations import add_annotations
 from usdscene.converters.rois import export_rois, plan_rois, region_corners
-from usdscene.catalog import load_catalog
-from usdscene.labels import ImageLabels, label_images
-from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, PlaceRef, Pose, Relation,
+from usdscene.scene.catalog import load_catalog
+from usdscene.labels.image_labels import ImageLabels, label_images
+from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, PlaceRef, Pose, Relation,
                             SceneObject, SceneSpec)
-from usdscene.projection import project_points
+from usdscene.labels.projection import project_points
 
 W, H = 64, 48
 

@@ -4,7 +4,7 @@ Each example takes the minimal example document, applies one to three mutations 
 value by an odd one, delete a key, rename a key, duplicate a list item) and runs it through
 :func:`usdscene.validation.validate_document` exactly as ``usdscene validate`` does (official
 schema and shipped catalog). A document is either refused with a :class:`UsdSceneError` or
-accepted, and an accepted one must compose (:func:`usdscene.compose.compose_stage`) without
+accepted, and an accepted one must compose (:func:`usdscene.scene.compose.compose_stage`) without
 any error. Anything else (another exception, a run over the per-document time limit) fails.
 """
 
@@ -19,7 +19,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from usdscene.compose import compose_stage
+from usdscene.scene.compose import compose_stage
 from usdscene.errors import UsdSceneError
 from usdscene.validation import validate_document
 

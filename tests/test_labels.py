@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene.amodal import AmodalProjection, rasterize_triangles
-from usdscene.labels import (
+from usdscene.labels.amodal import AmodalProjection, rasterize_triangles
+from usdscene.labels.image_labels import (
     PixelBox,
     box_of,
     bridge_rings,

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdscene.amodal import amodal_projection
-from usdscene.labels import box_of, label_image
-from usdscene.model import Camera, Intrinsics, LensModel
+from usdscene.labels.amodal import amodal_projection
+from usdscene.labels.image_labels import box_of, label_image
+from usdscene.document.model import Camera, Intrinsics, LensModel
 
 W, H = 64, 48
 
@@ -26,7 +26,7 @@ def _quad(x0, y0, x1, y1, z) -> np.ndarray:
 def _ray_cast_quad(camera: Camera, x0, y0, x1, y1, z) -> np.ndarray:
     """(H, W) bool ground truth: pixels whose centre's ray (the lens model inverted) meets the
     axis-aligned quad [x0, x1] × [y0, y1] on the plane z (camera frame, metres)."""
-    from usdscene.projection import pixel_rays
+    from usdscene.labels.projection import pixel_rays
 
     v, u = np.mgrid[0:H, 0:W]
     rays, ok = pixel_rays(camera.intrinsics, np.stack([u.ravel(), v.ravel()], axis=1))
@@ -97,7 +97,7 @@ def _box_mesh(lo, hi) -> np.ndarray:
 
 
 def test_closed_meshes_are_recognised():
-    from usdscene.amodal import _indexed_mesh
+    from usdscene.labels.amodal import _indexed_mesh
 
     box = _box_mesh((-0.3, -0.2, 2.0), (0.4, 0.3, 2.5))
     assert _indexed_mesh(box).closed
@@ -116,7 +116,7 @@ def test_closed_meshes_are_recognised():
 ])
 @pytest.mark.parametrize("inwards", [False, True])
 def test_one_facing_of_a_closed_mesh_covers_what_every_face_covers(lens, distortion, fov, inwards):
-    from usdscene import amodal
+    from usdscene.labels.image_labels import amodal
 
     camera = _camera(lens, distortion, fov)
     # Boxes seen from several sides, one of them cut by the image border.

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 
@@ -31,7 +31,7 @@ def _lens_fraction(d: float, r: float) -> float:
 
 @pytest.fixture(scope="module")
 def annotated(tmp_path_factory):
-    from usdscene.annotation import annotate_output
+    from usdscene.dataset.annotation import annotate_output
     from usdscene.render.driver import render
     from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
 

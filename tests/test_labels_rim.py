@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 
@@ -51,7 +51,7 @@ def _spheres():
 
 @pytest.fixture(scope="module")
 def labels(tmp_path_factory):
-    from usdscene.annotation import annotate_output
+    from usdscene.dataset.annotation import annotate_output
     from usdscene.render.driver import render
     from usdscene.render.synthetic import SphereSpec, SyntheticScene, write_synthetic_stage
 

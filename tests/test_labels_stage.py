@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdscene import stage_schema
+from usdscene.document import stage_schema
 
 pytestmark = pytest.mark.usd
 
@@ -49,14 +49,14 @@ def _stage():
 
 
 def test_triangulate_fans():
-    from usdscene.stage_geometry import triangulate
+    from usdscene.scene.stage_geometry import triangulate
 
     tris = triangulate(np.array([3, 4, 2, 5]), np.arange(14))
     assert tris.tolist() == [[0, 1, 2], [3, 4, 5], [3, 5, 6], [9, 10, 11], [9, 11, 12], [9, 12, 13]]
 
 
 def test_world_triangles_follow_time_samples_and_visibility():
-    from usdscene.stage_geometry import StageGeometry
+    from usdscene.scene.stage_geometry import StageGeometry
 
     geometry = StageGeometry(_stage())
     assert set(geometry.uids) == {"0", "1"}
@@ -75,9 +75,9 @@ def test_world_triangles_follow_time_samples_and_visibility():
 
 
 def test_stage_triangles_give_amodal_masks():
-    from usdscene.amodal import amodal_projection
-    from usdscene.model import Camera, Intrinsics, LensModel, Pose
-    from usdscene.stage_geometry import StageGeometry
+    from usdscene.labels.amodal import amodal_projection
+    from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
+    from usdscene.scene.stage_geometry import StageGeometry
 
     # Camera 10 m above the origin looking straight down (OpenCV z forward = world -Z).
     rotation = np.diag([1.0, -1.0, -1.0])

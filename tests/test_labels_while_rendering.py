@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.cli import main
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]

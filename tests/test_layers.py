@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from usdscene.model import RenderSettings
+from usdscene.document.model import RenderSettings
 
 pytestmark = pytest.mark.usd
 
@@ -12,7 +12,7 @@ LAYERS = Path(__file__).resolve().parent.parent / "layers"
 
 
 def test_render_defaults_layer_is_up_to_date():
-    from usdscene.compose import render_settings_layer
+    from usdscene.scene.compose import render_settings_layer
 
     committed = (LAYERS / "render_defaults.usda").read_text(encoding="utf-8")
     assert committed == render_settings_layer(RenderSettings()), "run python layers/generate.py"

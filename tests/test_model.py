@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from usdscene import model as m
+from usdscene.document import model as m
 
 angles = st.floats(min_value=-math.pi + 1e-3, max_value=math.pi - 1e-3)
 half_angles = st.floats(min_value=-math.pi / 2 + 1e-3, max_value=math.pi / 2 - 1e-3)

@@ -12,7 +12,7 @@ import pytest
 from usdscene.cli import main
 from usdscene.converters.openlabel import load_document, read_openlabel, schema_problems, write_openlabel
 from usdscene.converters.openlabel_objects import OBJECT_DATA, POSE_DATA
-from usdscene.model import Provenance, canonical_json, extra_data
+from usdscene.document.model import Provenance, canonical_json, extra_data
 
 ROOT_SECTIONS = ("actions", "events", "contexts", "ontologies", "resources", "tags")
 METADATA_READ = {"schema_version", "name", "comment", "usdscene"}
@@ -117,7 +117,7 @@ def test_unknown_object_data_and_metadata_round_trip_in_order():
 
 def test_carried_stream_that_clashes_with_a_camera_is_refused():
     from usdscene.errors import DocumentError
-    from usdscene.model import Camera, Intrinsics, LensModel, SceneSpec
+    from usdscene.document.model import Camera, Intrinsics, LensModel, SceneSpec
 
     camera = Camera(name="cam", intrinsics=Intrinsics(LensModel.PERSPECTIVE, 64, 48, 50.0, 50.0, 31.5, 23.5))
     scene = SceneSpec(cameras=(camera,), extra=canonical_json({"streams": {"cam": {"type": "lidar"}}}))

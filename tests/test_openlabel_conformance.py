@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from usdscene.converters.openlabel import load_document, read_openlabel, schema_problems, write_openlabel
-from usdscene.model import LensModel, Provenance
+from usdscene.document.model import LensModel, Provenance
 
 CONFORMANCE_FILES = [
     "openlabel100_test_VCD420_to_OpenLABEL100_dmd.json",

@@ -147,7 +147,7 @@ CASES = [
     ("exports_unknown", _set("metadata/usdscene/exports", ["tfrecord"]), ["openlabel.metadata.usdscene.exports[0]"]),
     ("fov_inconsistent", _cam01(focal_length_mm=2.13, sensor_size_mm=[4.0, 3.0], fov_deg=118.0),
      ["openlabel.streams.cam_01.stream_properties.usdscene.fov_deg", "86.4°", "fisheye_equisolid lens gives 112.0°"]),
-    ("lens_model_unknown", _cam01(model="fisheye"), ["openlabel.streams.cam_01.stream_properties.usdscene.model"]),
+    ("lens_model_unknown", _cam01(model="fisheye"), ["openlabel.streams.cam_01.stream_properties.usdscene.document.model"]),
     ("resolution_negative", _cam01(resolution_px=[-64, 48]),
      ["openlabel.streams.cam_01.stream_properties.usdscene.resolution_px[0]"]),
     ("friendly_key_typo", _cam01(fov_degs=90.0), ["openlabel.streams.cam_01.stream_properties.usdscene.fov_degs",
@@ -348,7 +348,7 @@ def test_all_problems_reported_at_once(tmp_path, capsys):
                                        _set("metadata/usdscene/sed", 1)))
     assert main(["validate", "--no-catalog", str(path)]) == 1
     err = capsys.readouterr().err
-    assert "usdscene.model" in err and "objects.0.object_data.text[0].val" in err and "usdscene.sed" in err
+    assert "usdscene.document.model" in err and "objects.0.object_data.text[0].val" in err and "usdscene.sed" in err
 
 
 def test_subprocess_validate_reports_without_traceback(tmp_path):
@@ -377,7 +377,7 @@ def test_convert_refuses_invalid_input(tmp_path, capsys):
     out = tmp_path / "out.json"
     assert main(["convert", "--no-catalog", str(path), "-o", str(out)]) == 1
     assert not out.exists()
-    assert "usdscene.model" in capsys.readouterr().err
+    assert "usdscene.document.model" in capsys.readouterr().err
 
 
 def test_example_validates_against_the_shipped_catalog(capsys):

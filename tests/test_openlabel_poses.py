@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from usdscene.converters.openlabel import friendly_camera_rotation, read_openlabel, write_openlabel
-from usdscene.model import rotation_to_euler_zyx
+from usdscene.document.model import rotation_to_euler_zyx
 
 finite = st.floats(min_value=-50.0, max_value=50.0, allow_nan=False, allow_infinity=False)
 angle = st.floats(min_value=-math.pi, max_value=math.pi, allow_nan=False)

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from usdscene.converters.openlabel import read_openlabel, schema_problems, write_openlabel
-from usdscene.model import (
+from usdscene.document.model import (
     Camera,
     FrameInterval,
     Intrinsics,

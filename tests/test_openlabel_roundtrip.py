@@ -19,9 +19,9 @@ from usdscene.converters.openlabel import (
     write_document,
     write_openlabel,
 )
-from usdscene.catalog import AssetEntry, Catalog, Place
+from usdscene.scene.catalog import AssetEntry, Catalog, Place
 from usdscene.errors import DocumentError
-from usdscene.model import (
+from usdscene.document.model import (
     Camera,
     FrameInterval,
     Intrinsics,
@@ -246,8 +246,8 @@ def test_calibrated_fisheye_readings():
 
 
 def _radius(intr: Intrinsics, theta: np.ndarray) -> np.ndarray:
-    """Image radius (px) along +x of rays ``theta`` (rad) off the axis, by usdscene.projection."""
-    from usdscene.projection import project_camera_points
+    """Image radius (px) along +x of rays ``theta`` (rad) off the axis, by usdscene.labels.projection."""
+    from usdscene.labels.projection import project_camera_points
 
     rays = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], axis=1)
     uv, valid = project_camera_points(intr, rays)
@@ -258,7 +258,7 @@ def _radius(intr: Intrinsics, theta: np.ndarray) -> np.ndarray:
 def test_vcd_polynomial_lenses_are_written_back_in_their_own_model(openlabel_schema_path):
     """kannala and radial_poly come back as themselves, and every sample ray lands on the same
     pixel (1e-9 px) after write → read."""
-    from usdscene.projection import pixel_rays, project_camera_points
+    from usdscene.labels.projection import pixel_rays, project_camera_points
 
     def doc(model, coeffs):
         block = {"width_px": 640, "height_px": 480, "focal_length_x": 190.0, "focal_length_y": 195.0,

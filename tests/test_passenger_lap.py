@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from usdscene import stage_schema as ss
-from usdscene.catalog import load_catalog
+from usdscene.document import stage_schema as ss
+from usdscene.scene.catalog import load_catalog
 from usdscene.errors import AssetError
 
 

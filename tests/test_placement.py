@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from test_compose_support import OBJECT_CLASSES, build_test_catalog, load_test_catalog
-from usdscene import model as m
+from usdscene.document import model as m
 from usdscene.errors import CompositionError
-from usdscene.placement import boxes_overlap, place_objects
+from usdscene.scene.placement import boxes_overlap, place_objects
 
 
 @pytest.fixture(scope="module")
@@ -97,7 +97,7 @@ def _yaw_rectangles(poses: list[np.ndarray], classes: list[str]):
 
 def _intersecting_pairs(rects: np.ndarray, zs: np.ndarray, tol: float = 1e-6) -> list[tuple[int, int]]:
     """Pairs of yaw-only boxes that overlap by more than ``tol`` (2-D separating axes of the
-    footprints and the z intervals); written independently of usdscene.placement."""
+    footprints and the z intervals); written independently of usdscene.scene.placement."""
     n = len(rects)
     edges = np.stack([rects[:, 1] - rects[:, 0], rects[:, 3] - rects[:, 0]], axis=1)  # (N, 2, 2)
     normals = edges / np.linalg.norm(edges, axis=2, keepdims=True)

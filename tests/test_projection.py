@@ -1,4 +1,4 @@
-"""usdscene.projection against OpenCV and against itself (project ∘ unproject = identity)."""
+"""usdscene.labels.projection against OpenCV and against itself (project ∘ unproject = identity)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene.model import Camera, Intrinsics, LensModel, Pose, euler_zyx_to_rotation
-from usdscene.projection import (pixel_rays, project_camera_points, project_points, remap_grids,
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose, euler_zyx_to_rotation
+from usdscene.labels.projection import (pixel_rays, project_camera_points, project_points, remap_grids,
                                  undistorted_render_intrinsics)
 
 EQUISOLID_KB = (-1 / 24, 1 / 1920, -1 / 322560, 1 / 92897280)

@@ -23,7 +23,7 @@ def _code_blocks(markdown: str) -> list[str]:
 
 def test_import_is_light():
     code = ("import sys, usdscene\n"
-            "heavy = [m for m in ('pxr', 'bpy', 'cv2', 'numpy', 'usdscene.compose') if m in sys.modules]\n"
+            "heavy = [m for m in ('pxr', 'bpy', 'cv2', 'numpy', 'usdscene.scene.compose') if m in sys.modules]\n"
             "assert not heavy, heavy\n"
             "assert callable(usdscene.read_openlabel) and 'usdscene.converters.openlabel' in sys.modules\n")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene.model import Camera, FrameInterval, Intrinsics, LensModel, Pose
+from usdscene.document.model import Camera, FrameInterval, Intrinsics, LensModel, Pose
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 

@@ -10,9 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene import layout
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
-from usdscene.projection import native_renderable, project_points
+from usdscene.document import output_layout as layout
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.labels.projection import native_renderable, project_points
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 

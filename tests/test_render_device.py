@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.errors import RenderError
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 
@@ -62,7 +62,7 @@ def test_fast_gi_and_scrambling_reach_the_blender_scene(tmp_path):
     """Stage attributes → the worker's Blender scene, read back from the .blend it saves."""
     import bpy
 
-    from usdscene.model import RenderSettings
+    from usdscene.document.model import RenderSettings
     from usdscene.render.blend_io import write_blend
     from usdscene.render.synthetic import write_synthetic_stage
 

@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 
 
 def _dead_pid() -> int:
@@ -54,7 +54,7 @@ def test_make_scratch_names_its_owner():
 
 
 def test_exit_of_a_killed_worker_names_the_signal():
-    from usdscene.render.executors import describe_exit
+    from usdscene.render.worker_process import describe_exit
 
     killed = describe_exit(-signal.SIGKILL, None, ["Fra:0 Mem:12M"])
     assert not killed.ok and killed.retryable

@@ -10,7 +10,7 @@ import pytest
 
 from usdscene.cli import main
 from usdscene.pipeline import compose_document
-from usdscene.render import executors
+from usdscene.render import executors, worker_process
 from usdscene.render.driver import render
 
 MINIMAL = Path(__file__).resolve().parent.parent / "examples" / "minimal" / "scene.openlabel.json"
@@ -26,15 +26,15 @@ def _render(out: Path) -> dict[str, bytes]:
 
 
 def test_a_prestarted_worker_renders_the_same_images_and_unused_ones_exit(tmp_path):
-    executors.prestart_workers(2)
-    started = [proc for proc, _ in executors._WARM]
+    worker_process.prestart_workers(2)
+    started = [proc for proc, _ in worker_process._WARM]
     try:
         warm = _render(tmp_path / "warm")
-        assert len(executors._WARM) == 1  # the one shard took one worker
+        assert len(worker_process._WARM) == 1  # the one shard took one worker
         assert started[0].poll() is not None  # ... which rendered and exited
     finally:
-        executors.discard_prestarted_workers()
-    assert not executors._WARM
+        worker_process.discard_prestarted_workers()
+    assert not worker_process._WARM
     assert started[1].wait(timeout=30) == 0  # the unused one left cleanly
     cold = _render(tmp_path / "cold")
     assert warm and warm == cold
@@ -46,7 +46,7 @@ def test_a_failed_run_leaves_no_prestarted_worker(tmp_path, capsys, monkeypatch)
 
     def recording(count):
         prestart(count)
-        started.extend(proc for proc, _ in executors._WARM)
+        started.extend(proc for proc, _ in worker_process._WARM)
 
     monkeypatch.setattr(executors, "prestart_workers", recording)
     bad = tmp_path / "bad.openlabel.json"
@@ -54,4 +54,4 @@ def test_a_failed_run_leaves_no_prestarted_worker(tmp_path, capsys, monkeypatch)
     assert main(["run", str(bad), "-o", str(tmp_path / "out"), "--no-progress"]) == 1
     assert "Traceback" not in capsys.readouterr().err
     assert len(started) == 1 and started[0].wait(timeout=30) == 0
-    assert not executors._WARM
+    assert not worker_process._WARM

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 
 REPO = Path(__file__).resolve().parent.parent
 MINIMAL = REPO / "examples" / "minimal" / "scene.openlabel.json"

@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene import layout
-from usdscene.model import Camera, Intrinsics, LensModel, Pose
+from usdscene.document import output_layout as layout
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 

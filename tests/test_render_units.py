@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.errors import RenderError
-from usdscene.model import Camera, Intrinsics, LensModel, Pose, RenderSettings
-from usdscene.projection import project_camera_points
+from usdscene.document.model import Camera, Intrinsics, LensModel, Pose, RenderSettings
+from usdscene.labels.projection import project_camera_points
 from usdscene.render.driver import _chunks, resolve_settings, scale_intrinsics, shard_size
 from usdscene.render.manifest import Manifest, fingerprint
 

@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 from test_compose_support import _asset_usda, _environment_usda, _yaw_pose, look_at_cv, pinhole
-from usdscene import model as m
-from usdscene.catalog import load_catalog
+from usdscene.document import model as m
+from usdscene.scene.catalog import load_catalog
 from usdscene.cli import main
 from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.sequences import (GenerateOptions, balance_report, check_composes, fitting_combinations,
+from usdscene.dataset.sequences import (GenerateOptions, balance_report, check_composes, fitting_combinations,
                                 generate_sequence, report_path)
 
 CLASSES = {  # class: (extent min, extent max, appearance variants)
@@ -166,7 +166,7 @@ def test_occupancy_seats_passengers_only_where_legs_fit(car_park):
 
 
 def test_generated_documents_compose_with_usd(car_park, tmp_path):
-    from usdscene.compose import compose_stage
+    from usdscene.scene.compose import compose_stage
 
     catalog, setup, _ = car_park
     for strategy in ("single-class", "balanced", "appearance"):
@@ -273,7 +273,7 @@ def test_cabin_balanced_and_single_class_compose(tmp_path):
     assert not any(cls == "trolley_suitcase" and rel == "is_below" for _, cls, rel, _ in rows)  # 0.64 m tall
     assert any(cls == "passenger" for _, cls, _, _ in rows)
     scene = read_openlabel(write_openlabel(gen.scene))
-    from usdscene.compose import compose_stage
+    from usdscene.scene.compose import compose_stage
 
     result = compose_stage(scene, catalog, tmp_path / "stage")
     assert sum(1 for p in result.placements.values() for s in p.spans for _ in s.frames()) == len(rows)
@@ -327,7 +327,7 @@ def test_the_command_offers_exactly_the_library_strategies():
     import argparse
 
     from usdscene.cli import build_parser
-    from usdscene.sequences import STRATEGIES
+    from usdscene.dataset.sequences import STRATEGIES
 
     commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     strategy = next(a for a in commands.choices["generate"]._actions if a.dest == "strategy")
@@ -369,8 +369,8 @@ def test_magazine_on_a_reading_passengers_lap_in_the_composed_cabin(tmp_path):
     positions read back from the composed stage."""
     from pxr import Usd, UsdGeom
 
-    from usdscene import stage_schema as ss
-    from usdscene.compose import compose_stage
+    from usdscene.document import stage_schema as ss
+    from usdscene.scene.compose import compose_stage
     from usdscene.errors import CompositionError
 
     catalog = load_catalog()

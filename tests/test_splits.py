@@ -13,11 +13,11 @@ import pytest
 from usdscene.converters.openlabel import write_openlabel
 from usdscene.converters.openlabel_annotations import add_annotations
 from usdscene.errors import DocumentError
-from usdscene.export import export_dataset, export_formats
+from usdscene.dataset.export import export_dataset, export_formats
 from usdscene.files import write_json_atomic
-from usdscene.labels import label_image, label_images
-from usdscene.model import Camera, FrameInterval, Intrinsics, LensModel, SceneObject, SceneSpec
-from usdscene.splits import ImageKey, assign_splits, parse_split
+from usdscene.labels.image_labels import label_image, label_images
+from usdscene.document.model import Camera, FrameInterval, Intrinsics, LensModel, SceneObject, SceneSpec
+from usdscene.document.splits import ImageKey, assign_splits, parse_split
 
 W, H = 32, 24
 CAMERAS = ("cam_a", "cam_b")

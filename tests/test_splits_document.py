@@ -12,7 +12,7 @@ from test_splits import _annotated_output
 from usdscene.cli import main
 from usdscene.converters.openlabel import read_openlabel, schema_problems, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.model import SceneSpec
+from usdscene.document.model import SceneSpec
 
 
 def test_split_rule_round_trips_and_the_official_schema_accepts_it(openlabel_schema_path):
@@ -61,11 +61,11 @@ def test_export_uses_the_documents_rule_unless_the_command_line_gives_one(tmp_pa
 
 
 def test_generate_writes_the_split_rule_into_the_document(tmp_path, monkeypatch):
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import write_document
-    from usdscene.sequences import GenerateOptions, generate_sequence
+    from usdscene.dataset.sequences import GenerateOptions, generate_sequence
     from test_compose_support import look_at_cv, pinhole
-    from usdscene import model as m
+    from usdscene.document import model as m
 
     setup = m.SceneSpec(name="cabin", environment="aircraft_cabin", seed=0,
                         cameras=(m.Camera("c", pinhole(), pose=look_at_cv((-1.0, 0.0, 1.9), (-2.0, 1.0, 0.3))),))

@@ -19,8 +19,8 @@ from hypothesis import strategies as st
 
 from test_compose_support import (assert_scenes_close, build_test_catalog, load_test_catalog, look_at_cv,
                                   pose_difference, scene_differences, small_scene)
-from usdscene import model as m
-from usdscene.compose import compose_stage
+from usdscene.document import model as m
+from usdscene.scene.compose import compose_stage
 
 pytestmark = pytest.mark.usd
 
@@ -445,7 +445,7 @@ def test_shipped_example_document_to_stage_to_document(tmp_path, document):
     """Every shipped example composes with the shipped library and comes back equal."""
     from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
     from usdscene.converters.usd_stage import scene_from_stage
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
 
     scene = read_openlabel(document)
     result = compose_stage(scene, load_catalog(scene.asset_paths, base_dir=document.parent), tmp_path / "stage")

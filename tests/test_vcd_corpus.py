@@ -22,7 +22,7 @@ import pytest
 from test_openlabel_carry import carried_of
 from usdscene.cli import main
 from usdscene.converters.openlabel import load_document, read_openlabel, schema_problems
-from usdscene.projection import project_points
+from usdscene.labels.projection import project_points
 
 CORPUS_ENV = "USDSCENE_VCD_CORPUS"
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "usdscene" / "vcd-6.0.3"

@@ -69,7 +69,7 @@ def report_error(error: UsdSceneError, stream=None) -> None:
 def _consented_asset_paths(folders: Sequence[str]):
     """``--asset-path``: the folders join ``$USDSCENE_ASSET_PATH`` for this run (render worker
     processes inherit it), and the variable is restored afterwards."""
-    from usdscene.containment import ASSET_PATH_ENV
+    from usdscene.document.containment import ASSET_PATH_ENV
 
     before = os.environ.get(ASSET_PATH_ENV)
     if folders:

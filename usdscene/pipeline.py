@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 
 if TYPE_CHECKING:
     from usdscene.render.driver import RenderReport
@@ -70,7 +70,7 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
         seed: replace the document's seed.
 
     Returns:
-        ``(scene, usdscene.compose.ComposeResult)``.
+        ``(scene, usdscene.scene.compose.ComposeResult)``.
 
     Raises:
         UsdSceneError: bad document, catalog or composition.
@@ -78,8 +78,8 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
     import dataclasses
 
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.catalog import load_catalog
-    from usdscene.compose import compose_stage
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.scene.compose import compose_stage
 
     path = Path(document)
     scene = read_openlabel(path)
@@ -118,7 +118,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         retries: times a shard whose worker died is run again (None = the driver's default).
         progress: show progress bars on stderr.
         on_step: called with each step's name as it starts (for a status line).
-        split: training split rule of the COCO/YOLO export (:mod:`usdscene.splits`); None = the
+        split: training split rule of the COCO/YOLO export (:mod:`usdscene.document.splits`); None = the
             document's own rule (``metadata.usdscene.split``), or none.
         split_seed: seed of a fraction split.
 
@@ -139,10 +139,10 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
 def _run_steps(document, out_dir, *, frames, cameras, exports, samples, workers, executor, retries, progress,
                on_step, split, split_seed) -> RunSummary:
     """The steps of :func:`run_pipeline` (same arguments)."""
-    from usdscene.annotation import LabelsWhileRendering, write_annotations
-    from usdscene.catalog import load_catalog
-    from usdscene.compose import compose_stage
-    from usdscene.export import export_formats
+    from usdscene.dataset.annotation import LabelsWhileRendering, write_annotations
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.scene.compose import compose_stage
+    from usdscene.dataset.export import export_formats
     from usdscene.render.driver import render
     from usdscene.validation import DEFAULT_SCHEMA, validate_document
 
@@ -187,7 +187,7 @@ def _run_steps(document, out_dir, *, frames, cameras, exports, samples, workers,
     if formats:
         t = step("export")
         if split is None and scene.split_rule:  # the document's own rule (metadata.usdscene.split)
-            from usdscene.splits import DOCUMENT_FIELD, parse_split
+            from usdscene.document.splits import DOCUMENT_FIELD, parse_split
 
             split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
         written = export_formats(out, formats, split=split, split_seed=split_seed)

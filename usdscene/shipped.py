@@ -7,6 +7,7 @@ source checkout (and an editable install) they are the repository's top-level ``
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 _PACKAGE = Path(__file__).resolve().parent
@@ -22,3 +23,18 @@ def shipped_folder(name: str) -> Path:
     if installed.is_dir():
         return installed
     return _PACKAGE.parent / name
+
+
+def default_asset_folder() -> Path:
+    """The shipped asset library: ``$USDSCENE_ASSETS``, else the one installed with usdscene
+    (``assets/`` of a source checkout)."""
+    env = os.environ.get("USDSCENE_ASSETS")
+    if env:
+        return Path(env)
+    return shipped_folder("assets")
+
+
+def shipped_data_file(name: str) -> Path:
+    """A data file shipped inside the package (``usdscene/data/<name>``: lens catalog, DORI
+    table)."""
+    return _PACKAGE / "data" / name

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Literal
 from usdscene.bulk import paused_collection
 
 if TYPE_CHECKING:
-    from usdscene.catalog import Catalog
-    from usdscene.model import SceneSpec
+    from usdscene.scene.catalog import Catalog
+    from usdscene.document.model import SceneSpec
 
 log = logging.getLogger(__name__)
 
@@ -100,7 +100,7 @@ def _composition_input_problems(scene, catalog) -> list:
     variants, relations to unknown places, cyclic relations...): validate is the gate, so a
     document it accepts composes."""
     from usdscene.errors import CompositionError
-    from usdscene.placement import check_placement_inputs
+    from usdscene.scene.placement import check_placement_inputs
 
     try:
         check_placement_inputs(scene, catalog)
@@ -117,7 +117,8 @@ def catalog_for_document(document: dict, base_dir: str | os.PathLike) -> Catalog
         document: the loaded ``{"openlabel": ...}`` document.
         base_dir: folder that the document's relative ``asset_paths`` are relative to.
     """
-    from usdscene.catalog import CATALOG_FILE, default_asset_folder, load_catalog
+    from usdscene.scene.catalog import CATALOG_FILE, load_catalog
+    from usdscene.shipped import default_asset_folder
 
     block = document["openlabel"].get("metadata", {})
     block = block.get("usdscene", {}) if isinstance(block, dict) else {}

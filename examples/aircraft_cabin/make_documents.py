@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from usdscene.converters.openlabel import write_document, write_openlabel
-from usdscene.catalog import load_catalog
-from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef,
+from usdscene.scene.catalog import load_catalog
+from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef,
                             Pose, Randomization, Relation, RenderSettings, SceneObject, SceneSpec)
 
 HERE = Path(__file__).resolve().parent

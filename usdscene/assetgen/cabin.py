@@ -34,12 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Kind, Sdf, Usd, UsdGeom
 
-from usdscene import stage_schema
+from usdscene.document import stage_schema
 from usdscene.assetgen import mesh as m
 from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
                                          in_variant, new_asset_stage, set_transform, set_translate)
-from usdscene.catalog import REGION_RELATIONS, Place, PlaceRegion, places_for_catalog
-from usdscene.model import Pose
+from usdscene.scene.catalog import REGION_RELATIONS, Place, PlaceRegion, places_for_catalog
+from usdscene.document.model import Pose
 
 SEAT_LETTERS = "ABCDEF"
 

@@ -15,13 +15,13 @@ from typing import Mapping
 import numpy as np
 from pxr import Kind, UsdGeom
 
-from usdscene import stage_schema
+from usdscene.document import stage_schema
 from usdscene.assetgen import mesh as m
 from usdscene.assetgen.cabin import CabinConfig, build_cabin, describe
 from usdscene.assetgen.objects import BODY_ROUGHNESS, OBJECT_CLASSES, SHARED_MATERIALS, ObjectClass
 from usdscene.assetgen.usd_write import (MaterialSpec, bounds_of_stage, define_material, define_mesh,
                                          in_variant, new_asset_stage, save_stage, set_material_color)
-from usdscene.catalog import CATALOG_FILE, AssetEntry, entry_to_json
+from usdscene.scene.catalog import CATALOG_FILE, AssetEntry, entry_to_json
 from usdscene.files import write_json_atomic
 
 log = logging.getLogger(__name__)

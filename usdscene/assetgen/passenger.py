@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 from pxr import Kind, UsdGeom
 
-from usdscene import stage_schema
+from usdscene.document import stage_schema
 from usdscene.assetgen import mesh as m
 from usdscene.assetgen.usd_write import (MaterialSpec, bounds_of_stage, define_material, define_mesh,
                                          in_variant, new_asset_stage, save_stage, set_material_color)
-from usdscene.catalog import AssetEntry, Place, PlaceRegion
-from usdscene.model import Pose as PoseMatrix
+from usdscene.scene.catalog import AssetEntry, Place, PlaceRegion
+from usdscene.document.model import Pose as PoseMatrix
 
 FLOOR_BELOW_HIP_M = 0.45
 

@@ -17,9 +17,9 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
-from usdscene import stage_schema
+from usdscene.document import stage_schema
 from usdscene.assetgen.mesh import MeshData
-from usdscene.catalog import PlaceRegion
+from usdscene.scene.catalog import PlaceRegion
 from usdscene.files import write_text_atomic
 
 # Vertex positions are rounded to a tenth of a millimetre: invisible, and it keeps the text

@@ -120,13 +120,13 @@ def output_path(text: str) -> str:
 
 
 def split_rule(text: str):
-    """argparse type of ``--split``: a :class:`usdscene.splits.SplitRule`.
+    """argparse type of ``--split``: a :class:`usdscene.document.splits.SplitRule`.
 
     Raises:
         argparse.ArgumentTypeError: every problem of the rule (argparse exits 2 with it).
     """
     from usdscene.errors import DocumentError
-    from usdscene.splits import parse_split
+    from usdscene.document.splits import parse_split
 
     try:
         return parse_split(text)

@@ -1,5 +1,5 @@
 """``usdscene annotate OUT``: instance masks of a rendered output → ``OUT/annotations.openlabel.json``
-(the labelling itself is :mod:`usdscene.annotation`)."""
+(the labelling itself is :mod:`usdscene.dataset.annotation`)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene.annotation import write_annotations
+    from usdscene.dataset.annotation import write_annotations
     from usdscene.errors import OutputError
 
     out = Path(args.output)

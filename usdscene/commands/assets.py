@@ -58,7 +58,8 @@ def _list(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from usdscene.catalog import default_asset_folder, load_catalog
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.shipped import default_asset_folder
 
     catalog = load_catalog(args.catalog, include_default=not args.no_default)
     table = Table(title="usdscene asset catalog")
@@ -82,8 +83,8 @@ def _list(args: argparse.Namespace) -> int:
 def _add(args: argparse.Namespace) -> int:
     import sys
 
-    from usdscene.asset_import import ImportOptions, import_asset
-    from usdscene.catalog import default_asset_folder
+    from usdscene.assetgen.asset_import import ImportOptions, import_asset
+    from usdscene.shipped import default_asset_folder
 
     catalog = args.catalog if args.catalog is not None else default_asset_folder()
     options = ImportOptions(kind=args.kind, up_axis=args.up_axis, unit_scale_m=args.unit_scale,
@@ -99,7 +100,7 @@ def _build(args: argparse.Namespace) -> int:
 
     from usdscene.assetgen.cabin import CabinConfig
     from usdscene.assetgen.library import build_library
-    from usdscene.catalog import default_asset_folder
+    from usdscene.shipped import default_asset_folder
 
     from usdscene.errors import AssetError
 

@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
-    from usdscene.layout import STAGE_DIR
+    from usdscene.document.output_layout import STAGE_DIR
     from usdscene.pipeline import compose_document
 
     scene, result = compose_document(args.document, Path(args.out) / STAGE_DIR, seed=args.seed)

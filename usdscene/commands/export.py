@@ -1,5 +1,5 @@
 """``usdscene export FORMAT... OUT... [--dataset DIR] [--split RULE]``: training sets from
-``OUT/annotations.openlabel.json`` (the exporters are :mod:`usdscene.export`). Without
+``OUT/annotations.openlabel.json`` (the exporters are :mod:`usdscene.dataset.export`). Without
 ``--split``, the rule the documents carry (``metadata.usdscene.split``) applies."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 
 from usdscene.commands._arguments import add_split_arguments
-from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
+from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "export"
 HELP = ("export annotated outputs as COCO, YOLO or ROI crops (from OUT/annotations.openlabel.json), "
@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from usdscene.errors import OutputError, Problem
-    from usdscene.export import carried_split, export_dataset, export_formats
+    from usdscene.dataset.export import carried_split, export_dataset, export_formats
 
     # The command line's rule wins over the one the documents carry.
     split, split_seed = args.split, args.split_seed

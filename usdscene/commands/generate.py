@@ -1,5 +1,5 @@
 """``usdscene generate STRATEGY --setup SETUP -o DOC``: a balanced sequence document from a
-camera setup (see ``usdscene.sequences`` and ``docs/generating.md``)."""
+camera setup (see ``usdscene.dataset.sequences`` and ``docs/generating.md``)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ NAME = "generate"
 HELP = "generate a sequence document (single-class, balanced, appearance) from a setup document"
 ORDER = 8
 
-_STRATEGIES = ("single-class", "balanced", "appearance")  # usdscene.sequences.STRATEGIES, without its import
+_STRATEGIES = ("single-class", "balanced", "appearance")  # usdscene.dataset.sequences.STRATEGIES, without its import
 
 
 def _fraction(text: str) -> float:
@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from usdscene.sequences import GenerateOptions, generate_document, report_path
+    from usdscene.dataset.sequences import GenerateOptions, generate_document, report_path
 
     options = GenerateOptions(strategy=args.strategy, frames=args.frames, seed=args.seed,
                               classes=tuple(args.classes), place_patterns=tuple(args.places),

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     if args.verify:
         if args.setup or args.out:
             return _usage("--verify PLAN_DIR takes no --setup or -o")
-        from usdscene.camera_design import VERIFY_DIR, verify_plan
+        from usdscene.design.camera_design import VERIFY_DIR, verify_plan
 
         result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples)
         console.print(f"verified {args.verify}: {result.agreeing}/{result.pairs} (camera, target) pairs agree "
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.setup or not args.out:
         return _usage("plan-cameras needs --setup SETUP_DOC and -o PLAN_DIR (or --verify PLAN_DIR)")
-    from usdscene.camera_design import DEFAULT_TARGETS, plan_cameras
+    from usdscene.design.camera_design import DEFAULT_TARGETS, plan_cameras
 
     result = plan_cameras(args.setup, args.out, targets=args.targets or DEFAULT_TARGETS, mounts=args.mounts,
                           spacing_m=args.spacing, lenses_file=args.lenses, lens_names=args.lens, k=args.k,

@@ -28,8 +28,8 @@ def run(args: argparse.Namespace) -> int:
 
     import cv2
 
-    from usdscene import layout
-    from usdscene.contact_sheet import contact_sheet
+    from usdscene.document import output_layout as layout
+    from usdscene.dataset.contact_sheet import contact_sheet
     from usdscene.pipeline import stage_for_input
     from usdscene.errors import RenderError
     from usdscene.files import prepare_output_file, write_png_atomic

@@ -7,7 +7,7 @@ import sys
 
 from usdscene.commands._arguments import add_executor_arguments, add_split_arguments, positive_int
 
-from usdscene.export import FORMATS  # a constant; the module imports nothing heavy
+from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "run"
 HELP = ("the whole job: validate the scene document, compose the USD stage, render every camera "

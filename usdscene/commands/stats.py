@@ -2,14 +2,14 @@
 what a scene document will hold.
 
 Given a scene document (a file) instead of an output folder, it prints the balance report of
-:func:`usdscene.sequences.balance_report` (instance-frames per class, class × relation,
+:func:`usdscene.dataset.sequences.balance_report` (instance-frames per class, class × relation,
 place kinds) and draws it at ``DOC.stats.png`` (or ``--chart``).
 
 Reads ``OUT/annotations.openlabel.json`` and prints per-class and per-camera counts and the
 histogram of visible fractions as tables, the cross-camera summary (object-frames seen by 0, 1,
 2, ... cameras; per class the median number of cameras, the median best px/m and the best DORI
 class), and draws the same as a PNG chart at ``OUT/stats.png`` (or ``--chart``); the counting and
-drawing are :mod:`usdscene.statistics`.
+drawing are :mod:`usdscene.dataset.statistics`.
 """
 
 from __future__ import annotations
@@ -37,11 +37,11 @@ def _document_stats(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.sequences import balance_report
+    from usdscene.dataset.sequences import balance_report
     from usdscene.files import write_png_atomic
-    from usdscene.statistics import draw_balance_chart
+    from usdscene.dataset.statistics import draw_balance_chart
 
     path = Path(args.output)
     scene = read_openlabel(path)
@@ -75,11 +75,11 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.converters.openlabel import load_document
     from usdscene.errors import OutputError
     from usdscene.files import write_png_atomic
-    from usdscene.statistics import HISTOGRAM_BINS, dori_text, draw_chart, label_statistics
+    from usdscene.dataset.statistics import HISTOGRAM_BINS, dori_text, draw_chart, label_statistics
 
     out = Path(args.output)
     if out.is_file():

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from usdscene.errors import RenderError
-from usdscene.model import Camera, FrameInterval, Intrinsics, LensModel, Pose, SceneSpec, usd_pose_to_cv_pose
+from usdscene.document.model import Camera, FrameInterval, Intrinsics, LensModel, Pose, SceneSpec, usd_pose_to_cv_pose
 
 log = logging.getLogger(__name__)
 

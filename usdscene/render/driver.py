@@ -22,12 +22,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from usdscene import __version__, layout
+from usdscene import __version__
+
+from usdscene.document import output_layout as layout
 from usdscene.errors import Problem, RenderError
 from usdscene.files import write_json_atomic
-from usdscene.model import MAX_BOUNCES, RenderSettings
-from usdscene.projection import undistorted_render_intrinsics
-from usdscene.render.executors import ShardExit
+from usdscene.document.model import MAX_BOUNCES, RenderSettings
+from usdscene.labels.projection import undistorted_render_intrinsics
+from usdscene.render.worker_process import ShardExit
 from usdscene.render.job import intrinsics_to_json
 from usdscene.render.manifest import Manifest, fingerprint
 
@@ -419,7 +421,7 @@ def run_job(job: dict, what: str) -> list[dict]:
         RenderError: the worker failed (its message, the signal that killed it, or the tail
             of its log).
     """
-    from usdscene.render.executors import describe_exit, iter_worker_events
+    from usdscene.render.worker_process import describe_exit, iter_worker_events
     from usdscene.render.scratch import make_scratch
 
     scratch = make_scratch("job")

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any, Mapping
 
-from usdscene.model import Intrinsics, LensModel, Pose, cv_pose_to_usd_pose
+from usdscene.document.model import Intrinsics, LensModel, Pose, cv_pose_to_usd_pose
 
 
 def intrinsics_to_json(intr: Intrinsics) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
 
 FORMAT = "usdscene-render-manifest/1"

@@ -16,7 +16,7 @@ No shared file system is needed:
 Resources per task: ``task_cpus`` CPUs (the worker's Cycles threads) and one GPU when the
 render device is ``gpu``. Faults are the driver's business: a task whose worker process died
 from a signal, or whose Ray worker or node was lost, ends as a retryable
-:class:`~usdscene.render.executors.ShardExit`; Ray's own task retries are off so that a retry
+:class:`~usdscene.render.worker_process.ShardExit`; Ray's own task retries are off so that a retry
 re-renders only the images that did not arrive.
 
 Every node needs the same usdscene version as the driver (``pip install usdscene[ray]`` in the
@@ -34,7 +34,7 @@ from pathlib import Path, PurePosixPath
 from typing import Callable
 
 from usdscene.errors import Problem, RenderError
-from usdscene.render.executors import ShardExit, describe_exit, iter_worker_events
+from usdscene.render.worker_process import ShardExit, describe_exit, iter_worker_events
 
 log = logging.getLogger(__name__)
 
@@ -97,11 +97,13 @@ def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
 
     Yields:
         Event dicts, each with ``node``; the last is ``{"event": "exit", ...}`` (see
-        :func:`usdscene.render.executors.iter_worker_events`).
+        :func:`usdscene.render.worker_process.iter_worker_events`).
     """
     import ray
 
-    from usdscene import __version__, layout
+    from usdscene import __version__
+
+    from usdscene.document import output_layout as layout
     from usdscene.render.scratch import make_scratch, remove_stale_scratch
 
     context = ray.get_runtime_context()
@@ -238,7 +240,7 @@ class RayExecutor:
 
     def run_shard(self, job: dict, out_dir: Path, on_event: Callable[[dict], None]) -> ShardExit:
         """Run one shard as a Ray task; write each image as it arrives, then report it."""
-        from usdscene import layout
+        from usdscene.document import output_layout as layout
         from usdscene.files import write_bytes_atomic
 
         ray = self._ray

@@ -12,9 +12,9 @@ import logging
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
-from usdscene import stage_schema as names
+from usdscene.document import stage_schema as names
 from usdscene.errors import Problem, RenderError, usd_error_text
-from usdscene.model import (Camera, Intrinsics, LensModel, Pose, RenderSettings,
+from usdscene.document.model import (Camera, Intrinsics, LensModel, Pose, RenderSettings,
                             usd_pose_to_cv_pose)
 
 log = logging.getLogger(__name__)

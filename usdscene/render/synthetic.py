@@ -1,6 +1,6 @@
 """Small synthetic stages in the composed-stage layout, for render tests and benchmarks.
 
-They follow :mod:`usdscene.stage_schema` exactly (cameras at ``/World/Cameras/<name>`` with the
+They follow :mod:`usdscene.document.stage_schema` exactly (cameras at ``/World/Cameras/<name>`` with the
 ``usdscene:lens:*`` attributes, objects at ``/World/Objects/<class>_<uid>`` as ``UsdGeom.Mesh``
 with ``userProperties:usdscene_uid``, ``usdscene:maskId`` and time-sampled visibility, root
 layer Z up, 1 metre per unit, start/end time codes) but in one layer, without assets.
@@ -18,8 +18,8 @@ from typing import Sequence
 
 import numpy as np
 
-from usdscene import stage_schema as names
-from usdscene.model import Camera, RenderSettings, cv_pose_to_usd_pose
+from usdscene.document import stage_schema as names
+from usdscene.document.model import Camera, RenderSettings, cv_pose_to_usd_pose
 
 
 @dataclass(frozen=True)
@@ -299,7 +299,7 @@ def cabin_like_scene(*, frames: int = 5, cameras: int = 4, objects: int = 60, ro
 
     Deterministic for a given ``seed``.
     """
-    from usdscene.model import Intrinsics, LensModel, Pose
+    from usdscene.document.model import Intrinsics, LensModel, Pose
 
     rng = np.random.default_rng(seed)
     length = rows * 0.8 + 2.0

@@ -2,7 +2,7 @@
 
 Run as ``python -m usdscene.render.worker JOB.json`` (or with ``--wait-for-job``: import bpy
 first, then read the job file's path from stdin, for a worker started before its job exists,
-see :func:`usdscene.render.executors.prestart_workers`); never imported by the parent (bpy breaks
+see :func:`usdscene.render.worker_process.prestart_workers`); never imported by the parent (bpy breaks
 ``multiprocessing`` and owns process-wide state). The job file (written by
 :mod:`usdscene.render.driver`, see :mod:`usdscene.render.job`) says which stage to import,
 which prims the shard needs, which objects are visible on which frames with which mask ids, the
@@ -328,8 +328,8 @@ class Session:
         import cv2
         import numpy as np
 
-        from usdscene.model import LensModel
-        from usdscene.projection import pixel_rays, remap_grids
+        from usdscene.document.model import LensModel
+        from usdscene.labels.projection import pixel_rays, remap_grids
         from usdscene.render.job import intrinsics_from_json
 
         cam_job = self.job["cameras"][camera]
@@ -361,13 +361,13 @@ def apply_intrinsics(scene, data, intr) -> None:
     ``sensor_fit = 'HORIZONTAL'``) and puts an unshifted optical axis at the image centre,
     ``((W - 1) / 2, (H - 1) / 2)`` in OpenCV pixel coordinates; y shift points up.
     """
-    from usdscene.model import LensModel
+    from usdscene.document.model import LensModel
 
     w, h = intr.width_px, intr.height_px
     scene.render.resolution_x = w
     scene.render.resolution_y = h
     # Square pixels only: the driver renders other cameras through a square-pixel native lens
-    # and remaps (usdscene.projection.native_renderable).
+    # and remaps (usdscene.labels.projection.native_renderable).
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
     sensor_w = intr.sensor_width_mm
     data.sensor_fit = "HORIZONTAL"
@@ -442,7 +442,7 @@ def write_outputs(out_dir: Path, camera: str, frame: int, rgb, ids) -> None:
     """Write the image (8-bit sRGB PNG) and the mask (uint16 PNG) atomically."""
     import cv2
 
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.files import write_bytes_atomic
 
     ok, image_png = cv2.imencode(".png", linear_to_srgb8(rgb)[:, :, ::-1],
@@ -661,7 +661,7 @@ def main(argv: list[str] | None = None) -> int:
     if len(argv) != 1:
         sys.stderr.write("usage: python -m usdscene.render.worker JOB.json | --wait-for-job\n")
         return 2
-    if argv[0] == "--wait-for-job":  # pre-started (executors.prestart_workers): bpy first
+    if argv[0] == "--wait-for-job":  # pre-started (worker_process.prestart_workers): bpy first
         _import_bpy()
         job_path = sys.stdin.readline().strip()
         if not job_path:  # not needed after all

@@ -1,6 +1,6 @@
-"""VCD2Scene: compose the layered USD stage of a :class:`~usdscene.model.SceneSpec`.
+"""VCD2Scene: compose the layered USD stage of a :class:`~usdscene.document.model.SceneSpec`.
 
-:func:`compose_stage` writes the layers named in :mod:`usdscene.stage_schema`::
+:func:`compose_stage` writes the layers named in :mod:`usdscene.document.stage_schema`::
 
     scene.usda        root: sublayers strongest first, upAxis Z, metersPerUnit 1, start/end
                       time codes = frame range, renderSettingsPrimPath, customLayerData
@@ -50,7 +50,7 @@ Conventions of the authored stage:
   variants.
 * Objects: references are not instanceable (Blender realises instances badly). The colour
   opinion goes to the asset's colour shader (``Looks/Body/Surface.inputs:diffuseColor``, see
-  :mod:`usdscene.stage_schema`), to ``primvars:displayColor`` for viewers and, exact, to
+  :mod:`usdscene.document.stage_schema`), to ``primvars:displayColor`` for viewers and, exact, to
   ``userProperties:usdscene_color``.
 
 Everything random (appearance, colour, placement) is drawn from one
@@ -73,16 +73,16 @@ from typing import Mapping
 import numpy as np
 
 from usdscene import __version__
-from usdscene import stage_schema as ss
+from usdscene.document import stage_schema as ss
 from usdscene.bulk import paused_collection
-from usdscene.catalog import Catalog
+from usdscene.scene.catalog import Catalog
 from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCollector
 from usdscene.files import make_folder, write_text_atomic
-from usdscene.layout import mask_ids
-from usdscene.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
+from usdscene.document.output_layout import mask_ids
+from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
                             Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
                             union_intervals)
-from usdscene.placement import ObjectPlacement, check_placement_inputs, place_objects
+from usdscene.scene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
 
@@ -219,7 +219,7 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
                 rng: np.random.Generator) -> dict[str, tuple[str | None, tuple[float, float, float] | None]]:
     """uid → (appearance variant, colour) as composed.
 
-    The first draws of a composition (document order), before placement; ``usdscene.sequences``
+    The first draws of a composition (document order), before placement; ``usdscene.dataset.sequences``
     replays them to check that a generated document composes.
     """
     out = {}
@@ -601,14 +601,14 @@ def _lights_layer(scene: SceneSpec) -> str:
 
 def _check_asset_arcs(scene: SceneSpec, catalog: Catalog) -> None:
     """Refuse assets whose sublayers, references or payloads leave the catalog's reading
-    roots (:mod:`usdscene.containment`), before the stage references them.
+    roots (:mod:`usdscene.document.containment`), before the stage references them.
 
     Raises:
         AssetError: every arc outside, naming the layer that holds it and the class.
     """
     if not catalog.roots:  # a catalog built in code, not read from folders
         return
-    from usdscene.containment import usd_dependency_problems
+    from usdscene.document.containment import usd_dependency_problems
 
     used = dict.fromkeys([*([scene.environment] if scene.environment else []),
                           *(o.class_name for o in scene.objects)])

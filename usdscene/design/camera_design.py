@@ -2,8 +2,8 @@
 
 :func:`plan_cameras` reads a setup document, composes the scene that blocks the views
 (the environment plus a passenger in every seat, or the setup's own objects) with
-:func:`usdscene.compose.compose_stage`, reads its triangles, builds targets and candidate
-cameras and hands them to :mod:`usdscene.coverage` for visibility and selection. It writes::
+:func:`usdscene.scene.compose.compose_stage`, reads its triangles, builds targets and candidate
+cameras and hands them to :mod:`usdscene.design.visibility` and :mod:`usdscene.design.selection`. It writes::
 
     PLAN_DIR/cameras.openlabel.json   the setup with the chosen cameras (for generate / run)
     PLAN_DIR/coverage.json            per target: cameras, px/m, DORI, visible fraction;
@@ -36,9 +36,16 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene import coverage as cov
+from usdscene.design.candidates import candidate_cameras, candidate_mounts
+from usdscene.design.lenses import Lens, load_lenses
+from usdscene.design.occluders import Occluders, RAY_MARGIN_M
+from usdscene.design.plan_picture import plan_picture
+from usdscene.design.selection import Selection, select_cameras
+from usdscene.design.targets import Target, parse_target_spec, targets_from_places
+from usdscene.design.visibility import Visibility, coverage_matrix, evaluate_visibility
+from usdscene.labels.pixel_density import DoriClass, class_index, load_dori, pixel_density
 from usdscene.errors import DocumentError, OutputError
-from usdscene.model import Camera, Relation, SceneObject, SceneSpec, PlaceRef
+from usdscene.document.model import Camera, Relation, SceneObject, SceneSpec, PlaceRef
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +79,8 @@ class PlanResult:
     scene: SceneSpec
     chosen: tuple[Camera, ...]
     candidates: int
-    targets: tuple[cov.Target, ...]
-    selection: cov.Selection
+    targets: tuple[Target, ...]
+    selection: Selection
     coverage: Mapping
     seconds: Mapping[str, float] = field(default_factory=dict)
     backend: str = ""
@@ -114,7 +121,7 @@ def occluder_scene(setup: SceneSpec, catalog, mode: str) -> SceneSpec:
 
 def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
     """(T, 3, 3) world triangles of the environment and every object of a composed stage."""
-    from usdscene.stage_geometry import StageGeometry, environment_triangles
+    from usdscene.scene.stage_geometry import StageGeometry, environment_triangles
 
     geometry = StageGeometry(stage_path)
     parts = [environment_triangles(geometry.stage, frame)] + list(geometry.triangles(frame).values())
@@ -122,7 +129,7 @@ def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
 
 
 def _read_setup(document: Path):
-    from usdscene.catalog import load_catalog, scene_catalog
+    from usdscene.scene.catalog import load_catalog, scene_catalog
     from usdscene.converters.openlabel import read_openlabel
 
     setup = read_openlabel(document)
@@ -164,7 +171,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
             where possible).
         OutputError: the output document fails the official OpenLABEL schema.
     """
-    from usdscene.compose import compose_stage
+    from usdscene.scene.compose import compose_stage
     from usdscene.converters.openlabel import default_schema_path, write_document, write_openlabel
     from usdscene.files import write_json_atomic, write_png_atomic
 
@@ -175,23 +182,23 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
                    aims=aims, time_limit_s=time_limit_s)
     if mounts not in ("auto", "setup"):
         raise DocumentError(f"unknown mounts {mounts!r}; expected 'auto' or 'setup'", where="--mounts")
-    specs = [cov.parse_target_spec(s) for s in targets]
-    table = cov.load_dori(dori_table_file)
-    required = cov.class_index(dori, table, where="--dori")
+    specs = [parse_target_spec(s) for s in targets]
+    table = load_dori(dori_table_file)
+    required = class_index(dori, table, where="--dori")
     setup, catalog = _read_setup(document)
-    lenses = _pick_lenses(cov.load_lenses(lenses_file), lens_names) if mounts == "auto" else []
+    lenses = _pick_lenses(load_lenses(lenses_file), lens_names) if mounts == "auto" else []
     if mounts == "setup" and not setup.cameras:
         raise DocumentError("--mounts setup re-scores the setup's cameras, but the document has none",
                             where=str(document))
     scene = occluder_scene(setup, catalog, occluders)
-    target_list = cov.targets_from_places(catalog.places(setup.environment), specs, spacing_m=target_spacing_m)
+    target_list = targets_from_places(catalog.places(setup.environment), specs, spacing_m=target_spacing_m)
     seconds["targets"] = time.perf_counter() - started
 
     t = time.perf_counter()
     # No cameras in the occluder stage: they do not block anything and the planner adds its own.
     composed = compose_stage(dataclasses.replace(scene, cameras=()), catalog, out / OCCLUDER_STAGE_DIR)
     triangles = stage_triangles(composed.root_layer, scene.frame_start)
-    occ = cov.Occluders(triangles)
+    occ = Occluders(triangles)
     seconds["compose"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -200,19 +207,19 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
         mount_count = len(candidates)
     else:
         lo, hi = occ.bounds_m
-        mount_list = cov.candidate_mounts(occ, lo, hi, spacing_m=spacing_m)
-        candidates = cov.candidate_cameras(mount_list, target_list, lenses, aims=aims)
+        mount_list = candidate_mounts(occ, lo, hi, spacing_m=spacing_m)
+        candidates = candidate_cameras(mount_list, target_list, lenses, aims=aims)
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    visibility = cov.evaluate_visibility(candidates, target_list, occ, table)
-    cover = cov.coverage_matrix(visibility, min_visible=min_visible, min_dori=required)
+    visibility = evaluate_visibility(candidates, target_list, occ, table)
+    cover = coverage_matrix(visibility, min_visible=min_visible, min_dori=required)
     seconds["visibility"] = time.perf_counter() - t
 
     t = time.perf_counter()
     weights = np.where(cover, visibility.px_per_m, 0.0).sum(axis=1)
-    selection = cov.select_cameras(cover, k, time_limit_s=time_limit_s, weights=weights)
+    selection = select_cameras(cover, k, time_limit_s=time_limit_s, weights=weights)
     seconds["select"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -238,7 +245,7 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
     title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
              f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori}, "
              f"{len(selection.uncoverable)} uncoverable by any candidate")
-    picture = cov.plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
+    picture = plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
     write_png_atomic(out / PLAN_PICTURE, picture)
     seconds["write"] = time.perf_counter() - t
     return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
@@ -261,7 +268,7 @@ def _check_numbers(**values: float) -> None:
     problems.raise_if_any(DocumentError)
 
 
-def _pick_lenses(catalog: Mapping[str, cov.Lens], names: Sequence[str] | None) -> list[cov.Lens]:
+def _pick_lenses(catalog: Mapping[str, Lens], names: Sequence[str] | None) -> list[Lens]:
     if not names:
         return list(catalog.values())
     unknown = [n for n in names if n not in catalog]
@@ -288,9 +295,9 @@ def _round(value: float, digits: int = 4) -> float:
     return float(round(float(value), digits))
 
 
-def coverage_report(request: Mapping, targets: Sequence[cov.Target], candidates: Sequence[Camera],
-                    chosen: Sequence[Camera], selection: cov.Selection, visibility: cov.Visibility,
-                    cover: np.ndarray, table: Sequence[cov.DoriClass], mount_count: int) -> dict:
+def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Sequence[Camera],
+                    chosen: Sequence[Camera], selection: Selection, visibility: Visibility,
+                    cover: np.ndarray, table: Sequence[DoriClass], mount_count: int) -> dict:
     """The ``coverage.json`` content: request, summary, per target, per chosen camera.
 
     Per (camera, target) pair the visible fraction, the median px/m over the visible points
@@ -375,7 +382,7 @@ class VerifyResult:
 MARKER_UID_PREFIX = "marker_"
 
 
-def write_marker_layer(targets: Sequence[cov.Target], path: Path, *, radius_m: float, first_mask_id: int) -> dict[int, int]:
+def write_marker_layer(targets: Sequence[Target], path: Path, *, radius_m: float, first_mask_id: int) -> dict[int, int]:
     """A USD layer with one object per target under ``/World/Objects``: a small sphere at
     each of its points (one mesh, one mask id), flat magenta.
 
@@ -384,7 +391,7 @@ def write_marker_layer(targets: Sequence[cov.Target], path: Path, *, radius_m: f
     """
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
-    from usdscene import stage_schema as names
+    from usdscene.document import stage_schema as names
     from usdscene.render.synthetic import uv_sphere
 
     stage = Usd.Stage.CreateInMemory()
@@ -422,7 +429,7 @@ def write_marker_layer(targets: Sequence[cov.Target], path: Path, *, radius_m: f
 
 
 def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples: int = 1,
-                marker_radius_m: float = cov.RAY_MARGIN_M, tolerance: float = 0.15,
+                marker_radius_m: float = RAY_MARGIN_M, tolerance: float = 0.15,
                 progress: bool = True) -> VerifyResult:
     """Render the plan's cameras with its targets as markers and compare with the prediction.
 
@@ -451,8 +458,8 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
 
     from pxr import Sdf
 
-    from usdscene import layout
-    from usdscene.compose import compose_stage
+    from usdscene.document import output_layout as layout
+    from usdscene.scene.compose import compose_stage
     from usdscene.files import write_json_atomic, write_png_atomic
     from usdscene.render.driver import render, scale_intrinsics
 
@@ -462,8 +469,8 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
         report = json.loads((plan / COVERAGE_FILE).read_text(encoding="utf-8"))
         request = report["request"]
         occluders = str(request["occluders"])
-        table = [cov.DoriClass(c["name"], float(c["px_per_m"])) for c in request["dori_table"]]
-        targets = [cov.Target(t["name"], t["place"], t["region"], np.asarray(t["points_m"], dtype=np.float64))
+        table = [DoriClass(c["name"], float(c["px_per_m"])) for c in request["dori_table"]]
+        targets = [Target(t["name"], t["place"], t["region"], np.asarray(t["points_m"], dtype=np.float64))
                    for t in report["targets"]]
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise DocumentError(f"not a plan folder (cannot read {COVERAGE_FILE}: {exc})", where=str(plan)) from None
@@ -477,7 +484,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     verify = plan / VERIFY_DIR
     composed = compose_stage(scene, catalog, verify / layout.STAGE_DIR)
     triangles = stage_triangles(composed.root_layer, scene.frame_start)
-    occ = cov.Occluders(triangles)
+    occ = Occluders(triangles)
     marker_file = composed.stage_dir / "markers.usda"
     first_id = max(layout.mask_ids(scene).values(), default=0) + 1
     target_mask_ids = {t: mask_id for mask_id, t in
@@ -496,7 +503,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     t0 = time.perf_counter()
     cameras = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
                for c in planned.cameras]
-    predicted = cov.evaluate_visibility(cameras, targets, occ, table)
+    predicted = evaluate_visibility(cameras, targets, occ, table)
     rows, pairs, agreeing, points, points_ok = [], 0, 0, 0, 0
     thumbs = []
     for c, camera in enumerate(cameras):
@@ -526,7 +533,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
                "resolution_scale": resolution_scale, "samples": samples, "marker_radius_m": marker_radius_m}
     out = {"format": "usdscene-verification", "version": 1, "summary": summary, "pairs": rows}
     write_json_atomic(verify / VERIFY_FILE, out)
-    from usdscene.contact_sheet import contact_sheet
+    from usdscene.dataset.contact_sheet import contact_sheet
 
     tiles = [(name, image if image is not None else np.zeros((180, 240, 3), np.uint8)) for name, image in thumbs]
     write_png_atomic(verify / "sheet.png", contact_sheet(tiles, tile_width=240, columns=6))
@@ -537,11 +544,11 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
 def _rendered_points(camera: Camera, points_m: np.ndarray, mask: np.ndarray, mask_id: int,
                      radius_m: float) -> np.ndarray:
     """(N,) bool: the marker of each point shows in ``mask`` within its projected radius."""
-    from usdscene.projection import project_points
+    from usdscene.labels.projection import project_points
 
     uv, ok = project_points(camera, points_m)
     h, w = mask.shape[:2]
-    density = cov.pixel_density(camera, points_m)
+    density = pixel_density(camera, points_m)
     out = np.zeros(len(points_m), dtype=bool)
     for i in np.flatnonzero(ok):
         r = max(1, int(math.ceil(density[i] * radius_m)))

@@ -1,7 +1,7 @@
 """Placement from relations: where every dynamic object stands in every frame.
 
 Pure module (numpy only). :func:`place_objects` turns the spatial relations of a
-:class:`~usdscene.model.SceneSpec` (``backpack is_below seat_03A``, ``cup is_on tray_box``)
+:class:`~usdscene.document.model.SceneSpec` (``backpack is_below seat_03A``, ``cup is_on tray_box``)
 into one object → world pose per object and frame, grouped in spans of consecutive frames that
 share a pose.
 
@@ -14,7 +14,7 @@ Rules, in order of precedence:
    * Relation to a place: the region ``catalog.places(env)[place].regions[relation]``.
    * Relation to another object ``T`` whose catalog entry declares a support place for the
      relation (a passenger's ``lap`` for ``is_on``; per pose variant, see
-     :meth:`usdscene.catalog.AssetEntry.places_for`): that region, carried by T's pose of that
+     :meth:`usdscene.scene.catalog.AssetEntry.places_for`): that region, carried by T's pose of that
      frame; the object lies there as modelled (upright or turned a quarter, never on a side).
      A class that declares the relation for some variants but not for T's refuses it.
    * Relation to another object (``T`` with asset extent ``[lo, hi]``, pose of that frame)
@@ -63,9 +63,9 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from usdscene.catalog import AssetEntry, Catalog
+from usdscene.scene.catalog import AssetEntry, Catalog
 from usdscene.errors import CompositionError, ProblemCollector
-from usdscene.model import Pose, RelationType, SceneObject, SceneSpec
+from usdscene.document.model import PLACEMENT_RELATIONS, Pose, RelationType, SceneObject, SceneSpec
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +79,6 @@ interpenetration."""
 FRONT_DEPTH_M = 0.6
 """Depth of the strip in front of an object that ``is_in_front_of`` another object uses."""
 
-PLACEMENT_RELATIONS = tuple(r.value for r in RelationType)
 
 _IDENTITY = Pose().matrix
 
@@ -277,7 +276,7 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
     Raises:
         CompositionError: every problem at once; each names the element uid.
     """
-    from usdscene.catalog import scene_catalog
+    from usdscene.scene.catalog import scene_catalog
 
     catalog = scene_catalog(catalog, scene)  # places the document declares itself
     problems = ProblemCollector()
@@ -392,7 +391,7 @@ def _find_cycles(graph: Mapping[str, list[tuple[str, str]]], order: list[str]) -
 def object_variants(obj: SceneObject) -> dict[str, str]:
     """The variant selection an object asks for (variant set → variant; sets left to the
     asset's default are left out)."""
-    from usdscene.stage_schema import VARIANT_SET_APPEARANCE, VARIANT_SET_POSE
+    from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE, VARIANT_SET_POSE
 
     chosen = {VARIANT_SET_APPEARANCE: obj.appearance, VARIANT_SET_POSE: obj.pose_variant}
     return {k: v for k, v in chosen.items() if v is not None}
@@ -484,7 +483,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
         CompositionError: unknown class, relation to a missing place/object, cyclic or
             unsupported relation, an object that does not fit its region, an over-full place.
     """
-    from usdscene.catalog import scene_catalog
+    from usdscene.scene.catalog import scene_catalog
 
     catalog = scene_catalog(catalog, scene)  # places the document declares itself
     check_placement_inputs(scene, catalog)

@@ -8,7 +8,7 @@ into ``place_bay_03_on``. Instead of the name, a custom property ``usdscene_plac
 value ``<place>.<region>`` marks any node (Blender exports custom properties to USD as
 ``userProperties:usdscene_place``; ``usdscene:place`` is read too).
 
-``<region>`` is one of :data:`usdscene.catalog.REGION_RELATIONS` (``on``, ``below``,
+``<region>`` is one of :data:`usdscene.scene.catalog.REGION_RELATIONS` (``on``, ``below``,
 ``in_front``, ``in``, ``back_pocket``) and decides the placement relation it serves. The
 place's kind is its name without the trailing number (``bay_03`` → ``bay``).
 
@@ -20,7 +20,7 @@ empty of display size 1), so scale the empty to the region. Files that are Y up 
 metres are converted: region frames come out Z up, in metres, with the box's own up axis
 (local +Y of a Y-up file) as the region's +Z.
 
-Pure module (numpy): the format readers in :mod:`usdscene.asset_import` hand it node names,
+Pure module (numpy): the format readers in :mod:`usdscene.assetgen.asset_import` hand it node names,
 matrices and local bounds.
 """
 
@@ -32,9 +32,9 @@ from typing import Iterable
 
 import numpy as np
 
-from usdscene.catalog import REGION_RELATIONS, Place, PlaceRegion, places_for_catalog
+from usdscene.scene.catalog import REGION_RELATIONS, Place, PlaceRegion, place_kind, places_for_catalog
 from usdscene.errors import AssetError, ProblemCollector
-from usdscene.model import Pose
+from usdscene.document.model import Pose
 
 PLACE_PROPERTY = "usdscene_place"
 """Custom property naming a place region (value ``<place>.<region>``)."""
@@ -43,7 +43,6 @@ PLACE_PROPERTY = "usdscene_place"
 _REGIONS = "|".join(sorted(REGION_RELATIONS, key=len, reverse=True))
 _PLACE_NAME = re.compile(rf"^place[._](?P<place>[A-Za-z0-9_]+?)[._](?P<region>{_REGIONS})$")
 _PROPERTY_VALUE = re.compile(rf"^(?P<place>[A-Za-z0-9_]+)\.(?P<region>{_REGIONS})$")
-_KIND_SUFFIX = re.compile(r"[_-]?[0-9]+[A-Za-z]?$")
 # An empty's region: the cube from -1 to 1 (Blender's cube empty, display size 1).
 EMPTY_BOUNDS = (np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0]))
 
@@ -93,11 +92,6 @@ def parse_place_name(name: str, property_value: str | None = None, *, where: str
         raise AssetError(f"node {name!r} looks like a place but is not 'place.<place>.<region>' with region "
                          f"one of {sorted(REGION_RELATIONS)}", where=where)
     return None
-
-
-def place_kind(place: str) -> str:
-    """Kind of a place from its name: ``bay_03`` → ``bay``, ``seat_03A`` → ``seat``."""
-    return _KIND_SUFFIX.sub("", place) or place
 
 
 def up_axis_rotation(up_axis: str) -> np.ndarray:

@@ -33,13 +33,13 @@ def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.Pat
             :func:`usdscene.validation.validate_document`); None: no schema check.
 
     Returns:
-        ``(path written, usdscene.labels.Annotations)``.
+        ``(path written, usdscene.labels.image_labels.Annotations)``.
 
     Raises:
         OutputError: no masks, unreadable masks, or a document the schema rejects (nothing
             is written then). DocumentError: the document does not match the render.
     """
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.converters.openlabel import write_document
     from usdscene.validation import resolve_schema
 
@@ -87,8 +87,10 @@ class ImageLabeller:
         import hashlib
         import json
 
-        from usdscene import __version__, layout
-        from usdscene.amodal import RASTER_REVISION
+        from usdscene import __version__
+
+        from usdscene.document import output_layout as layout
+        from usdscene.labels.amodal import RASTER_REVISION
         from usdscene.errors import OutputError
 
         self.out = Path(out_dir)
@@ -109,7 +111,7 @@ class ImageLabeller:
         stage_path = layout.stage_root(self.out)
         if amodal:
             from usdscene.render.stage_reader import read_stage_plan, stage_digest
-            from usdscene.stage_geometry import StageGeometry
+            from usdscene.scene.stage_geometry import StageGeometry
 
             # The cameras exactly as rendered (per-frame poses from the stage).
             self.cameras = {c.name: c for c in read_stage_plan(stage_path).cameras}
@@ -124,7 +126,7 @@ class ImageLabeller:
     @staticmethod
     def settings_key(epsilon_px: float | None, min_visible_fraction: float, amodal: bool) -> tuple:
         """``(epsilon_px, min_visible_fraction, amodal)`` with the defaults filled in."""
-        from usdscene.labels import DEFAULT_EPSILON_PX
+        from usdscene.labels.image_labels import DEFAULT_EPSILON_PX
 
         return (DEFAULT_EPSILON_PX if epsilon_px is None else float(epsilon_px), float(min_visible_fraction),
                 bool(amodal))
@@ -134,7 +136,7 @@ class ImageLabeller:
         and kept.
 
         Returns:
-            :class:`usdscene.labels.ImageLabels`.
+            :class:`usdscene.labels.image_labels.ImageLabels`.
 
         Raises:
             OutputError: the mask is missing or not a single-channel 16-bit image.
@@ -142,10 +144,10 @@ class ImageLabeller:
         import hashlib
         import json
 
-        from usdscene import layout
+        from usdscene.document import output_layout as layout
         from usdscene.errors import OutputError
         from usdscene.files import write_json_atomic
-        from usdscene.labels import image_labels_from_json, image_labels_to_json
+        from usdscene.labels.image_labels import image_labels_from_json, image_labels_to_json
 
         mask_file = layout.mask_path(self.out, camera, frame)
         try:
@@ -169,10 +171,10 @@ class ImageLabeller:
         import cv2
         import numpy as np
 
-        from usdscene.amodal import amodal_projections
-        from usdscene.cross_camera import camera_for_image
+        from usdscene.labels.amodal import amodal_projections
+        from usdscene.labels.cross_camera import camera_for_image
         from usdscene.errors import OutputError
-        from usdscene.labels import label_image
+        from usdscene.labels.image_labels import label_image
 
         mask = cv2.imdecode(np.frombuffer(mask_bytes, np.uint8), cv2.IMREAD_UNCHANGED)
         if mask is None or mask.ndim != 2 or mask.dtype.kind != "u":
@@ -248,7 +250,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
     Args:
         out_dir: output folder (``stage/``, ``masks/``, ``masks/ids.json``).
         document_path: scene document to extend; None = see the module docstring.
-        epsilon_px: polygon tolerance (None = :data:`usdscene.labels.DEFAULT_EPSILON_PX`).
+        epsilon_px: polygon tolerance (None = :data:`usdscene.labels.image_labels.DEFAULT_EPSILON_PX`).
         min_visible_fraction: minimum-visibility filter.
         amodal: compute amodal boxes and visible fractions from the stage geometry.
         progress: show a ``rich`` progress bar on stderr.
@@ -258,17 +260,17 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
 
     Returns:
         ``(document, annotations)``: the annotated ``{"openlabel": ...}`` dict (not yet
-        written) and the :class:`usdscene.labels.Annotations`.
+        written) and the :class:`usdscene.labels.image_labels.Annotations`.
 
     Raises:
         OutputError: no masks, unreadable mask or id map.
         DocumentError: the document does not match the render (unknown camera or object).
     """
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.converters.openlabel import load_document, read_openlabel, write_openlabel
     from usdscene.converters.openlabel_annotations import add_annotations
     from usdscene.errors import OutputError
-    from usdscene.labels import label_images
+    from usdscene.labels.image_labels import label_images
 
     out = Path(out_dir)
     stage_path = layout.stage_root(out)
@@ -314,7 +316,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
                                min_visible_fraction=labeller.min_visible_fraction)
     densities = None
     if labeller.geometry is not None:  # px/m of the cross-camera table, at the objects' centres
-        from usdscene.cross_camera import object_densities
+        from usdscene.labels.cross_camera import object_densities
 
         densities = object_densities(annotations, labeller.cameras, labeller.geometry)
     return add_annotations(document, scene, annotations, out, densities=densities), annotations

@@ -1,6 +1,6 @@
 """Instance masks → per-object 2D labels: boxes, polygons, visibility. Pure (numpy + OpenCV).
 
-Pixel convention (the one of :class:`usdscene.model.Intrinsics`, i.e. OpenCV's): pixel
+Pixel convention (the one of :class:`usdscene.document.model.Intrinsics`, i.e. OpenCV's): pixel
 centres sit at integer coordinates and pixel ``(x, y)`` covers ``[x - 0.5, x + 0.5] ×
 [y - 0.5, y + 0.5]``; ``x`` is the column, ``y`` the row.
 
@@ -22,7 +22,7 @@ Visibility:
 
 * *visible* = pixels of the object in the instance mask (occluders removed);
 * *amodal* = pixels of the object's whole projection through the camera model, as if nothing
-  occluded it, clipped to the image (:mod:`usdscene.amodal`);
+  occluded it, clipped to the image (:mod:`usdscene.labels.amodal`);
 * ``visible_fraction = visible pixels / amodal pixels``, clipped to ``[0, 1]`` (the two
   rasterisations differ by a few boundary pixels, so the raw ratio can exceed 1 slightly);
 * ``truncated`` = the unclipped projection leaves the image (or, without an amodal
@@ -39,7 +39,8 @@ from typing import Collection, Iterable, Iterator, Mapping, Sequence
 import cv2
 import numpy as np
 
-from usdscene.amodal import AmodalProjection
+from usdscene.labels.amodal import AmodalProjection
+from usdscene.labels.pixel_box import PixelBox
 
 log = logging.getLogger(__name__)
 
@@ -48,47 +49,6 @@ DEFAULT_EPSILON_PX = 0.75
 
 # --------------------------------------------------------------------------------------------
 # Data
-
-
-@dataclass(frozen=True)
-class PixelBox:
-    """An axis-aligned box of whole pixels: inclusive column/row indices.
-
-    Attributes:
-        x_min, y_min: first covered column and row (pixels, may be negative for an unclipped
-            projection).
-        x_max, y_max: last covered column and row, inclusive (``>= x_min``, ``>= y_min``).
-    """
-
-    x_min: int
-    y_min: int
-    x_max: int
-    y_max: int
-
-    @property
-    def width_px(self) -> int:
-        return self.x_max - self.x_min + 1
-
-    @property
-    def height_px(self) -> int:
-        return self.y_max - self.y_min + 1
-
-    def center_size(self) -> tuple[float, float, float, float]:
-        """OpenLABEL ``bbox`` value ``[cx, cy, w, h]`` (pixel centres at integers), pixels."""
-        return ((self.x_min + self.x_max) / 2.0, (self.y_min + self.y_max) / 2.0,
-                float(self.width_px), float(self.height_px))
-
-    def xywh_corner(self) -> tuple[float, float, float, float]:
-        """COCO ``[x, y, w, h]``: top-left corner where pixel ``i`` covers ``[i, i + 1)``."""
-        return (float(self.x_min), float(self.y_min), float(self.width_px), float(self.height_px))
-
-    @staticmethod
-    def from_center_size(value: Sequence[float]) -> "PixelBox":
-        """Inverse of :meth:`center_size` (values are rounded to whole pixels)."""
-        cx, cy, w, h = (float(v) for v in value)
-        x_min = int(round(cx - (w - 1.0) / 2.0))
-        y_min = int(round(cy - (h - 1.0) / 2.0))
-        return PixelBox(x_min, y_min, x_min + int(round(w)) - 1, y_min + int(round(h)) - 1)
 
 
 @dataclass(frozen=True, eq=False)

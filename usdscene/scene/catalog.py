@@ -42,12 +42,14 @@ import dataclasses
 import functools
 import json
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
+from usdscene.document.model import Pose, SceneSpec
 from usdscene.errors import AssetError, ProblemCollector
-from usdscene.model import Pose, SceneSpec
+from usdscene.shipped import default_asset_folder
 
 CATALOG_FILE = "catalog.json"
 ASSET_KINDS = ("environment", "object", "passenger")
@@ -165,14 +167,14 @@ class AssetEntry:
     @property
     def appearances(self) -> tuple[str, ...]:
         """The variants of the ``appearance`` variant set (empty when it has none)."""
-        from usdscene.stage_schema import VARIANT_SET_APPEARANCE
+        from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE
 
         return tuple(self.variants.get(VARIANT_SET_APPEARANCE, ()))
 
     @property
     def default_appearance(self) -> str | None:
         """The appearance an object gets when nothing chooses one (None without variants)."""
-        from usdscene.stage_schema import VARIANT_SET_APPEARANCE
+        from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE
 
         variants = self.appearances
         return self.default_variants.get(VARIANT_SET_APPEARANCE, variants[0]) if variants else None
@@ -186,7 +188,7 @@ class Catalog:
         entries: class name → entry. A later folder overrides an earlier one.
         folders: the catalog folders that were read, in order.
         roots: resolved folders the assets' USD files and their composition arcs may lie in
-            (:mod:`usdscene.containment`); empty means unchecked (a catalog built in code).
+            (:mod:`usdscene.document.containment`); empty means unchecked (a catalog built in code).
     """
 
     entries: Mapping[str, AssetEntry]
@@ -206,24 +208,13 @@ class Catalog:
         return self.entries[environment].places
 
 
-def default_asset_folder() -> Path:
-    """The shipped asset library: ``$USDSCENE_ASSETS``, else the one installed with usdscene
-    (``assets/`` of a source checkout)."""
-    env = os.environ.get("USDSCENE_ASSETS")
-    if env:
-        return Path(env)
-    from usdscene.shipped import shipped_folder
-
-    return shipped_folder("assets")
-
-
 def load_catalog(extra_folders: Iterable[str | os.PathLike] = (), *,
                  include_default: bool = True, base_dir: str | os.PathLike | None = None,
                  consented: Iterable[str | os.PathLike] = ()) -> Catalog:
     """Read the shipped catalog plus extra catalog folders.
 
     With ``base_dir`` (the folder of the scene document that names ``extra_folders``), every
-    folder must lie inside the reading roots of :func:`usdscene.containment.reading_roots`
+    folder must lie inside the reading roots of :func:`usdscene.document.containment.reading_roots`
     (the document's folder, the working folder, the shipped library, ``consented`` and
     ``$USDSCENE_ASSET_PATH``). Without it the caller vouches for ``extra_folders`` (folders
     given on the command line). Either way every entry's USD file must lie inside the roots or
@@ -241,7 +232,7 @@ def load_catalog(extra_folders: Iterable[str | os.PathLike] = (), *,
         AssetError: a folder or catalog file is missing, malformed or outside the reading
             roots, or an entry's USD file is outside them (all problems at once).
     """
-    from usdscene.containment import is_inside, outside_problem, reading_roots
+    from usdscene.document.containment import is_inside, outside_problem, reading_roots
 
     folders: list[Path] = [default_asset_folder()] if include_default else []
     base = Path(base_dir) if base_dir is not None else Path.cwd()
@@ -268,7 +259,7 @@ def load_catalog(extra_folders: Iterable[str | os.PathLike] = (), *,
 
 def _read_catalog_file(folder: Path, problems: ProblemCollector,
                        roots: tuple[Path, ...]) -> dict[str, AssetEntry]:
-    from usdscene.containment import is_inside, outside_problem
+    from usdscene.document.containment import is_inside, outside_problem
 
     path = folder / CATALOG_FILE
     try:
@@ -408,6 +399,14 @@ def places_for_catalog(places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]
             for name, (kind, regions) in places.items()}
 
 
+_KIND_SUFFIX = re.compile(r"[_-]?[0-9]+[A-Za-z]?$")
+
+
+def place_kind(place: str) -> str:
+    """Kind of a place from its name: ``bay_03`` → ``bay``, ``seat_03A`` → ``seat``."""
+    return _KIND_SUFFIX.sub("", place) or place
+
+
 def place_items(places: Mapping[str, Place]) -> list[tuple[str, Place]]:
     """Places sorted by name (stable output order)."""
     return sorted(places.items())
@@ -424,8 +423,6 @@ def scene_catalog(catalog: Catalog, scene: SceneSpec) -> Catalog:
     declared = [p for p in scene.places if p.regions]
     if not declared or scene.environment not in catalog:
         return catalog
-    from usdscene.place_discovery import place_kind
-
     entry = catalog[scene.environment]
     places = dict(entry.places)
     for ref in declared:

@@ -20,7 +20,7 @@ Strategies (:data:`STRATEGIES`):
   object, and each object used for at most :data:`APPEARANCE_LIFETIME_FRAMES` frames.
 
 Capacity: a support region (one relation of one place) holds at most one generated object per
-frame, and only objects that :func:`usdscene.placement.fits_region` accepts; regions of fixed
+frame, and only objects that :func:`usdscene.scene.placement.fits_region` accepts; regions of fixed
 objects of the setup and of seated passengers are taken first. Then every generated document is
 checked by running the placement exactly as composition will (same draws, see
 :func:`check_composes`), so a generated document always composes.
@@ -56,10 +56,10 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from usdscene.catalog import Catalog, Place, PlaceRegion, place_items
+from usdscene.scene.catalog import Catalog, Place, PlaceRegion, place_items
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import FrameInterval, PlaceRef, Pose, Randomization, Relation, SceneObject, SceneSpec
-from usdscene.placement import PLACEMENT_RELATIONS, fits_region
+from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Pose, Randomization, Relation, SceneObject, SceneSpec
+from usdscene.scene.placement import fits_region
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,7 @@ class GenerateOptions:
         position_noise_m: position noise (standard deviation, metres) of generated objects.
         rotation_noise_deg: yaw noise (standard deviation, degrees) of generated objects.
         split: training split rule written into the document (``metadata.usdscene.split``,
-            :mod:`usdscene.splits` syntax); "" keeps the setup's own rule, if any.
+            :mod:`usdscene.document.splits` syntax); "" keeps the setup's own rule, if any.
         split_seed: seed of a ``fractions`` split rule.
     """
 
@@ -185,7 +185,7 @@ def region_conflicts(catalog: Catalog, environment: str,
     Returns:
         region → the regions it overlaps, itself included.
     """
-    from usdscene.placement import boxes_overlap
+    from usdscene.scene.placement import boxes_overlap
 
     places = catalog.places(environment)
     regions = sorted(set(regions))
@@ -353,7 +353,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         DocumentError: bad options (unknown strategy, class or pattern, occupancy outside
             [0, 1]), a setup without environment.
     """
-    from usdscene.catalog import scene_catalog
+    from usdscene.scene.catalog import scene_catalog
 
     catalog = scene_catalog(catalog, setup)  # places the setup declares itself
     classes, combos, passenger_classes = _check_options(setup, catalog, options)
@@ -444,7 +444,7 @@ def _check_options(setup: SceneSpec, catalog: Catalog, options: GenerateOptions)
     if options.seed < 0:
         problems.add("--seed", f"seed must be non-negative, got {options.seed}")
     if options.split:
-        from usdscene.splits import parse_split
+        from usdscene.document.splits import parse_split
 
         try:
             parse_split(options.split)
@@ -583,7 +583,7 @@ def lap_regions(catalog: Catalog, environment: str, passenger_classes: Sequence[
     """The support regions seated passengers offer, per seat: ``(seat_03A/lap, is_on)`` → :class:`Lap`.
 
     A passenger class offers the ``is_on`` places its catalog entry declares (per pose
-    variant, :meth:`usdscene.catalog.AssetEntry.places_for`); seated on a seat's ``is_on``
+    variant, :meth:`usdscene.scene.catalog.AssetEntry.places_for`); seated on a seat's ``is_on``
     region, without noise, its asset frame is that region's frame. Empty when ``occupancy`` is 0.
     """
     if options.occupancy <= 0.0:
@@ -615,7 +615,7 @@ def lap_regions(catalog: Catalog, environment: str, passenger_classes: Sequence[
 
 def lap_combinations(catalog: Catalog, classes: Sequence[str], laps: Mapping[Region, Lap]) -> tuple[Combination, ...]:
     """(class, ``is_on``, ``seat/lap``) for every class that fits the lap of at least one pose
-    (:func:`usdscene.placement.fits_region`, as for places); the passenger then takes a pose
+    (:func:`usdscene.scene.placement.fits_region`, as for places); the passenger then takes a pose
     whose lap holds it (:func:`_dress_passengers`)."""
     out = []
     for (place, relation), lap in sorted(laps.items()):
@@ -725,7 +725,7 @@ def _dress_passengers(seated: Sequence[Sequence[tuple[str, str]]], plan: list[li
     draws its appearance variant when first used. Classes without a pose variant set keep the
     asset's default (pose None).
     """
-    from usdscene.stage_schema import VARIANT_SET_POSE
+    from usdscene.document.stage_schema import VARIANT_SET_POSE
 
     looks: dict[tuple[str, str | None, int], str | None] = {}
     seat_laps = _laps_by_seat(laps)
@@ -843,8 +843,8 @@ def check_composes(scene: SceneSpec, catalog: Catalog) -> None:
     Raises:
         CompositionError: what composing the scene would raise.
     """
-    from usdscene.compose import draw_looks  # the composer's own first draws (no pxr at import)
-    from usdscene.placement import place_objects
+    from usdscene.scene.compose import draw_looks  # the composer's own first draws (no pxr at import)
+    from usdscene.scene.placement import place_objects
 
     rng = np.random.default_rng(scene.seed)
     draw_looks(scene, catalog, rng)
@@ -923,8 +923,8 @@ def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
 def _declared_supports(scene: SceneSpec, catalog: Catalog) -> dict[tuple[int, str], tuple[str, str, str]]:
     """(frame, uid) → (relation, support place name, its kind) for objects whose first
     placement relation in that frame relates them to an object that declares a support place
-    for it (:meth:`usdscene.catalog.AssetEntry.support_region`)."""
-    from usdscene.placement import object_variants
+    for it (:meth:`usdscene.scene.catalog.AssetEntry.support_region`)."""
+    from usdscene.scene.placement import object_variants
 
     objects = scene.object_by_uid()
     out: dict[tuple[int, str], tuple[str, str, str]] = {}
@@ -976,7 +976,7 @@ def generate_document(setup_path: str | os.PathLike, out_path: str | os.PathLike
 
 
 def _generate_document(setup_path: Path, out_path: Path, options: GenerateOptions) -> GeneratedSequence:
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
     from usdscene.files import write_json_atomic
 

@@ -27,10 +27,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.catalog import ASSET_KINDS, CATALOG_FILE, AssetEntry, _entry_from_json, entry_to_json
+from usdscene.scene.catalog import ASSET_KINDS, CATALOG_FILE, AssetEntry, _entry_from_json, entry_to_json
 from usdscene.errors import AssetError, OutputError, Problem
 from usdscene.files import dumps_json, resolve_inside, write_text_atomic
-from usdscene.place_discovery import file_to_world, up_axis_rotation
+from usdscene.scene.place_discovery import file_to_world, up_axis_rotation
 
 log = logging.getLogger(__name__)
 
@@ -115,11 +115,11 @@ def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: Imp
 
 def _load_parts(path: Path, discover_places: bool) -> tuple[list, list]:
     """The file's geometry as (node name, trimesh.Trimesh in file-world coordinates) parts,
-    and its place boxes (:class:`usdscene.place_discovery.PlaceBox`) when ``discover_places``
+    and its place boxes (:class:`usdscene.scene.place_discovery.PlaceBox`) when ``discover_places``
     (their geometry is then not part of the asset)."""
     import trimesh
 
-    from usdscene.place_discovery import EMPTY_BOUNDS, PlaceBox, parse_place_name
+    from usdscene.scene.place_discovery import EMPTY_BOUNDS, PlaceBox, parse_place_name
 
     fmt = MESH_FORMATS[path.suffix.lower()]
     # OBJ objects (``o``) are nodes of their own only when split; other formats keep nodes.
@@ -191,7 +191,7 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
     import trimesh
     from pxr import Kind, UsdGeom
 
-    from usdscene import stage_schema
+    from usdscene.document import stage_schema
     from usdscene.assetgen.mesh import MeshData
     from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
                                              in_variant, new_asset_stage, set_material_color)
@@ -266,7 +266,7 @@ def _usd_place_boxes(stage, default, source: Path) -> list:
     default prim's parent, which is what a reference brings in)."""
     from pxr import Usd, UsdGeom
 
-    from usdscene.place_discovery import EMPTY_BOUNDS, PLACE_PROPERTY, PlaceBox, parse_place_name
+    from usdscene.scene.place_discovery import EMPTY_BOUNDS, PLACE_PROPERTY, PlaceBox, parse_place_name
 
     xforms = UsdGeom.XformCache()
     bboxes = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render,
@@ -312,7 +312,7 @@ def _lift_variants(src_default, root, holder, source: Path) -> tuple[dict, dict]
     """
     import itertools
 
-    from usdscene import stage_schema
+    from usdscene.document import stage_schema
     from usdscene.assetgen.usd_write import in_variant
 
     sets = src_default.GetVariantSets()
@@ -339,10 +339,10 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
                        roots: Sequence[Path]) -> _Written:
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom
 
-    from usdscene import stage_schema
+    from usdscene.document import stage_schema
     from usdscene.assetgen.usd_write import author_places, bounds_of_stage, new_asset_stage
-    from usdscene.containment import usd_dependency_problems
-    from usdscene.place_discovery import places_from_boxes
+    from usdscene.document.containment import usd_dependency_problems
+    from usdscene.scene.place_discovery import places_from_boxes
 
     # Every sublayer, reference and payload stays inside the allowed folders, checked before
     # the stage composes (and reads) them.
@@ -440,7 +440,7 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
             options, or the class already exists (without ``replace``). Nothing is written.
     """
     catalog = Path(catalog_dir).resolve()
-    from usdscene.containment import consented_folders
+    from usdscene.document.containment import consented_folders
 
     roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
                                else (Path.cwd(), catalog, *consented_folders()))]
@@ -449,10 +449,10 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
                                    options, roots)
     target = catalog / IMPORTED_FOLDER / f"{class_name}.usda"
     suffix = resolved.suffix.lower()
-    from usdscene import stage_schema
+    from usdscene.document import stage_schema
 
     if suffix in MESH_FORMATS:
-        from usdscene.place_discovery import places_from_boxes
+        from usdscene.scene.place_discovery import places_from_boxes
 
         parts, boxes = _load_parts(resolved, discover_places=options.kind == "environment")
         up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[suffix]]

@@ -6,7 +6,7 @@ objects whose projection falls in the image but which no pixel shows (amodal box
 
 The cross-camera summary (:func:`cross_camera_statistics`) counts *object-frames* (one object
 present in one frame) by the number of cameras that see them, and per class gives the median
-number of cameras and the best DORI class reached (see :mod:`usdscene.cross_camera`).
+number of cameras and the best DORI class reached (see :mod:`usdscene.labels.cross_camera`).
 """
 
 from __future__ import annotations

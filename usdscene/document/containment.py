@@ -7,7 +7,7 @@ and must lie inside one of the *reading roots*:
 
 - the folder of the scene document,
 - the working folder (where the user runs usdscene),
-- the shipped asset library (:func:`usdscene.catalog.default_asset_folder`),
+- the shipped asset library (:func:`usdscene.shipped.default_asset_folder`),
 - the folders the user consented to: ``--asset-path DIR`` on the command line, or the
   ``USDSCENE_ASSET_PATH`` environment variable (folders separated by ``os.pathsep``),
 - and, for the files a catalog names, the catalog folders that passed this check.
@@ -47,7 +47,7 @@ def reading_roots(document_folder: str | os.PathLike | None,
     Returns:
         Resolved folders, duplicates removed, in a stable order.
     """
-    from usdscene.catalog import default_asset_folder
+    from usdscene.shipped import default_asset_folder
 
     folders = [Path.cwd(), default_asset_folder(), *(Path(p) for p in consented)]
     if document_folder is not None:

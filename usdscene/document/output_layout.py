@@ -2,7 +2,7 @@
 
 ::
 
-    out/stage/...                       composed USD stage (see usdscene.stage_schema)
+    out/stage/...                       composed USD stage (see usdscene.document.stage_schema)
     out/images/<camera>/<frame:06d>.png 8-bit RGB
     out/masks/<camera>/<frame:06d>.png  16-bit instance ids, 0 = background
     out/masks/ids.json                  {"<mask id>": {"uid", "class", "name"}}
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from usdscene.model import SceneSpec
+from usdscene.document.model import SceneSpec
 
 STAGE_DIR = "stage"
 IMAGES_DIR = "images"
@@ -46,7 +46,7 @@ def mask_path(out_dir: str | Path, camera: str, frame: int) -> Path:
 
 
 def labels_path(out_dir: str | Path, camera: str, frame: int) -> Path:
-    """Labels of one image (see :class:`usdscene.annotation.ImageLabeller`)."""
+    """Labels of one image (see :class:`usdscene.dataset.annotation.ImageLabeller`)."""
     return Path(out_dir) / LABELS_DIR / camera / f"{frame:06d}.json"
 
 

@@ -1,6 +1,6 @@
 """World-space triangles of the composed stage's objects, per frame (for amodal labels).
 
-Reads ``/World/Objects/<class>_<uid>`` prims (see :mod:`usdscene.stage_schema`): every
+Reads ``/World/Objects/<class>_<uid>`` prims (see :mod:`usdscene.document.stage_schema`): every
 ``UsdGeom.Mesh`` below an object (instance proxies included, ``guide``/``proxy`` purposes and
 invisible meshes skipped) is triangulated (fan triangulation of each polygon; the ordering
 does not matter for a filled silhouette) and transformed with
@@ -23,7 +23,7 @@ from typing import Collection
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from usdscene import stage_schema
+from usdscene.document import stage_schema
 from usdscene.errors import CompositionError
 
 log = logging.getLogger(__name__)

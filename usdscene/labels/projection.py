@@ -1,10 +1,10 @@
 """Camera projection for every lens model, and the remap grids of lenses Blender lacks. Pure.
 
 numpy only (no pxr, no bpy, no cv2): the functions here are the *definition* of each
-:class:`usdscene.model.LensModel`; tests check them against OpenCV's ``cv2.projectPoints`` and
+:class:`usdscene.document.model.LensModel`; tests check them against OpenCV's ``cv2.projectPoints`` and
 ``cv2.fisheye.projectPoints``, and the renderer is checked against them.
 
-Pixel convention (see :class:`usdscene.model.Intrinsics`): x right, y down, pixel centres at
+Pixel convention (see :class:`usdscene.document.model.Intrinsics`): x right, y down, pixel centres at
 integer coordinates. Camera frames are OpenCV (x right, y down, z forward).
 
 Models, with ``(x, y, z)`` a point in the camera frame, ``ρ = √(x² + y²)`` and
@@ -36,7 +36,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from usdscene.model import Camera, Intrinsics, LensModel
+from usdscene.document.model import Camera, Intrinsics, LensModel
 
 __all__ = [
     "project_points",

@@ -7,11 +7,11 @@ same whether the labels were computed while rendering or afterwards:
 * a camera *sees* an object in a frame when the object has at least one visible pixel in that
   camera's instance mask (a fully occluded object, which has an amodal box only, is not seen);
 * ``visible_fraction`` is the label's (visible / amodal pixels; None when unknown);
-* ``px_per_m`` is :func:`usdscene.coverage.pixel_density` of the camera, as rendered (its pose
+* ``px_per_m`` is :func:`usdscene.labels.pixel_density.pixel_density` of the camera, as rendered (its pose
   at that frame, its intrinsics scaled to the image's size), at the object's centre: the centre
   of the axis-aligned bounds of the object's world triangles at that frame;
-* ``dori`` is :func:`usdscene.coverage.dori_class` of ``px_per_m`` in the DORI table
-  (IEC 62676-4:2015 by default, :func:`usdscene.coverage.load_dori`); ``""`` below its lowest class.
+* ``dori`` is :func:`usdscene.labels.pixel_density.dori_class` of ``px_per_m`` in the DORI table
+  (IEC 62676-4:2015 by default, :func:`usdscene.labels.pixel_density.load_dori`); ``""`` below its lowest class.
 
 Objects present at a frame that no camera sees get a row with no cameras, so that "seen by 0
 cameras" can be counted.
@@ -25,8 +25,8 @@ from typing import Mapping, Protocol, Sequence
 
 import numpy as np
 
-from usdscene.labels import Annotations
-from usdscene.model import Camera, SceneSpec
+from usdscene.labels.image_labels import Annotations
+from usdscene.document.model import Camera, SceneSpec
 
 # (frame, camera, uid) → pixels per metre at the object's centre.
 Densities = Mapping[tuple[int, str, str], float]
@@ -79,7 +79,7 @@ class CrossCameraRow:
 
 
 class TriangleSource(Protocol):
-    """What :func:`object_densities` needs from the stage (e.g. :class:`usdscene.stage_geometry.StageGeometry`)."""
+    """What :func:`object_densities` needs from the stage (e.g. :class:`usdscene.scene.stage_geometry.StageGeometry`)."""
 
     def triangles(self, frame: int, uids=None) -> dict[str, np.ndarray]: ...
 
@@ -120,7 +120,7 @@ def object_densities(annotations: Annotations, cameras: Mapping[str, Camera],
         ``(frame, camera, uid) → px/m`` for every visible label whose camera and geometry are
         known (0.0 where the centre does not project, e.g. behind a camera that sees only a part).
     """
-    from usdscene.coverage import pixel_density
+    from usdscene.labels.pixel_density import pixel_density
 
     out: dict[tuple[int, str, str], float] = {}
     # Static objects come back as the same cached triangle array frame after frame: one centre
@@ -156,14 +156,14 @@ def cross_camera_table(annotations: Annotations, scene: SceneSpec, *, densities:
         annotations: labels of the run.
         scene: the scene (objects present at each frame, classes).
         densities: from :func:`object_densities`; None = pixel densities unknown.
-        dori_table: ascending DORI classes (:func:`usdscene.coverage.load_dori`); None = the
+        dori_table: ascending DORI classes (:func:`usdscene.labels.pixel_density.load_dori`); None = the
             shipped table.
 
     Returns:
         One row per (labelled frame, object present at that frame or labelled in it), sorted by
         (frame, uid); pixel densities are rounded to 1e-3 px/m.
     """
-    from usdscene.coverage import dori_index, load_dori
+    from usdscene.labels.pixel_density import dori_index, load_dori
 
     table = tuple(load_dori() if dori_table is None else dori_table)
     names = [c.name for c in table] + [""]  # index -1 (below the lowest class) → ""

@@ -12,7 +12,7 @@ the same for every scene built from one library; the catalog is the shipped libr
 document's asset folders (relative to the source document recorded in the stage) plus
 ``extra_assets``.
 
-Splits and campaigns (:func:`export_dataset`): with a split rule (:mod:`usdscene.splits`),
+Splits and campaigns (:func:`export_dataset`): with a split rule (:mod:`usdscene.document.splits`),
 COCO is written as ``coco/annotations_<split>.json`` and YOLO as ``<task>/<split>.txt`` image
 lists named by ``data.yaml``, and ``splits.json`` records the split of every image. Several
 output folders (one per sequence document) become one dataset in a folder of its own, with
@@ -28,7 +28,7 @@ FORMATS = ("coco", "yolo", "rois")
 
 def _source_folder(out_dir):
     """Folder of the stage's source document (asset paths are relative to it), else None."""
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.render.stage_reader import recorded_source
 
     source, _ = recorded_source(layout.stage_root(out_dir))
@@ -39,7 +39,7 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
     """The catalog for an annotated document (see the module docstring)."""
     from pathlib import Path
 
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel_load import DocumentBody
     from usdscene.converters.openlabel_metadata import read_metadata
     from usdscene.errors import DocumentError
@@ -76,7 +76,7 @@ def _load_annotated(out_dir, extra_assets, need_catalog: bool):
     from pathlib import Path
 
     from usdscene.converters.openlabel import load_document
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.errors import AssetError, OutputError
 
     path = Path(out_dir) / layout.ANNOTATIONS_FILE
@@ -93,7 +93,7 @@ def _load_annotated(out_dir, extra_assets, need_catalog: bool):
 
 def carried_split(out_dirs) -> tuple:
     """The split rule the annotated documents of ``out_dirs`` carry (``metadata.usdscene.split``,
-    :func:`usdscene.splits.document_split`), for an export given no rule of its own.
+    :func:`usdscene.document.splits.document_split`), for an export given no rule of its own.
 
     Returns:
         ``(SplitRule, seed)``, or None when no document carries one.
@@ -104,10 +104,10 @@ def carried_split(out_dirs) -> tuple:
     """
     from pathlib import Path
 
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.converters.openlabel import load_document
     from usdscene.errors import DocumentError, OutputError, Problem
-    from usdscene.splits import DOCUMENT_FIELD, document_split
+    from usdscene.document.splits import DOCUMENT_FIELD, document_split
 
     found = None
     for out in out_dirs:
@@ -141,7 +141,7 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         document_classes: COCO/YOLO classes from the document's labelled types, not the catalog.
         copy_images: YOLO copies images instead of linking them.
         min_roi_px: ROIs: smallest crop side in pixels.
-        split: a split rule (text or :class:`usdscene.splits.SplitRule`) for COCO and YOLO;
+        split: a split rule (text or :class:`usdscene.document.splits.SplitRule`) for COCO and YOLO;
             None writes one COCO file and a YOLO ``data.yaml`` naming every image.
         split_seed: seed of a ``fractions`` split rule.
 
@@ -154,7 +154,7 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     """
     from pathlib import Path
 
-    from usdscene import layout
+    from usdscene.document import output_layout as layout
     from usdscene.errors import OutputError
 
     out = Path(out_dir)
@@ -194,7 +194,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         extra_assets: as in :func:`export_formats`.
         document_classes: as in :func:`export_formats`.
         copy_images: as in :func:`export_formats`.
-        split: split rule text or :class:`usdscene.splits.SplitRule`; None = no split.
+        split: split rule text or :class:`usdscene.document.splits.SplitRule`; None = no split.
         split_seed: seed of a ``fractions`` rule.
         loaded: ``(document, catalog or None)`` of each output folder when the caller has read
             them already; None reads them here.
@@ -216,7 +216,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
     from usdscene.converters.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
     from usdscene.errors import OutputError
     from usdscene.files import write_json_atomic, write_text_atomic
-    from usdscene.splits import ImageKey, SplitRule, assign_splits, parse_split, split_counts
+    from usdscene.document.splits import ImageKey, SplitRule, assign_splits, parse_split, split_counts
 
     bad = [f for f in formats if f not in ("coco", "yolo")]
     if bad:

@@ -43,7 +43,7 @@ CUSTOM_NAME = "usdscene:name"
 ATTR_USER_UID = "userProperties:usdscene_uid"
 ATTR_USER_CLASS = "userProperties:usdscene_class"
 
-# Camera lens attributes (on the UsdGeom.Camera prim), see usdscene.model.Intrinsics.
+# Camera lens attributes (on the UsdGeom.Camera prim), see usdscene.document.model.Intrinsics.
 ATTR_LENS_MODEL = "usdscene:lens:model"            # token, a LensModel value
 ATTR_LENS_WIDTH = "usdscene:lens:widthPx"          # int
 ATTR_LENS_HEIGHT = "usdscene:lens:heightPx"        # int
@@ -56,10 +56,10 @@ ATTR_LENS_FOV = "usdscene:lens:fovDeg"             # double (fisheye image-circl
 ATTR_LENS_SENSOR_WIDTH = "usdscene:lens:sensorWidthMm"  # double
 ATTR_CAMERA_MODEL_NAME = "usdscene:camera:modelName"    # string
 
-# Mask id of an object prim (int, 1..65535; 0 is background), see usdscene.layout.mask_ids.
+# Mask id of an object prim (int, 1..65535; 0 is background), see usdscene.document.output_layout.mask_ids.
 ATTR_MASK_ID = "usdscene:maskId"
 
-# Render settings: attributes on the /Render/Settings prim, one per usdscene.model.RenderSettings
+# Render settings: attributes on the /Render/Settings prim, one per usdscene.document.model.RenderSettings
 # field; an absent attribute means the RenderSettings default.
 ATTR_RENDER_ENGINE = "usdscene:render:engine"                # token: cycles / eevee / workbench
 ATTR_RENDER_DEVICE = "usdscene:render:device"                # token: cpu / gpu
@@ -108,7 +108,7 @@ ATTR_PLACE_KIND = "usdscene:place:kind"        # token on the place prim: seat, 
 ATTR_PLACE_RELATION = "usdscene:place:relation"  # token on the region prim: is_on, ...
 ATTR_PLACE_SIZE = "usdscene:place:size"        # double3 on the region prim, metres
 
-# Composition (usdscene.compose) and Scene2VCD (usdscene.converters.usd_stage). customData is authored
+# Composition (usdscene.scene.compose) and Scene2VCD (usdscene.converters.usd_stage). customData is authored
 # nested ({usdscene = {uid, class, name}}), i.e. read it with prim.GetCustomDataByKey(CUSTOM_UID).
 ATTR_USER_NAME = "userProperties:usdscene_name"            # string
 ATTR_USER_MASK_ID = "userProperties:usdscene_mask_id"      # int, same as ATTR_MASK_ID

@@ -1,7 +1,7 @@
-"""Compiled (numba, cached on disk) loops of the amodal projection (:mod:`usdscene.amodal`).
+"""Compiled (numba, cached on disk) loops of the amodal projection (:mod:`usdscene.labels.amodal`).
 
 Imported on first use only: importing numba costs about a second, which ``import
-usdscene.amodal`` should not pay.
+usdscene.labels.amodal`` should not pay.
 
 Conventions shared by the kernels: ``uv`` (V, 2) float64 pixel coordinates of projected
 vertices (pixel centres at integers), ``imaged`` (V,) bool (the lens images the vertex),
@@ -66,7 +66,7 @@ def used_vertices(points, faces):
 def faces_to_fill(points_cam, faces, owner, single_facing):
     """The faces to rasterise: every face of an object, or for objects flagged in
     ``single_facing`` only the faces whose winding turns them towards the camera (see
-    :func:`usdscene.amodal.amodal_projections` for why that is exact for closed meshes).
+    :func:`usdscene.labels.amodal.amodal_projections` for why that is exact for closed meshes).
 
     Args:
         points_cam: (P, 3) float64 camera-frame vertices (camera at the origin), metres.

@@ -25,7 +25,7 @@ Exactness, per lens:
 Objects whose bounding sphere lies outside a camera's field of view are culled before any
 triangle is projected; closed meshes are filled from the faces of one facing only (exact, see
 :func:`amodal_projections`). All objects of a camera are projected together and filled in one
-compiled pass (:mod:`usdscene.amodal_kernels`), each into a crop trimmed to its pixels.
+compiled pass (:mod:`usdscene.labels.amodal_kernels`), each into a crop trimmed to its pixels.
 """
 
 from __future__ import annotations
@@ -38,12 +38,13 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
+from usdscene.labels.pixel_box import PixelBox
+
 if TYPE_CHECKING:
-    from usdscene.labels import PixelBox
-    from usdscene.model import Camera, Intrinsics
+    from usdscene.document.model import Camera, Intrinsics
 
 # Revision of the rasterisation rules; kept labels computed under another revision are
-# computed anew (:class:`usdscene.annotation.ImageLabeller`). Raise it whenever a change can
+# computed anew (:class:`usdscene.dataset.annotation.ImageLabeller`). Raise it whenever a change can
 # move a projection's pixels.
 RASTER_REVISION = 4
 
@@ -104,8 +105,6 @@ class AmodalProjection:
     @functools.cached_property
     def box(self) -> PixelBox | None:
         """Tight box of the projection's pixels (image coordinates); None when it has none."""
-        from usdscene.labels import PixelBox
-
         rows = np.flatnonzero(self.crop.any(axis=1))
         if rows.size == 0:
             return None
@@ -146,7 +145,7 @@ def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, c
                        faces: np.ndarray, owner: np.ndarray, n_objects: int, width_px: int, height_px: int,
                        cut: np.ndarray, circle: np.ndarray) -> list[AmodalProjection]:
     """Rasterise the faces of ``n_objects`` objects in one compiled pass (arguments as in
-    :func:`usdscene.amodal_kernels.rasterize_objects`; ``cut`` (N,) bool: objects already
+    :func:`usdscene.labels.amodal_kernels.rasterize_objects`; ``cut`` (N,) bool: objects already
     known to be truncated, e.g. by the near plane).
 
     Returns:
@@ -154,8 +153,7 @@ def _rasterize_objects(uv: np.ndarray, imaged: np.ndarray, inside: np.ndarray, c
         truncated when ``cut`` says so, when a vertex leaves the image or the lens, or when a
         face leaves a fisheye's cone.
     """
-    from usdscene.amodal_kernels import rasterize_objects
-    from usdscene.labels import PixelBox
+    from usdscene.labels.amodal_kernels import rasterize_objects
 
     crops, offsets, origin, tight, counts, truncated, cone_cut = rasterize_objects(
         uv, imaged, inside, clamped, faces, owner, n_objects, width_px, height_px, circle)
@@ -217,8 +215,8 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         uid → AmodalProjection of the image size, for every uid given (empty when the object
         is out of view).
     """
-    from usdscene.amodal_kernels import faces_to_fill, to_camera, used_vertices
-    from usdscene.model import LensModel
+    from usdscene.labels.amodal_kernels import faces_to_fill, to_camera, used_vertices
+    from usdscene.document.model import LensModel
 
     intr = camera.intrinsics
     size = (intr.width_px, intr.height_px)
@@ -282,7 +280,7 @@ def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray
         ``(uv, imaged, inside, clamped, faces, owner)`` with the split faces replaced by their
         pieces (the pieces' vertices appended after the given ones).
     """
-    from usdscene.amodal_kernels import needs_split
+    from usdscene.labels.amodal_kernels import needs_split
 
     split = needs_split(uv, imaged, clamped, faces, max_edge_px, MAX_CUT_EDGE_PX)
     if not split.any():
@@ -328,7 +326,7 @@ def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray) -> tuple[np.
         ``(uv (N, 2) float64, imaged (N,), inside (N,), clamped (N,))``, bool arrays: the lens
         images the point; it lies within the field-of-view cone; it was moved onto the cone.
     """
-    from usdscene.projection import project_camera_points
+    from usdscene.labels.projection import project_camera_points
 
     cone = _fisheye_cone_rad(intrinsics)
     none = np.zeros(len(points_cam), dtype=bool)
@@ -362,7 +360,7 @@ def _image_circle(intrinsics: Intrinsics) -> np.ndarray:
     """``(cx, cy, fx, fy, r)`` of a fisheye's image circle, r in units of the focal lengths
     (the image radius of a ray on the field-of-view cone); :data:`_NO_CIRCLE` for other
     lenses. The fisheye models are radial, so the circle is that ellipse in pixels."""
-    from usdscene.projection import project_camera_points
+    from usdscene.labels.projection import project_camera_points
 
     cone = _fisheye_cone_rad(intrinsics)
     if cone is None:
@@ -468,7 +466,7 @@ def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,
 
 def _fisheye_cone_rad(intrinsics: Intrinsics) -> float | None:
     """Half field of view of a fisheye lens with a declared ``fov_deg`` (radians), else None."""
-    from usdscene.model import FISHEYE_LENSES
+    from usdscene.document.model import FISHEYE_LENSES
 
     if intrinsics.lens not in FISHEYE_LENSES or intrinsics.fov_deg is None:
         return None
@@ -491,8 +489,8 @@ def _onto_cone(points_cam: np.ndarray, half_angle_rad: float) -> np.ndarray:
 def _view_half_angle_rad(intrinsics: Intrinsics) -> float:
     """Largest angle from the optical axis (radians) of any ray the image can show; π when
     unknown (orthographic, or a distortion that cannot be inverted at the border)."""
-    from usdscene.model import LensModel
-    from usdscene.projection import _border_pixels, pixel_rays
+    from usdscene.document.model import LensModel
+    from usdscene.labels.projection import _border_pixels, pixel_rays
 
     if intrinsics.lens is LensModel.ORTHOGRAPHIC:
         return math.pi

@@ -402,6 +402,10 @@ class RelationType(str, enum.Enum):
     IS_IN_FRONT_OF = "is_in_front_of"
 
 
+# The relation type names that place an object (``is_on`` ...), in declaration order.
+PLACEMENT_RELATIONS = tuple(r.value for r in RelationType)
+
+
 @dataclass(frozen=True)
 class Randomization:
     """Per-object randomization knobs, drawn from the document's seeded generator.
@@ -672,7 +676,7 @@ class SceneSpec:
         asset_paths: extra asset folders (catalogs) named by the document, as given.
         exports: dataset formats to export after a run (``coco``, ``yolo``, ``rois``).
         roi_rules: relation type → label for ROI crops (e.g. ``{"is_below": "correct"}``).
-        split_rule: the training split rule the document carries (``usdscene.splits`` syntax,
+        split_rule: the training split rule the document carries (``usdscene.document.splits`` syntax,
             e.g. ``train=0.8,val=0.2``), used by ``usdscene export`` when no ``--split`` is
             given; "" = none.
         split_seed: seed of a ``fractions`` split rule.
