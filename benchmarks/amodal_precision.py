@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdscene.labels.image_labels import amodal
+from usdscene.labels import amodal
 
 from usdscene.document import output_layout as layout
 from usdscene.labels.cross_camera import camera_for_image

@@ -116,7 +116,7 @@ def test_closed_meshes_are_recognised():
 ])
 @pytest.mark.parametrize("inwards", [False, True])
 def test_one_facing_of_a_closed_mesh_covers_what_every_face_covers(lens, distortion, fov, inwards):
-    from usdscene.labels.image_labels import amodal
+    from usdscene.labels import amodal
 
     camera = _camera(lens, distortion, fov)
     # Boxes seen from several sides, one of them cut by the image border.
