@@ -147,7 +147,7 @@ CASES = [
     ("exports_unknown", _set("metadata/usdscene/exports", ["tfrecord"]), ["openlabel.metadata.usdscene.exports[0]"]),
     ("fov_inconsistent", _cam01(focal_length_mm=2.13, sensor_size_mm=[4.0, 3.0], fov_deg=118.0),
      ["openlabel.streams.cam_01.stream_properties.usdscene.fov_deg", "86.4°", "fisheye_equisolid lens gives 112.0°"]),
-    ("lens_model_unknown", _cam01(model="fisheye"), ["openlabel.streams.cam_01.stream_properties.usdscene.document.model"]),
+    ("lens_model_unknown", _cam01(model="fisheye"), ["openlabel.streams.cam_01.stream_properties.usdscene.model"]),
     ("resolution_negative", _cam01(resolution_px=[-64, 48]),
      ["openlabel.streams.cam_01.stream_properties.usdscene.resolution_px[0]"]),
     ("friendly_key_typo", _cam01(fov_degs=90.0), ["openlabel.streams.cam_01.stream_properties.usdscene.fov_degs",
