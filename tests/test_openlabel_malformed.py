@@ -348,7 +348,7 @@ def test_all_problems_reported_at_once(tmp_path, capsys):
                                        _set("metadata/usdscene/sed", 1)))
     assert main(["validate", "--no-catalog", str(path)]) == 1
     err = capsys.readouterr().err
-    assert "usdscene.document.model" in err and "objects.0.object_data.text[0].val" in err and "usdscene.sed" in err
+    assert "usdscene.model" in err and "objects.0.object_data.text[0].val" in err and "usdscene.sed" in err
 
 
 def test_subprocess_validate_reports_without_traceback(tmp_path):
@@ -377,7 +377,7 @@ def test_convert_refuses_invalid_input(tmp_path, capsys):
     out = tmp_path / "out.json"
     assert main(["convert", "--no-catalog", str(path), "-o", str(out)]) == 1
     assert not out.exists()
-    assert "usdscene.document.model" in capsys.readouterr().err
+    assert "usdscene.model" in capsys.readouterr().err
 
 
 def test_example_validates_against_the_shipped_catalog(capsys):
