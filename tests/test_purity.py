@@ -43,6 +43,7 @@ PURE_MODULES = [
     "usdscene.converters.yolo",
     "usdscene.render.executors",
     "usdscene.render.worker_process",
+    "usdscene.render.shards",
     "usdscene.render.scratch",
     "usdscene.render.ray_executor",
 ]

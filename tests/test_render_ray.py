@@ -35,10 +35,10 @@ def cluster():
 
 @pytest.fixture(scope="module")
 def local_run(tmp_path_factory):
-    from usdscene.pipeline import run_pipeline
+    from usdscene.pipeline import RunOptions, run_pipeline
 
     out = tmp_path_factory.mktemp("local") / "out"
-    run_pipeline(MINIMAL, out, exports=["coco"], progress=False)
+    run_pipeline(MINIMAL, out, RunOptions(exports=["coco"]), progress=False)
     return out
 
 
@@ -49,14 +49,14 @@ def _products(out: Path) -> dict[str, bytes]:
 
 
 def test_ray_cluster_with_a_killed_worker_matches_local_byte_for_byte(cluster, local_run, tmp_path):
-    from usdscene.pipeline import run_pipeline
+    from usdscene.pipeline import RunOptions, run_pipeline
     from usdscene.render.driver import render
     from usdscene.render.ray_executor import RayExecutor
 
     out = tmp_path / "out"
     # Two slots: frame 1 (two images) as one shard, frame 2 as two of one image, on 2-3 nodes.
     # Frame 0 with the local executor; the Ray run must resume from there.
-    first = run_pipeline(MINIMAL, out, frames=[0], exports=[], progress=False)
+    first = run_pipeline(MINIMAL, out, RunOptions(frames=[0], exports=[]), progress=False)
     assert first.images_written == 2
 
     ray_workers: dict[str, int] = {}
@@ -83,7 +83,7 @@ def test_ray_cluster_with_a_killed_worker_matches_local_byte_for_byte(cluster, l
     assert sum(n["images"] for n in report.nodes.values()) == 4
 
     # Back to the local executor: nothing left to render; labels and exports are written.
-    last = run_pipeline(MINIMAL, out, exports=["coco"], progress=False)
+    last = run_pipeline(MINIMAL, out, RunOptions(exports=["coco"]), progress=False)
     assert last.images_written == 0 and last.images_skipped == 6
     got, expected = _products(out), _products(local_run)
     assert sorted(got) == sorted(expected) and len(got) >= 15

@@ -124,9 +124,9 @@ def test_kill_mid_way_then_resume(stage, reference, tmp_path):
 def test_worker_recycling_gives_identical_masks(stage, reference, tmp_path, monkeypatch):
     """With a small per-process budget the run is split over several worker processes (each
     importing only its frames); the masks do not change."""
-    from usdscene.render import driver
+    from usdscene.render import driver, shards
 
-    monkeypatch.setattr(driver, "MAX_RENDERS_PER_WORKER", 7)
+    monkeypatch.setattr(shards, "MAX_RENDERS_PER_WORKER", 7)
     starts = []
     report = driver.render(stage, tmp_path, settings_override=SETTINGS, progress=False,
                            on_event=lambda e: starts.append(e) if e.get("event") == "imported" else None)

@@ -11,7 +11,8 @@ from usdscene.document import output_layout as layout
 from usdscene.errors import RenderError
 from usdscene.document.model import Camera, Intrinsics, LensModel, Pose, RenderSettings
 from usdscene.labels.projection import project_camera_points
-from usdscene.render.driver import _chunks, resolve_settings, scale_intrinsics, shard_size
+from usdscene.render.driver import resolve_settings, scale_intrinsics
+from usdscene.render.shards import chunks, shard_size
 from usdscene.render.manifest import Manifest, fingerprint
 
 
@@ -56,10 +57,10 @@ def test_scale_intrinsics_keeps_the_pixel_convention():
 
 def test_shards_are_blocks_of_consecutive_frames():
     pairs = [(f, c) for f in range(7) for c in ("a", "b")]
-    shards = _chunks(pairs, shard_size(len(pairs), 3))
+    shards = chunks(pairs, shard_size(len(pairs), 3))
     assert [sorted({f for f, _ in s}) for s in shards] == [[0, 1], [2, 3], [4, 5], [6]]
     assert [p for s in shards for p in s] == pairs
-    assert len(_chunks(pairs[:2], shard_size(2, 4))) == 2  # one camera of one frame per slot
+    assert len(chunks(pairs[:2], shard_size(2, 4))) == 2  # one camera of one frame per slot
 
 
 def test_shard_size_follows_slots_budget_and_measured_time():

@@ -53,6 +53,7 @@ _LAZY = {
     # the whole job
     "run_pipeline": ("usdscene.pipeline", "run_pipeline"),
     "RunSummary": ("usdscene.pipeline", "RunSummary"),
+    "RunOptions": ("usdscene.pipeline", "RunOptions"),
     # design time: sequence documents and camera systems
     "generate_document": ("usdscene.dataset.sequences", "generate_document"),
     "generate_sequence": ("usdscene.dataset.sequences", "generate_sequence"),

@@ -8,12 +8,13 @@ an interrupted run resumes without losing or duplicating work.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from usdscene.document import output_layout as layout
 
@@ -98,29 +99,45 @@ def stage_for_input(path: str | Path, out_dir: str | Path) -> Path:
     return Path(compose_document(path, Path(out_dir) / layout.STAGE_DIR)[1].root_layer)
 
 
-def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[int] | None = None,
-                 cameras: Sequence[str] | None = None, exports: Sequence[str] | None = None,
-                 samples: int | None = None, workers: int | None = None, executor="local",
-                 retries: int | None = None, progress: bool = True,
-                 on_step: Callable[[str], None] | None = None, split=None,
-                 split_seed: int = 0) -> RunSummary:
-    """Run the whole job for one scene document.
+@dataclass(frozen=True)
+class RunOptions:
+    """What one ``usdscene run`` renders and writes, besides the document and the output folder.
+
+    Attributes:
+        frames: frames to render (default: the document's range).
+        cameras: camera names to render (default: all).
+        exports: dataset formats (default: the document's ``metadata.usdscene.exports``).
+        samples: samples per pixel replacing the document's (None: the document's).
+        workers: render worker processes side by side (with an executor object: its own).
+        retries: times a shard whose worker died is run again (None = the driver's default).
+        split: training split rule of the COCO/YOLO export (:mod:`usdscene.document.splits`);
+            None = the document's own rule (``metadata.usdscene.split``), or none.
+        split_seed: seed of a fraction split.
+    """
+
+    frames: Sequence[int] | None = None
+    cameras: Sequence[str] | None = None
+    exports: Sequence[str] | None = None
+    samples: int | None = None
+    workers: int | None = None
+    retries: int | None = None
+    split: Any = None
+    split_seed: int = 0
+
+
+def run_pipeline(document: str | Path, out_dir: str | Path, options: RunOptions = RunOptions(), *,
+                 executor="local", progress: bool = True,
+                 on_step: Callable[[str], None] | None = None) -> RunSummary:
+    """Run the whole job for one scene document: validate → compose → render (each image
+    labelled as it arrives) → annotate → export.
 
     Args:
         document: OpenLABEL/VCD scene document.
         out_dir: output folder (created; a previous run's output is resumed).
-        frames: frames to render (default: the document's range).
-        cameras: camera names to render (default: all).
-        exports: dataset formats (default: the document's ``metadata.usdscene.exports``).
-        samples: override the document's samples per pixel.
-        workers: render worker processes side by side (with an executor object: its own).
+        options: what to render and write (:class:`RunOptions`).
         executor: ``"local"``, ``"ray"`` or an executor object (``usdscene.render.executors``).
-        retries: times a shard whose worker died is run again (None = the driver's default).
         progress: show progress bars on stderr.
         on_step: called with each step's name as it starts (for a status line).
-        split: training split rule of the COCO/YOLO export (:mod:`usdscene.document.splits`); None = the
-            document's own rule (``metadata.usdscene.split``), or none.
-        split_seed: seed of a fraction split.
 
     Raises:
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
@@ -128,82 +145,110 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     """
     from usdscene.render.executors import workers_started_early
 
+    run = _Run(Path(document), Path(out_dir), options, executor, progress, on_step)
     # Local workers start now: their start-up (interpreter, import bpy) overlaps validating
     # and composing, which are single-threaded.
-    with workers_started_early(executor, workers):
-        return _run_steps(document, out_dir, frames=frames, cameras=cameras, exports=exports, samples=samples,
-                          workers=workers, executor=executor, retries=retries, progress=progress,
-                          on_step=on_step, split=split, split_seed=split_seed)
+    with workers_started_early(executor, options.workers):
+        checked = run.validate()
+        composed = run.compose(checked)
+        labelling, report = run.render(composed.root_layer)
+        annotations = run.annotate(checked, labelling)
+        exports = run.export(checked.scene)
+    return run.summary(report, annotations, labelling, exports)
 
 
-def _run_steps(document, out_dir, *, frames, cameras, exports, samples, workers, executor, retries, progress,
-               on_step, split, split_seed) -> RunSummary:
-    """The steps of :func:`run_pipeline` (same arguments)."""
-    from usdscene.dataset.annotation import LabelsWhileRendering, write_annotations
-    from usdscene.scene.catalog import load_catalog
-    from usdscene.scene.compose import compose_stage
-    from usdscene.dataset.export import export_formats
-    from usdscene.render.driver import render
-    from usdscene.validation import DEFAULT_SCHEMA, validate_document
+class _Run:
+    """The steps of one :func:`run_pipeline` call, each timed under its name."""
 
-    doc_path, out = Path(document), Path(out_dir)
-    seconds: dict[str, float] = {}
+    def __init__(self, document: Path, out: Path, options: RunOptions, executor, progress: bool,
+                 on_step: Callable[[str], None] | None):
+        self.document, self.out, self.options = document, out, options
+        self.executor, self.progress, self.on_step = executor, progress, on_step
+        self.seconds: dict[str, float] = {}
+        self.catalog = None
 
-    def step(name: str) -> float:
-        if on_step is not None:
-            on_step(name)
+    @contextlib.contextmanager
+    def _step(self, name: str):
+        if self.on_step is not None:
+            self.on_step(name)
         log.info("%s", name)
-        return time.perf_counter()
+        started = time.perf_counter()
+        yield
+        self.seconds[name] = time.perf_counter() - started
 
-    t = step("validate")
-    # Exactly the checks of `usdscene validate`: official schema, usdscene's own, the catalog.
-    checked = validate_document(doc_path, schema=DEFAULT_SCHEMA)
-    scene, catalog = checked.scene, checked.catalog
-    if catalog is None:  # no catalog was found to check against: composing needs one, say why
-        catalog = load_catalog(scene.asset_paths, base_dir=doc_path.parent)
-    seconds["validate"] = time.perf_counter() - t
+    def validate(self):
+        """Exactly the checks of ``usdscene validate``: official schema, usdscene's own, the catalog."""
+        from usdscene.scene.catalog import load_catalog
+        from usdscene.validation import DEFAULT_SCHEMA, validate_document
 
-    t = step("compose")
-    composed = compose_stage(scene, catalog, out / layout.STAGE_DIR)
-    seconds["compose"] = time.perf_counter() - t
+        with self._step("validate"):
+            checked = validate_document(self.document, schema=DEFAULT_SCHEMA)
+            self.catalog = checked.catalog
+            if self.catalog is None:  # no catalog was found to check against: composing needs one, say why
+                self.catalog = load_catalog(checked.scene.asset_paths, base_dir=self.document.parent)
+        return checked
 
-    t = step("render")
-    override = {"samples": samples} if samples is not None else None
-    # Each image is labelled as soon as it is written, while the workers render the next ones.
-    labelling = LabelsWhileRendering(out)
-    report = render(composed.root_layer, out, frames=frames, cameras=cameras, settings_override=override,
-                    progress=progress, workers=workers, executor=executor, on_event=labelling,
-                    **({} if retries is None else {"retries": retries}))
-    seconds["render"] = time.perf_counter() - t
+    def compose(self, checked):
+        from usdscene.scene.compose import compose_stage
 
-    t = step("annotate")
-    # never writes an output document that the official schema rejects
-    _, annotations = write_annotations(out, document_path=doc_path, progress=progress,
-                                       schema=checked.schema, labeller=labelling.labeller)
-    seconds["annotate"] = time.perf_counter() - t
+        with self._step("compose"):
+            return compose_stage(checked.scene, self.catalog, self.out / layout.STAGE_DIR)
 
-    formats = tuple(exports) if exports is not None else scene.exports
-    written: dict[str, Path] = {}
-    if formats:
-        t = step("export")
-        if split is None and scene.split_rule:  # the document's own rule (metadata.usdscene.split)
-            from usdscene.document.splits import DOCUMENT_FIELD, parse_split
+    def render(self, stage_path):
+        """Render every image; each is labelled as soon as it is written, while the workers
+        render the next ones."""
+        from usdscene.dataset.annotation import LabelsWhileRendering
+        from usdscene.render.driver import render
 
-            split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
-        written = export_formats(out, formats, split=split, split_seed=split_seed)
-        seconds["export"] = time.perf_counter() - t
+        options = self.options
+        with self._step("render"):
+            override = {"samples": options.samples} if options.samples is not None else None
+            labelling = LabelsWhileRendering(self.out)
+            report = render(stage_path, self.out, frames=options.frames, cameras=options.cameras,
+                            settings_override=override, progress=self.progress, workers=options.workers,
+                            executor=self.executor, on_event=labelling,
+                            **({} if options.retries is None else {"retries": options.retries}))
+        return labelling, report
 
-    per_class = Counter(obj.class_name for image in annotations for obj in image.objects if obj.visible)
-    hidden = sum(1 for image in annotations for obj in image.objects if not obj.visible)
-    return RunSummary(
-        out_dir=out, document=doc_path,
-        images_written=report.pairs_rendered, images_skipped=report.pairs_skipped,
-        images_total=report.pairs_total,
-        labels_per_class=dict(sorted(per_class.items())), hidden_labels=hidden,
-        seconds=seconds,
-        render_seconds_per_image=seconds["render"] / report.pairs_rendered if report.pairs_rendered else 0.0,
-        exports=written, render=report, images_labelled_while_rendering=labelling.images,
-        labelling_s_while_rendering=labelling.seconds)
+    def annotate(self, checked, labelling):
+        from usdscene.dataset.annotation import write_annotations
+
+        with self._step("annotate"):
+            # never writes an output document that the official schema rejects
+            _, annotations = write_annotations(self.out, document_path=self.document, progress=self.progress,
+                                               schema=checked.schema, labeller=labelling.labeller)
+        return annotations
+
+    def export(self, scene) -> dict[str, Path]:
+        """The dataset formats asked for (else the document's), with the split rule asked for
+        (else the document's own)."""
+        from usdscene.dataset.export import export_formats
+
+        options = self.options
+        formats = tuple(options.exports) if options.exports is not None else scene.exports
+        if not formats:
+            return {}
+        split, split_seed = options.split, options.split_seed
+        with self._step("export"):
+            if split is None and scene.split_rule:  # the document's own rule (metadata.usdscene.split)
+                from usdscene.document.splits import DOCUMENT_FIELD, parse_split
+
+                split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
+            return export_formats(self.out, formats, split=split, split_seed=split_seed)
+
+    def summary(self, report, annotations, labelling, exports) -> RunSummary:
+        per_class = Counter(obj.class_name for image in annotations for obj in image.objects if obj.visible)
+        hidden = sum(1 for image in annotations for obj in image.objects if not obj.visible)
+        seconds = self.seconds
+        return RunSummary(
+            out_dir=self.out, document=self.document,
+            images_written=report.pairs_rendered, images_skipped=report.pairs_skipped,
+            images_total=report.pairs_total,
+            labels_per_class=dict(sorted(per_class.items())), hidden_labels=hidden,
+            seconds=dict(seconds),
+            render_seconds_per_image=seconds["render"] / report.pairs_rendered if report.pairs_rendered else 0.0,
+            exports=exports, render=report, images_labelled_while_rendering=labelling.images,
+            labelling_s_while_rendering=labelling.seconds)
 
 
 def summary_text(summary: RunSummary) -> str:

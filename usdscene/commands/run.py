@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     from usdscene.commands._arguments import executor_for, parse_frames
     from usdscene.errors import DocumentError, Problem
-    from usdscene.pipeline import run_pipeline, summary_text
+    from usdscene.pipeline import RunOptions, run_pipeline, summary_text
 
     executor = executor_for(args)  # bad executor options fail before any work
     if not Path(args.document).is_file():
@@ -56,9 +56,10 @@ def run(args: argparse.Namespace) -> int:
     def show_step(name: str) -> None:
         print(f"usdscene: {name} ...", file=sys.stderr, flush=True)
 
-    summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras,
-                           exports=args.export, samples=args.samples, executor=executor,
-                           retries=args.retries, progress=progress, on_step=show_step,
-                           split=args.split, split_seed=args.split_seed)
+    options = RunOptions(frames=frames, cameras=args.cameras, exports=args.export, samples=args.samples,
+                         workers=args.workers, retries=args.retries, split=args.split,
+                         split_seed=args.split_seed)
+    summary = run_pipeline(args.document, args.output, options, executor=executor, progress=progress,
+                           on_step=show_step)
     print(summary_text(summary))
     return 0

@@ -12,12 +12,11 @@ run again for its unfinished images.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import logging
 import shutil
-import threading
 import time
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -29,9 +28,9 @@ from usdscene.errors import Problem, RenderError
 from usdscene.files import write_json_atomic
 from usdscene.document.model import MAX_BOUNCES, RenderSettings
 from usdscene.labels.projection import undistorted_render_intrinsics
-from usdscene.render.worker_process import ShardExit
 from usdscene.render.job import intrinsics_to_json
 from usdscene.render.manifest import Manifest, fingerprint
+from usdscene.render.shards import Progress, ShardQueue, ShardRunner, Tally, shard_job
 
 log = logging.getLogger(__name__)
 
@@ -39,16 +38,8 @@ ENGINES = ("cycles", "eevee", "workbench")
 # Settings the worker knows beyond RenderSettings (benchmarked in benchmarks/render_settings.py).
 # resolution_scale scales every camera's image (previews); 1 = the calibrated resolution.
 EXTRA_SETTINGS = {"resolution_scale": 1.0}
-# A worker process renders at most this many images, then a fresh one continues with the next
-# frames. Blender's memory grows slowly with frame changes (≈ 0.08 MiB per render, see
-# benchmarks/README.md); recycling bounds it for runs of any length, at the cost of one more
-# start-up and import (1-2 s) per this many renders.
-MAX_RENDERS_PER_WORKER = 250
 # Extra attempts for a shard whose worker died (signal, lost node) before it gave up.
 DEFAULT_RETRIES = 3
-# Seconds per image assumed for sizing shards until the first images are measured: one
-# 640x480 cabin image at the default settings on 2 CPU cores takes 13-15 s.
-ASSUMED_SECONDS_PER_IMAGE = 15.0
 
 
 @dataclass(frozen=True)
@@ -219,12 +210,64 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     """
     from usdscene.render.executors import make_executor
     from usdscene.render.scratch import remove_stale_scratch
-    from usdscene.render.stage_reader import read_stage_plan, stage_digest
+    from usdscene.render.stage_reader import read_stage_plan
 
     started = time.perf_counter()
     out_dir = Path(out_dir)
     plan = read_stage_plan(stage_path)
     settings = resolve_settings(plan.settings, settings_override)
+    frame_list, camera_list = _checked_selection(plan, stage_path, frames, cameras, workers=workers,
+                                                 retries=retries)
+    if isinstance(executor, str):
+        executor = make_executor(executor, workers=workers)
+
+    cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
+    manifest = _open_manifest(out_dir, plan, settings, cam_json)
+    _remove_stale_temporaries(out_dir, camera_list)
+    remove_stale_scratch()
+    todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
+    total = len(frame_list) * len(camera_list)
+    skipped = total - len(todo)
+    write_json_atomic(out_dir / layout.ID_MAP_FILE, {
+        str(o.mask_id): {"uid": o.uid, "class": o.class_name, "prim": o.prim_path} for o in plan.objects})
+
+    tally = Tally(manifest, on_event)
+    if todo:
+        bar = Progress(total, skipped, enabled=progress)
+        try:
+            with executor, bar:
+                executor.prepare(plan.stage_path, settings)
+                queue = ShardQueue(todo, executor.slots, executor.target_shard_s,
+                                    _seconds_per_image(manifest), retries=int(retries))
+                runner = ShardRunner(executor, queue, tally, bar, out_dir,
+                                      functools.partial(shard_job, plan, settings, cam_json,
+                                                        executor.threads_per_worker))
+                errors = runner.run()
+        finally:
+            if tally.totals["retries"]:
+                # A killed worker may have died inside an atomic write; no worker runs now.
+                _remove_stale_temporaries(out_dir, camera_list)
+            manifest.timings = {"wall_s": round(time.perf_counter() - started, 3),
+                                "render_s": round(tally.totals["render_s"], 3)}
+            manifest.save()
+        if errors:
+            raise RenderError([Problem(str(stage_path), e) for e in errors])
+    else:
+        manifest.save()
+    totals = tally.totals
+    return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
+                        totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"],
+                        totals["render_cpu_s"], totals["worker_cpu_s"], executor.name,
+                        int(totals["retries"]), tally.nodes)
+
+
+def _checked_selection(plan, stage_path: Path, frames: Sequence[int] | None, cameras: Sequence[str] | None, *,
+                       workers: int | None, retries: int) -> tuple[list[int], list[str]]:
+    """The frames and cameras to render (default: all of the stage's), checked against the stage.
+
+    Raises:
+        RenderError: every bad frame, camera, worker or retry count at once.
+    """
     problems: list[Problem] = []
     if int(retries) < 0:
         problems.append(Problem("retries", f"retries {retries!r} must be >= 0"))
@@ -244,10 +287,14 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         problems.append(Problem(str(stage_path), "the stage has no camera under /World/Cameras"))
     if problems:
         raise RenderError(problems)
-    if isinstance(executor, str):
-        executor = make_executor(executor, workers=workers)
+    return frame_list, camera_list
 
-    cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
+
+def _open_manifest(out_dir: Path, plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict]) -> Manifest:
+    """The output's manifest of finished pairs, kept only when it was written for the same stage,
+    settings (the device aside), cameras and objects."""
+    from usdscene.render.stage_reader import stage_digest
+
     print_settings = {k: v for k, v in settings.items() if k != "device"}
     manifest = Manifest.load(out_dir, fingerprint({
         "stage": stage_digest(plan.stage_path), "settings": print_settings,
@@ -255,140 +302,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         "objects": [dataclasses.asdict(o) for o in plan.objects],
     }))
     manifest.versions = {"usdscene": __version__}
-    _remove_stale_temporaries(out_dir, camera_list)
-    remove_stale_scratch()
-    todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
-    total = len(frame_list) * len(camera_list)
-    skipped = total - len(todo)
-    write_json_atomic(out_dir / layout.ID_MAP_FILE, {
-        str(o.mask_id): {"uid": o.uid, "class": o.class_name, "prim": o.prim_path} for o in plan.objects})
-
-    totals = {"render_s": 0.0, "post_s": 0.0, "import_s": 0.0, "startup_s": 0.0, "rendered": 0,
-              "render_cpu_s": 0.0, "worker_cpu_s": 0.0, "retries": 0}
-    nodes: dict[str, dict[str, float]] = {}
-    if todo:
-        lock = threading.Lock()
-        bar = _Progress(total, skipped, enabled=progress)
-
-        def handle(event: dict) -> None:
-            with lock:
-                node = nodes.setdefault(str(event.get("node", "local")),
-                                        {"images": 0, "render_s": 0.0, "shards": 0})
-                if event.get("event") == "done":
-                    if on_event is not None:
-                        # Before the image counts as finished: what the caller does with it
-                        # (e.g. labels) exists for every image the manifest lists.
-                        on_event(event)
-                    manifest.mark_done(int(event["frame"]), event["camera"],
-                                       {k: event[k] for k in ("render_s", "post_s") if k in event})
-                    manifest.save()
-                    totals["render_s"] += event["render_s"]
-                    totals["post_s"] += event["post_s"]
-                    totals["render_cpu_s"] += event.get("render_cpu_s", 0.0)
-                    totals["rendered"] += 1
-                    node["images"] += 1
-                    node["render_s"] += event["render_s"]
-                    bar.advance()
-                elif event.get("event") == "started":
-                    node["shards"] += 1
-                elif event.get("event") == "imported":
-                    totals["import_s"] += event["seconds"]
-                    if event.get("missing_count"):
-                        log.warning("%d objects of the stage were not found after the USD import, "
-                                    "e.g. %s", event["missing_count"], event["missing_uids"])
-                elif event.get("event") == "finished":
-                    totals["worker_cpu_s"] += event.get("process_cpu_s", 0.0)
-                elif event.get("event") == "warning":
-                    log.warning("%s", event.get("message"))
-                if on_event is not None and event.get("event") != "done":
-                    on_event(event)
-
-        try:
-            with executor, bar:
-                executor.prepare(plan.stage_path, settings)
-                slots = executor.slots
-                queue = _ShardQueue(todo, slots, executor.target_shard_s,
-                                    _seconds_per_image(manifest), retries=int(retries))
-
-                def job_for(pairs: list[tuple[int, str]]) -> dict:
-                    frame_set = {f for f, _ in pairs}
-                    objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                                "visible_frames": [f for f in o.visible_frames if f in frame_set]}
-                               for o in plan.objects if frame_set.intersection(o.visible_frames)]
-                    mask = list(plan.shared_prims) + [o["prim"] for o in objects]
-                    return {
-                        "stage": str(plan.stage_path),
-                        # An empty mask would import everything: name a path that cannot exist.
-                        "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",
-                        "settings": settings,
-                        "threads": executor.threads_per_worker,
-                        "objects": objects,
-                        "cameras": {c: cam_json[c] for c in sorted({c for _, c in pairs})},
-                        "pairs": [[f, c] for f, c in pairs],
-                    }
-
-                def run_slot() -> None:
-                    while (shard := queue.take()) is not None:
-                        bar.set_busy(queue.in_flight)
-                        done: set[tuple[int, str]] = set()
-                        t0 = time.perf_counter()
-
-                        def on_shard_event(event: dict) -> None:
-                            if event.get("event") == "done":
-                                if not done:
-                                    totals["startup_s"] += (time.perf_counter() - t0 - event["render_s"]
-                                                            - event["post_s"])
-                                done.add((int(event["frame"]), event["camera"]))
-                                queue.measure(event["render_s"] + event["post_s"])
-                            handle(event)
-
-                        try:
-                            outcome = executor.run_shard(job_for(shard.pairs), out_dir, on_shard_event)
-                        except Exception as exc:  # must end the run with a message, not hang the slots
-                            log.exception("executor %s failed", executor.name)
-                            outcome = ShardExit(False, False, f"{type(exc).__name__}: {exc}")
-                        left = [p for p in shard.pairs if p not in done]
-                        if outcome.ok and left:
-                            outcome = ShardExit(False, False, f"the worker ended with {len(left)} "
-                                                              "images not rendered")
-                        if outcome.ok or not left:
-                            if not outcome.ok:  # it died after its last image had arrived
-                                log.info("%s: %s after its last image", shard.describe(), outcome.message)
-                            queue.finish()
-                        elif outcome.retryable and shard.attempt < queue.retries:
-                            log.warning("%s: %s; rendering its %d unfinished images again "
-                                        "(retry %d of %d)", shard.describe(), outcome.message, len(left),
-                                        shard.attempt + 1, queue.retries)
-                            with lock:
-                                totals["retries"] += 1
-                            queue.retry(shard, left)
-                        else:
-                            n = shard.attempt + 1
-                            tries = f" (gave up after {n} attempt{'s' if n > 1 else ''})" if outcome.retryable else ""
-                            queue.fail(f"{shard.describe()}: {outcome.message}{tries}")
-                        bar.set_busy(queue.in_flight)
-
-                threads = [threading.Thread(target=run_slot, daemon=True) for _ in range(slots)]
-                for thread in threads:
-                    thread.start()
-                for thread in threads:
-                    thread.join()
-                errors = queue.errors
-        finally:
-            if totals["retries"]:
-                # A killed worker may have died inside an atomic write; no worker runs now.
-                _remove_stale_temporaries(out_dir, camera_list)
-            manifest.timings = {"wall_s": round(time.perf_counter() - started, 3),
-                                "render_s": round(totals["render_s"], 3)}
-            manifest.save()
-        if errors:
-            raise RenderError([Problem(str(stage_path), e) for e in errors])
-    else:
-        manifest.save()
-    return RenderReport(out_dir, total, totals["rendered"], skipped, time.perf_counter() - started,
-                        totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"],
-                        totals["render_cpu_s"], totals["worker_cpu_s"], executor.name,
-                        int(totals["retries"]), nodes)
+    return manifest
 
 
 def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict:
@@ -459,159 +373,3 @@ def _seconds_per_image(manifest: Manifest) -> float | None:
     return sum(times) / len(times) if times else None
 
 
-def shard_size(remaining: int, slots: int, *, seconds_per_image: float | None = None,
-               target_shard_s: float | None = None, max_pairs: int | None = None) -> int:
-    """How many (frame, camera) pairs the next shard gets.
-
-    Guided self-scheduling: at most an equal share of what remains per slot (large shards
-    first, smaller towards the end so that slots finish together), at most ``max_pairs``
-    (default :data:`MAX_RENDERS_PER_WORKER`, the per-process budget) and, for executors with a
-    time target, about ``target_shard_s`` of work at the measured (or assumed) seconds per
-    image.
-    """
-    size = min(MAX_RENDERS_PER_WORKER if max_pairs is None else max_pairs, -(-remaining // max(1, slots)))
-    if target_shard_s:
-        per_image = seconds_per_image or ASSUMED_SECONDS_PER_IMAGE
-        size = min(size, int(target_shard_s / per_image))
-    return max(1, size)
-
-
-def _take_prefix(pairs: Sequence[tuple[int, str]], start: int, limit: int) -> int:
-    """End index of the next shard of ``pairs[start:]`` (in frame order): whole frames while
-    they fit in ``limit`` pairs (so a shard imports only its frames), else part of one frame."""
-    end = start
-    while end < len(pairs):
-        frame_end = end
-        while frame_end < len(pairs) and pairs[frame_end][0] == pairs[end][0]:
-            frame_end += 1
-        if frame_end - start > limit:
-            return end if end > start else start + limit
-        end = frame_end
-    return end
-
-
-def _chunks(pairs: list[tuple[int, str]], limit: int) -> list[list[tuple[int, str]]]:
-    """Cut pairs (in frame order) into runs of at most ``limit`` pairs, at frame boundaries
-    where a frame has fewer than ``limit`` cameras."""
-    chunks, start = [], 0
-    while start < len(pairs):
-        end = _take_prefix(pairs, start, limit)
-        chunks.append(list(pairs[start:end]))
-        start = end
-    return chunks
-
-
-@dataclass
-class _Shard:
-    number: int
-    pairs: list[tuple[int, str]]
-    attempt: int = 0
-
-    def describe(self) -> str:
-        frames = sorted({f for f, _ in self.pairs})
-        span = f"frame {frames[0]}" if len(frames) == 1 else f"frames {frames[0]}..{frames[-1]}"
-        return f"shard {self.number} ({span}, {len(self.pairs)} images)"
-
-
-class _ShardQueue:
-    """The pairs still to render, handed out to slot threads as shards, with retries.
-
-    ``take`` blocks while nothing is pending but a shard in flight may still come back for a
-    retry; it returns None when everything is handed out and settled, or after a failure.
-    """
-
-    def __init__(self, todo: list[tuple[int, str]], slots: int, target_shard_s: float | None,
-                 seconds_per_image: float | None, retries: int) -> None:
-        self.todo, self.next_index = todo, 0
-        self.slots, self.target_shard_s, self.retries = slots, target_shard_s, retries
-        self._measured = [seconds_per_image, 1] if seconds_per_image else [0.0, 0]
-        self.again: deque[_Shard] = deque()
-        self.in_flight = 0
-        self.errors: list[str] = []
-        self._numbers = 0
-        self._cond = threading.Condition()
-
-    def measure(self, seconds: float) -> None:
-        with self._cond:
-            self._measured[0] += seconds
-            self._measured[1] += 1
-
-    def take(self) -> _Shard | None:
-        with self._cond:
-            while True:
-                if self.errors:
-                    return None
-                if self.again:
-                    shard = self.again.popleft()
-                    break
-                if self.next_index < len(self.todo):
-                    per_image = self._measured[0] / self._measured[1] if self._measured[1] else None
-                    size = shard_size(len(self.todo) - self.next_index, self.slots, seconds_per_image=per_image,
-                                      target_shard_s=self.target_shard_s)
-                    end = _take_prefix(self.todo, self.next_index, size)
-                    self._numbers += 1
-                    shard = _Shard(self._numbers, self.todo[self.next_index:end])
-                    self.next_index = end
-                    break
-                if self.in_flight == 0:
-                    return None
-                self._cond.wait()
-            self.in_flight += 1
-            return shard
-
-    def _settle(self) -> None:
-        self.in_flight -= 1
-        self._cond.notify_all()
-
-    def finish(self) -> None:
-        with self._cond:
-            self._settle()
-
-    def retry(self, shard: _Shard, left: list[tuple[int, str]]) -> None:
-        with self._cond:
-            self.again.append(_Shard(shard.number, left, shard.attempt + 1))
-            self._settle()
-
-    def fail(self, message: str) -> None:
-        with self._cond:
-            self.errors.append(message)
-            self._settle()
-
-
-class _Progress:
-    """A rich progress bar over frames × cameras (images/s, ETA, busy workers), or nothing."""
-
-    def __init__(self, total: int, done: int, enabled: bool) -> None:
-        self.enabled = enabled
-        self.total, self.done = total, done
-        self._progress = None
-
-    def __enter__(self):
-        if self.enabled:
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                                       TimeElapsedColumn, TimeRemainingColumn)
-
-            class _Rate(TextColumn):
-                def render(self, task):
-                    speed = task.finished_speed or task.speed
-                    return f"{speed:.2f} images/s" if speed else "… images/s"
-
-            self._progress = Progress(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(),
-                                      _Rate(""), TimeElapsedColumn(), TextColumn("ETA"),
-                                      TimeRemainingColumn(), TextColumn("{task.fields[busy]} busy"),
-                                      transient=False)
-            self._progress.__enter__()
-            self._task = self._progress.add_task("render", total=self.total, completed=self.done, busy=0)
-        return self
-
-    def advance(self) -> None:
-        if self._progress is not None:
-            self._progress.advance(self._task)
-
-    def set_busy(self, workers: int) -> None:
-        if self._progress is not None:
-            self._progress.update(self._task, busy=workers)
-
-    def __exit__(self, *exc) -> None:
-        if self._progress is not None:
-            self._progress.__exit__(*exc)
