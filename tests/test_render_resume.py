@@ -139,13 +139,13 @@ def test_worker_recycling_gives_identical_masks(stage, reference, tmp_path, monk
 
 
 def test_chunks_cut_at_frame_boundaries_and_respect_the_limit():
-    from usdscene.render.driver import _chunks
+    from usdscene.render.shards import chunks as split_into_chunks
 
     pairs = [(f, c) for f in range(5) for c in ("a", "b", "c")]
-    chunks = _chunks(pairs, 7)
+    chunks = split_into_chunks(pairs, 7)
     assert [p for chunk in chunks for p in chunk] == pairs
     assert all(len(chunk) <= 7 for chunk in chunks)
     assert [sorted({f for f, _ in chunk}) for chunk in chunks] == [[0, 1], [2, 3], [4]]
     # A frame with more cameras than the limit is split inside the frame.
     wide = [(0, str(c)) for c in range(5)]
-    assert _chunks(wide, 2) == [wide[0:2], wide[2:4], wide[4:5]]
+    assert split_into_chunks(wide, 2) == [wide[0:2], wide[2:4], wide[4:5]]
