@@ -56,6 +56,7 @@ def suggest(name: str, known: Iterable[str]) -> str:
 
 
 def is_number(value: Any) -> bool:
+    """Whether ``value`` is a JSON number (a bool is not)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
@@ -117,6 +118,7 @@ def _short_int(value: int) -> str:
 
 
 def read_bool(value: Any, where: str, problems: ProblemCollector) -> bool | None:
+    """``value`` if it is a JSON boolean; else None and a problem at ``where``."""
     if not isinstance(value, bool):
         problems.add(where, f"expected true or false, got {describe(value)}")
         return None
@@ -124,6 +126,7 @@ def read_bool(value: Any, where: str, problems: ProblemCollector) -> bool | None
 
 
 def read_text(value: Any, where: str, problems: ProblemCollector, *, non_empty: bool = False) -> str | None:
+    """``value`` if it is a string (non-empty when asked); else None and a problem at ``where``."""
     if not isinstance(value, str):
         problems.add(where, f"expected a string, got {describe(value)}")
         return None
@@ -170,6 +173,7 @@ def read_resolution(value: Any, where: str, problems: ProblemCollector) -> tuple
 
 
 def read_object(value: Any, where: str, problems: ProblemCollector) -> dict | None:
+    """``value`` if it is a JSON object; else None and a problem at ``where``."""
     if not isinstance(value, dict):
         problems.add(where, f"expected a JSON object, got {describe(value)}")
         return None
@@ -251,6 +255,7 @@ def read_matrix4x4(value: Any, where: str, problems: ProblemCollector) -> Pose |
 
 
 def axis_rotation(axis: str, angle_rad: float) -> list[list[float]]:
+    """(3, 3) rotation matrix (nested lists) by ``angle_rad`` radians about ``"X"``, ``"Y"`` or ``"Z"``."""
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     if axis == "X":
         return [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
@@ -272,6 +277,7 @@ def euler_to_rotation(sequence: str, angles_rad: Sequence[float]):
 
 
 def pose_from_rotation(rotation, translation: Sequence[float]) -> Pose:
+    """The :class:`Pose` of a (3, 3) rotation and a translation (metres)."""
     return Pose((float(rotation[0][0]), float(rotation[0][1]), float(rotation[0][2]), float(translation[0]),
                  float(rotation[1][0]), float(rotation[1][1]), float(rotation[1][2]), float(translation[1]),
                  float(rotation[2][0]), float(rotation[2][1]), float(rotation[2][2]), float(translation[2]),

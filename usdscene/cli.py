@@ -38,6 +38,8 @@ def _command_modules() -> list:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``usdscene`` argument parser, with one sub-command per module of
+    :mod:`usdscene.commands`, ordered by their ``ORDER``."""
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Turn an OpenLABEL scene description into a layered USD stage, render every "
@@ -96,6 +98,8 @@ def _file_size_limit_as_error() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``usdscene`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit status:
+    0 done, 1 bad data or a failed job (one message per problem, no traceback), 2 bad usage."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -89,14 +89,17 @@ class ProblemCollector:
         self.problems: list[Problem] = []
 
     def add(self, where: str, message: str) -> None:
+        """Record one problem at ``where`` (a JSON path, file or prim path)."""
         self.problems.append(Problem(where, message))
 
     def extend(self, problems: Iterable[Problem]) -> None:
+        """Record several problems."""
         self.problems.extend(problems)
 
     def __bool__(self) -> bool:
         return bool(self.problems)
 
     def raise_if_any(self, error_type: type[UsdSceneError] = DocumentError) -> None:
+        """Raise ``error_type`` with every recorded problem, if there is one."""
         if self.problems:
             raise error_type(self.problems)

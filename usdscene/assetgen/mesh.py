@@ -44,6 +44,7 @@ class MeshData:
         return MeshData(pts, nrm, self.face_counts, self.face_indices)
 
     def translated(self, offset_m: Sequence[float]) -> "MeshData":
+        """The same mesh moved by ``offset_m`` (metres)."""
         return MeshData(self.points + np.asarray(offset_m, dtype=np.float64), self.normals,
                         self.face_counts, self.face_indices)
 
@@ -280,6 +281,7 @@ def quad_strip(rows: np.ndarray, *, closed: bool = False) -> MeshData:
 
 
 def rotation_z(angle_deg: float) -> np.ndarray:
+    """(4, 4) rotation about Z by ``angle_deg`` degrees (counter-clockwise seen from +Z)."""
     a = np.radians(angle_deg)
     m = np.eye(4)
     m[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
@@ -287,6 +289,7 @@ def rotation_z(angle_deg: float) -> np.ndarray:
 
 
 def rotation_y(angle_deg: float) -> np.ndarray:
+    """(4, 4) rotation about Y by ``angle_deg`` degrees (counter-clockwise seen from +Y)."""
     a = np.radians(angle_deg)
     m = np.eye(4)
     m[[0, 0, 2, 2], [0, 2, 0, 2]] = [np.cos(a), np.sin(a), -np.sin(a), np.cos(a)]
@@ -294,6 +297,7 @@ def rotation_y(angle_deg: float) -> np.ndarray:
 
 
 def rotation_x(angle_deg: float) -> np.ndarray:
+    """(4, 4) rotation about X by ``angle_deg`` degrees (counter-clockwise seen from +X)."""
     a = np.radians(angle_deg)
     m = np.eye(4)
     m[[1, 1, 2, 2], [1, 2, 1, 2]] = [np.cos(a), -np.sin(a), np.sin(a), np.cos(a)]
@@ -301,6 +305,7 @@ def rotation_x(angle_deg: float) -> np.ndarray:
 
 
 def translation(offset_m: Sequence[float]) -> np.ndarray:
+    """(4, 4) translation by ``offset_m`` (metres)."""
     m = np.eye(4)
     m[:3, 3] = offset_m
     return m

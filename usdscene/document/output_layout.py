@@ -34,14 +34,17 @@ MAX_MASK_ID = 65535  # masks are uint16
 
 
 def frame_file(frame: int) -> str:
+    """File name of a frame's image or mask: ``000012.png``."""
     return f"{frame:06d}.png"
 
 
 def image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    """``out/images/<camera>/<frame:06d>.png``."""
     return Path(out_dir) / IMAGES_DIR / camera / frame_file(frame)
 
 
 def mask_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    """``out/masks/<camera>/<frame:06d>.png`` (16-bit instance ids)."""
     return Path(out_dir) / MASKS_DIR / camera / frame_file(frame)
 
 
@@ -51,6 +54,7 @@ def labels_path(out_dir: str | Path, camera: str, frame: int) -> Path:
 
 
 def stage_root(out_dir: str | Path) -> Path:
+    """Root layer of the composed stage: ``out/stage/scene.usda``."""
     return Path(out_dir) / STAGE_DIR / "scene.usda"
 
 

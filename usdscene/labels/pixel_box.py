@@ -29,10 +29,12 @@ class PixelBox:
 
     @property
     def width_px(self) -> int:
+        """Covered columns, edge to edge (pixels)."""
         return self.x_max - self.x_min + 1
 
     @property
     def height_px(self) -> int:
+        """Covered rows, edge to edge (pixels)."""
         return self.y_max - self.y_min + 1
 
     def center_size(self) -> tuple[float, float, float, float]:

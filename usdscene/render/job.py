@@ -15,6 +15,7 @@ from usdscene.document.model import Intrinsics, LensModel, Pose, cv_pose_to_usd_
 
 
 def intrinsics_to_json(intr: Intrinsics) -> dict[str, Any]:
+    """Intrinsics as JSON values for a worker job (the lens model by name)."""
     data = asdict(intr)
     data["lens"] = LensModel(intr.lens).value
     data["distortion"] = list(intr.distortion)
@@ -22,6 +23,7 @@ def intrinsics_to_json(intr: Intrinsics) -> dict[str, Any]:
 
 
 def intrinsics_from_json(data: Mapping[str, Any]) -> Intrinsics:
+    """Inverse of :func:`intrinsics_to_json`."""
     values = dict(data)
     values["lens"] = LensModel(values["lens"])
     values["distortion"] = tuple(values.get("distortion", ()))

@@ -49,6 +49,7 @@ class Manifest:
 
     @property
     def path(self) -> Path:
+        """The manifest file of the output folder (``out/manifest.json``)."""
         return Path(self.out_dir) / layout.MANIFEST_FILE
 
     @staticmethod
@@ -67,15 +68,18 @@ class Manifest:
         return manifest
 
     def is_done(self, frame: int, camera: str) -> bool:
+        """Whether the pair is listed as finished and its image and mask files exist."""
         if str(frame) not in self.done.get(camera, {}):
             return False
         return (layout.image_path(self.out_dir, camera, frame).is_file()
                 and layout.mask_path(self.out_dir, camera, frame).is_file())
 
     def mark_done(self, frame: int, camera: str, timing: dict[str, float]) -> None:
+        """List the pair as finished with its timings (seconds, rounded to µs); :meth:`save` writes it."""
         self.done.setdefault(camera, {})[str(frame)] = {k: round(float(v), 6) for k, v in timing.items()}
 
     def save(self) -> None:
+        """Write the manifest atomically."""
         write_json_atomic(self.path, {
             "format": FORMAT,
             "fingerprint": self.fingerprint,

@@ -59,6 +59,7 @@ class StageBundle:
 
     @property
     def size_bytes(self) -> int:
+        """Bytes of all bundled files."""
         return sum(len(data) for data in self.files.values())
 
     def extract(self, folder: Path) -> Path:
@@ -182,6 +183,7 @@ class RayExecutor:
 
     @property
     def threads_per_worker(self) -> int:
+        """Cycles threads of each task's worker: the CPUs the task asks for."""
         return self.task_cpus
 
     def __enter__(self) -> "RayExecutor":

@@ -64,6 +64,8 @@ class Tally:
         self.bar: Progress | None = None
 
     def handle(self, event: dict) -> None:
+        """Account for one worker event (any slot): a ``done`` image is passed to the caller's
+        ``on_event`` first, then marked finished in the manifest, which is saved."""
         with self.lock:
             node = self.nodes.setdefault(str(event.get("node", "local")),
                                          {"images": 0, "render_s": 0.0, "shards": 0})
@@ -99,6 +101,7 @@ class Tally:
                 self.on_event(event)
 
     def add(self, name: str, value: float) -> None:
+        """Add ``value`` to the total ``name`` (seconds, or a count), under the lock."""
         with self.lock:
             self.totals[name] += value
 
@@ -209,11 +212,14 @@ def chunks(pairs: list[tuple[int, str]], limit: int) -> list[list[tuple[int, str
 
 @dataclass
 class Shard:
+    """A run of (frame, camera) pairs handed to one worker: its number in the call, its pairs
+    and how many times it has been run before (0 = first attempt)."""
     number: int
     pairs: list[tuple[int, str]]
     attempt: int = 0
 
     def describe(self) -> str:
+        """Shard number, frames and image count, for messages."""
         frames = sorted({f for f, _ in self.pairs})
         span = f"frame {frames[0]}" if len(frames) == 1 else f"frames {frames[0]}..{frames[-1]}"
         return f"shard {self.number} ({span}, {len(self.pairs)} images)"
@@ -238,11 +244,15 @@ class ShardQueue:
         self._cond = threading.Condition()
 
     def measure(self, seconds: float) -> None:
+        """Record the seconds one image took (render + post), which sizes the shards not yet cut."""
         with self._cond:
             self._measured[0] += seconds
             self._measured[1] += 1
 
     def take(self) -> Shard | None:
+        """The next shard for a free slot (a retry first), cut to the measured time per image;
+        blocks while others are in flight and may still be retried; None when nothing is left
+        or the run failed."""
         with self._cond:
             while True:
                 if self.errors:
@@ -270,15 +280,18 @@ class ShardQueue:
         self._cond.notify_all()
 
     def finish(self) -> None:
+        """A shard taken by :meth:`take` ended with all its images."""
         with self._cond:
             self._settle()
 
     def retry(self, shard: Shard, left: list[tuple[int, str]]) -> None:
+        """A shard's worker died: queue its ``left`` pairs again as the next attempt."""
         with self._cond:
             self.again.append(Shard(shard.number, left, shard.attempt + 1))
             self._settle()
 
     def fail(self, message: str) -> None:
+        """A shard failed for good: record ``message``; no further shards are handed out."""
         with self._cond:
             self.errors.append(message)
             self._settle()
@@ -311,10 +324,12 @@ class Progress:
         return self
 
     def advance(self) -> None:
+        """One more image finished."""
         if self._progress is not None:
             self._progress.advance(self._task)
 
     def set_busy(self, workers: int) -> None:
+        """Show ``workers`` shards in flight."""
         if self._progress is not None:
             self._progress.update(self._task, busy=workers)
 
