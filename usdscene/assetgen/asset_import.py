@@ -27,7 +27,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.scene.catalog import ASSET_KINDS, CATALOG_FILE, AssetEntry, _entry_from_json, entry_to_json
+from usdscene.scene.catalog import ASSET_KINDS, CATALOG_FILE, DEFAULT_COLOR_SHADER, ORIENTATION_RULES, AssetEntry, _entry_from_json, entry_to_json
 from usdscene.errors import AssetError, OutputError, Problem
 from usdscene.files import dumps_json, resolve_inside, write_text_atomic
 from usdscene.scene.place_discovery import file_to_world, up_axis_rotation
@@ -44,6 +44,20 @@ DEFAULT_UP_AXIS = {"obj": "Y", "glb": "Y", "gltf": "Y", "ply": "Z", "stl": "Z"}
 DEFAULT_RELATIONS = {"object": ("is_on", "is_below", "is_in", "is_in_front_of"),
                      "passenger": ("is_on",), "environment": ()}
 IMPORTED_FOLDER = "imported"
+FORWARD_AXES = ("-Y", "+Y", "+X", "-X")
+"""Where an asset's front may face (after the turn to Z up); the library's convention is -Y."""
+# Quarter turns about Z that take each forward axis to -Y.
+_FORWARD_YAW_DEG = {"-Y": 0, "+Y": 180, "+X": -90, "-X": 90}
+
+
+def forward_turn(forward_axis: str) -> np.ndarray:
+    """(4, 4) turn about Z taking an asset whose front faces ``forward_axis`` (Z up) to the
+    library's convention (front at -Y); exact quarter turns, no float noise."""
+    yaw = _FORWARD_YAW_DEG[forward_axis]
+    c, s = {0: (1, 0), 90: (0, 1), 180: (-1, 0), -90: (0, -1)}[yaw]
+    out = np.eye(4)
+    out[:2, :2] = [[c, -s], [s, c]]
+    return out
 _CLASS_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
@@ -57,6 +71,12 @@ class ImportOptions:
         unit_scale_m: metres per file unit; None = 1 (USD: the file's metersPerUnit).
         description: catalog description.
         replace: allow replacing a class that the catalog already has.
+        forward_axis: where the file's front faces once Z up (``-Y``, ``+Y``, ``+X``, ``-X``);
+            the asset is turned about Z so that it faces -Y, the library's convention.
+        orientations: how placement may lay the class (see :data:`usdscene.scene.catalog.ORIENTATION_RULES`).
+        color_material: path of a material (or its surface shader) under the file's default
+            prim whose ``diffuseColor`` a scene's colour sets (referenced USD files); None = the
+            library's ``Looks/Body/Surface`` when the file has it, else the class is not recoloured.
     """
 
     kind: str = "object"
@@ -64,6 +84,9 @@ class ImportOptions:
     unit_scale_m: float | None = None
     description: str = ""
     replace: bool = False
+    forward_axis: str = "-Y"
+    orientations: str = "upright_turned"
+    color_material: str | None = None
 
 
 def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: ImportOptions,
@@ -77,6 +100,15 @@ def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: Imp
         raise AssetError(f"kind {options.kind!r} is not one of {ASSET_KINDS}", where="--kind")
     if options.up_axis not in (None, "Y", "Z"):
         raise AssetError(f"up axis {options.up_axis!r} must be 'Y' or 'Z'", where="--up-axis")
+    if options.forward_axis not in FORWARD_AXES:
+        raise AssetError(f"forward axis {options.forward_axis!r} must be one of {', '.join(FORWARD_AXES)}",
+                         where="--forward-axis")
+    if options.kind == "environment" and options.forward_axis != "-Y":
+        raise AssetError("an environment keeps its own axes (its places are where they are modelled); "
+                         "--forward-axis is for objects and passengers", where="--forward-axis")
+    if options.orientations not in ORIENTATION_RULES:
+        raise AssetError(f"orientation rule {options.orientations!r} must be one of {', '.join(ORIENTATION_RULES)}",
+                         where="--orientations")
     if options.unit_scale_m is not None and not (np.isfinite(options.unit_scale_m) and options.unit_scale_m > 0):
         raise AssetError(f"unit scale {options.unit_scale_m!r} must be a positive number of metres per unit",
                          where="--unit-scale")
@@ -196,7 +228,7 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
     from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
                                              in_variant, new_asset_stage, set_material_color)
 
-    rotation = up_axis_rotation(up_axis)
+    rotation = forward_turn(options.forward_axis)[:3, :3] @ up_axis_rotation(up_axis)
     meshes = [mesh for _, mesh in parts]
     if options.kind == "environment":
         by_color: dict[tuple[float, float, float], list] = {}
@@ -255,6 +287,67 @@ class _Written:
     places: Mapping = field(default_factory=dict)
     variants: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     default_variants: Mapping[str, str] = field(default_factory=dict)
+    variant_extents: Mapping[str, Mapping[str, tuple]] = field(default_factory=dict)
+    color_shader: str = DEFAULT_COLOR_SHADER
+
+
+def _bottom_centre_offset(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(3,) translation that puts the origin at the centre of the bottom face of [lo, hi]."""
+    return np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+
+
+def _per_variant_origins(stage, root, holder, op, m: np.ndarray, variants: Mapping, defaults: Mapping,
+                         source: Path) -> dict:
+    """Give every ``appearance`` variant its own origin when the variants differ in size or
+    offset (a van is taller than a sedan; a file's variants rarely share one bottom centre).
+
+    Each variant then authors the holder's transform with its own bottom-centre offset (a
+    variant opinion loses to a direct one, so the direct value is cleared), and the catalog
+    records each variant's extent. Variants that all share the default's bounds keep the one
+    direct transform and record nothing.
+
+    Returns:
+        ``{"appearance": {variant: ((3,) min, (3,) max)}}`` in metres, or ``{}``.
+    """
+    from pxr import Gf
+
+    from usdscene.document import stage_schema
+    from usdscene.assetgen.usd_write import bounds_of_stage, in_variant
+
+    names = variants.get(stage_schema.VARIANT_SET_APPEARANCE, ())
+    if len(names) < 2:
+        return {}
+    raw = m.copy()
+    raw[:3, 3] = 0.0
+    op.Set(Gf.Matrix4d(raw.T.tolist()))
+    vset = root.GetVariantSets().GetVariantSet(stage_schema.VARIANT_SET_APPEARANCE)
+    bounds = {}
+    for name in names:
+        vset.SetVariantSelection(name)
+        lo, hi = bounds_of_stage(stage)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))) or np.any(hi < lo):
+            raise AssetError(f"variant {name!r} of the USD file's default prim has no geometry with bounds",
+                             where=str(source))
+        bounds[name] = (lo, hi)
+    vset.SetVariantSelection(defaults[stage_schema.VARIANT_SET_APPEARANCE])
+    first = bounds[names[0]]
+    if all(np.allclose(b[0], first[0], atol=1e-6) and np.allclose(b[1], first[1], atol=1e-6)
+           for b in bounds.values()):
+        op.Set(Gf.Matrix4d(m.T.tolist()))
+        return {}
+    op.GetAttr().Clear()
+    extents = {}
+    for name in names:
+        lo, hi = bounds[name]
+        offset = _bottom_centre_offset(lo, hi)
+        placed = raw.copy()
+        placed[:3, 3] = offset
+        with in_variant(root, stage_schema.VARIANT_SET_APPEARANCE, name):
+            op.Set(Gf.Matrix4d(placed.T.tolist()))
+        extents[name] = (tuple(float(v) + 0.0 for v in np.round(lo + offset, 4)),
+                         tuple(float(v) + 0.0 for v in np.round(hi + offset, 4)))
+    vset.SetVariantSelection(defaults[stage_schema.VARIANT_SET_APPEARANCE])
+    return {stage_schema.VARIANT_SET_APPEARANCE: extents}
 
 
 MAX_LIFTED_VARIANTS = 512
@@ -335,6 +428,55 @@ def _lift_variants(src_default, root, holder, source: Path) -> tuple[dict, dict]
     return variants, {stage_schema.VARIANT_SET_APPEARANCE: label[current]}
 
 
+def _color_slot(default, color_material: str | None, source: Path) -> str:
+    """The shader (path relative to the file's default prim) whose ``inputs:diffuseColor`` a
+    scene's colour sets, or ``""`` when the class cannot be recoloured.
+
+    ``color_material`` names a material (its surface shader is used) or a shader; without it,
+    the library's ``Looks/Body/Surface`` is used when the file has one. A colour written
+    anywhere else would be recorded in the labels but never rendered.
+
+    Raises:
+        AssetError: ``color_material`` is missing, not a material or shader, has no
+            ``diffuseColor`` input, or that input is driven by a texture (an authored value
+            would not show).
+    """
+    from pxr import Sdf, UsdShade
+
+    where = f"{source}:{default.GetPath()}"
+    if color_material is None:
+        shader = UsdShade.Shader(default.GetStage().GetPrimAtPath(default.GetPath().AppendPath(DEFAULT_COLOR_SHADER)))
+        if shader and shader.GetInput("diffuseColor"):
+            return DEFAULT_COLOR_SHADER
+        log.warning("%s has no %s shader: scenes cannot recolour class objects (no colour is recorded); "
+                    "name the paint material with --color-material", source.name, DEFAULT_COLOR_SHADER)
+        return ""
+    relative = color_material.strip("/")
+    try:
+        path = default.GetPath().AppendPath(relative)
+    except Exception:  # Sdf raises on malformed paths
+        path = Sdf.Path()
+    prim = default.GetStage().GetPrimAtPath(path) if not path.isEmpty else None
+    if not prim:
+        raise AssetError(f"--color-material {color_material!r}: no prim {relative!r} under the default prim",
+                         where=where)
+    shader = UsdShade.Shader(prim) if prim.IsA(UsdShade.Shader) else None
+    if prim.IsA(UsdShade.Material):
+        source_shader = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+        shader = source_shader if source_shader else None
+    if shader is None:
+        raise AssetError(f"--color-material {color_material!r} is neither a material with a surface shader "
+                         "nor a shader", where=where)
+    color = shader.GetInput("diffuseColor")
+    if not color:
+        raise AssetError(f"--color-material {color_material!r}: shader {str(shader.GetPath())!r} has no "
+                         "diffuseColor input", where=where)
+    if color.HasConnectedSource():
+        raise AssetError(f"--color-material {color_material!r}: the diffuseColor of {str(shader.GetPath())!r} "
+                         "comes from a texture, so a colour value would not show", where=where)
+    return str(shader.GetPath().MakeRelativePath(default.GetPath()))
+
+
 def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path,
                        roots: Sequence[Path]) -> _Written:
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom
@@ -373,17 +515,20 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
         relative = Sdf.Path(box.node).MakeRelativePath(default.GetPath())
         stage.OverridePrim(holder.GetPath().AppendPath(relative)).SetActive(False)
     variants, defaults = _lift_variants(default, root, holder.GetPrim(), source)
-    m = file_to_world(up_axis, scale)
+    color_shader = _color_slot(default, options.color_material, source) if options.kind != "environment" else ""
+    m = forward_turn(options.forward_axis) @ file_to_world(up_axis, scale)
     op = holder.AddTransformOp()
     op.Set(Gf.Matrix4d(m.T.tolist()))
     lo, hi = bounds_of_stage(stage)
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))) or np.any(hi < lo):
         raise AssetError("the USD file's default prim has no geometry with bounds", where=str(source))
+    variant_extents: dict = {}
     if options.kind == "object":
-        offset = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+        offset = _bottom_centre_offset(lo, hi)
         m[:3, 3] = offset
         op.Set(Gf.Matrix4d(m.T.tolist()))
         lo, hi = lo + offset, hi + offset
+        variant_extents = _per_variant_origins(stage, root, holder, op, m, variants, defaults, source)
     if authored:
         author_places(stage, str(root.GetPath()), authored)
     # Swap in the relative reference on a detached copy of the layer (no stage recomposes
@@ -393,7 +538,8 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
     relative = os.path.relpath(source, target.parent).replace(os.sep, "/")
     layer.GetPrimAtPath(holder.GetPath()).referenceList.prependedItems = [Sdf.Reference(relative)]
     write_text_atomic(target, layer.ExportToString())
-    return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults)
+    return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults, variant_extents,
+                    f"{holder.GetPath().name}/{color_shader}" if color_shader else "")
 
 
 def _export_blend(blend: Path, usd_path: Path) -> Path:
@@ -454,6 +600,10 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     if suffix in MESH_FORMATS:
         from usdscene.scene.place_discovery import places_from_boxes
 
+        if options.color_material is not None:
+            raise AssetError("--color-material names a material of a USD file; a converted mesh is "
+                             f"recoloured through its {DEFAULT_COLOR_SHADER} material", where="--color-material")
+
         parts, boxes = _load_parts(resolved, discover_places=options.kind == "environment")
         up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[suffix]]
         scale = options.unit_scale_m if options.unit_scale_m is not None else 1.0
@@ -480,7 +630,11 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         extent_min_m=tuple(float(v) + 0.0 for v in written.lo),  # type: ignore[arg-type]
         extent_max_m=tuple(float(v) + 0.0 for v in written.hi),  # type: ignore[arg-type]
         relations=DEFAULT_RELATIONS[options.kind],
-        places=written.places)
+        places=written.places,
+        variant_extents=written.variant_extents,
+        orientations=options.orientations if options.kind != "environment" else "any",
+        color_shader=written.color_shader,
+        forward_axis=options.forward_axis)
     register_entry(catalog, entry, data)
     log.info("registered %s (%s) in %s", class_name, fmt, catalog)
     return entry

@@ -2,7 +2,8 @@
 
     usdscene assets list [--catalog DIR ...] [--no-default]
     usdscene assets add FILE --class NAME [--catalog DIR] [--kind object] [--up-axis Y|Z]
-                        [--unit-scale M] [--description TEXT] [--replace]
+                        [--unit-scale M] [--description TEXT] [--replace] [--forward-axis AXIS]
+                        [--orientations RULE] [--color-material PATH]
     usdscene assets build [--out DIR] [--rows N]
 """
 
@@ -36,6 +37,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="metres per file unit, e.g. 0.001 for millimetres (default 1; USD: metersPerUnit)")
     p_add.add_argument("--description", default="", help="catalog description")
     p_add.add_argument("--replace", action="store_true", help="replace an existing class of that name")
+    p_add.add_argument("--forward-axis", choices=("-Y", "+Y", "+X", "-X"), default="-Y",
+                       help="where the file's front faces once Z up; the asset is turned to face -Y (default -Y)")
+    p_add.add_argument("--orientations", choices=("upright", "upright_turned", "any"), default="upright_turned",
+                       help="how placement may lay the class: upright (as modelled), upright_turned (also a "
+                            "quarter turn; default) or any (also on a side when it only fits lying down)")
+    p_add.add_argument("--color-material", default=None, metavar="PATH",
+                       help="USD files: the material (or shader) under the default prim, e.g. Looks/Paint, whose "
+                            "diffuseColor a scene's colour sets (default: Looks/Body/Surface when present, else "
+                            "the class is not recoloured)")
 
     p_build = sub.add_parser("build", help="regenerate the procedural library byte-identically")
     p_build.add_argument("--out", type=Path, default=None, help="output folder (default: the shipped library)")
@@ -88,7 +98,9 @@ def _add(args: argparse.Namespace) -> int:
 
     catalog = args.catalog if args.catalog is not None else default_asset_folder()
     options = ImportOptions(kind=args.kind, up_axis=args.up_axis, unit_scale_m=args.unit_scale,
-                            description=args.description, replace=args.replace)
+                            description=args.description, replace=args.replace,
+                            forward_axis=args.forward_axis, orientations=args.orientations,
+                            color_material=args.color_material)
     entry = import_asset(args.file, args.class_name, catalog, options)
     size = _fmt_size(entry.size_m)
     print(f"registered {entry.class_name} ({entry.kind}, {size} m) -> {entry.usd_path}", file=sys.stderr)
