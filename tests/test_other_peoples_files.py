@@ -9,6 +9,7 @@ exporter), a USD file with a ``rotateX -90`` root, multi-variant vehicles in cen
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -193,3 +194,223 @@ def test_a_place_box_with_no_vertical_axis_is_refused_with_its_node(workdir):
         import_asset("ramp.glb", "ramp", "assets", ImportOptions(kind="environment"))
     assert "place.ramp_1.on" in str(info.value) and "vertical" in str(info.value)
     assert not (workdir / "assets" / "catalog.json").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# Vehicles as other people model them: Y up, centimetres, variants of different sizes whose
+# file origins differ (the rear axle here), a paint material not named Body, facing +Y.
+
+# model: (width, length, height, ground clearance, rear overhang), metres
+VEHICLE_MODELS = {"sedan": (1.8, 4.6, 1.45, 0.15, 0.9), "van": (1.95, 4.9, 2.05, 0.2, 0.5),
+                  "formula": (1.9, 4.8, 1.0, 0.05, 1.4), "truck": (2.1, 4.9, 2.58, 0.25, 0.6)}
+PAINTS = {"red": (0.6, 0.05, 0.04), "green": (0.1, 0.55, 0.08), "blue": (0.05, 0.1, 0.6)}
+
+
+def vehicle_usd(path: Path, models=VEHICLE_MODELS, paints=PAINTS) -> Path:
+    """A Y-up centimetre vehicle facing +Y (once Z up) with variant sets ``model`` and
+    ``paint`` on its default prim; the paint is ``Looks/Paint/Surface``; the front bumper is
+    the prim ``Nose``. The file's origin is the rear axle, so every model has its own offset."""
+    import trimesh
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
+
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    root = UsdGeom.Xform.Define(stage, "/Car").GetPrim()
+    stage.SetDefaultPrim(root)
+    material = UsdShade.Material.Define(stage, "/Car/Looks/Paint")
+    shader = UsdShade.Shader.Define(stage, "/Car/Looks/Paint/Surface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    color = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.6)
+    material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    to_cm_y_up = Z_TO_Y @ np.diag([100.0, 100.0, 100.0, 1.0])
+    models_set = root.GetVariantSets().AddVariantSet("model")
+    for name, (width, length, height, clearance, rear) in models.items():
+        models_set.AddVariant(name)
+        models_set.SetVariantSelection(name)
+        with models_set.GetVariantEditContext():
+            body = trimesh.creation.box([width, length, height - clearance])
+            body.apply_translation([0.0, length / 2 - rear, clearance + (height - clearance) / 2])
+            nose = trimesh.creation.box([width * 0.8, 0.1, 0.2])
+            nose.apply_translation([0.0, length - rear - 0.05, clearance + 0.3])
+            for prim_name, mesh in (("Body", body), ("Nose", nose)):
+                usd = _usd_mesh(stage, f"/Car/{prim_name}", mesh.copy().apply_transform(to_cm_y_up))
+                UsdShade.MaterialBindingAPI.Apply(usd.GetPrim()).Bind(material)
+    models_set.SetVariantSelection(next(iter(models)))
+    paints_set = root.GetVariantSets().AddVariantSet("paint")
+    for name, rgb in paints.items():
+        paints_set.AddVariant(name)
+        paints_set.SetVariantSelection(name)
+        with paints_set.GetVariantEditContext():
+            color.Set(Gf.Vec3f(*rgb))
+    paints_set.SetVariantSelection(next(iter(paints)))
+    stage.Save()
+    return path
+
+
+def _world_bounds(stage, uid: str, frame: int):
+    from pxr import Usd, UsdGeom
+
+    cache = UsdGeom.BBoxCache(Usd.TimeCode(frame), [UsdGeom.Tokens.default_, UsdGeom.Tokens.render])
+    prim = next(p for p in stage.Traverse() if p.GetCustomDataByKey("usdscene:uid") == uid)
+    return prim, cache.ComputeWorldBound(prim)
+
+
+def _corners_in_region(bound, region_pose: np.ndarray) -> np.ndarray:
+    """(8, 3) corners of an oriented USD bound in a region's frame."""
+    box = bound.GetBox()
+    lo, hi = np.array(box.GetMin()), np.array(box.GetMax())
+    matrix = np.array(bound.GetMatrix()).T
+    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    return (np.linalg.inv(region_pose) @ matrix @ corners.T).T[:, :3]
+
+
+# 2. Variants other than the default keep their own origin and extent
+
+
+def test_every_variant_rests_on_its_support_and_centred_in_its_bay(workdir):
+    from pxr import Usd
+
+    from usdscene.scene.compose import compose_stage
+
+    models = {k: v for k, v in VEHICLE_MODELS.items() if k != "truck"}
+    vehicle_usd(workdir / "car.usda", models=models, paints={"red": PAINTS["red"]})
+    glb_turned_nodes(workdir / "lot.glb")
+    import_asset("lot.glb", "lot", "assets", ImportOptions(kind="environment"))
+    entry = import_asset("car.usda", "car", "assets", ImportOptions(forward_axis="+Y"))
+    assert set(entry.variant_extents["appearance"]) == {"sedan-red", "van-red", "formula-red"}
+    for name, (lo, hi) in entry.variant_extents["appearance"].items():
+        width, length, height, clearance, _ = models[name.split("-")[0]]
+        np.testing.assert_allclose(lo, (-width / 2, -length / 2, 0.0), atol=1e-3, err_msg=name)
+        np.testing.assert_allclose(hi, (width / 2, length / 2, height - clearance), atol=1e-3, err_msg=name)  # no wheels
+    catalog = load_catalog(["assets"], base_dir=workdir)
+    scene = _scene_on(["bay_A1", "bay_A2", "bay_B1"], "lot", ["car"] * 3)
+    scene = dataclasses.replace(scene, objects=tuple(dataclasses.replace(o, appearance=a) for o, a in
+                                           zip(scene.objects, ("sedan-red", "van-red", "formula-red"))))
+    result = compose_stage(scene, catalog, workdir / "stage")
+    stage = Usd.Stage.Open(str(result.root_layer))
+    places = catalog.places("lot")
+    for obj, rel in zip(scene.objects, scene.relations):
+        region = places[scene.place_by_uid()[rel.object_uid].name].regions["is_on"]
+        _, bound = _world_bounds(stage, obj.uid, 0)
+        inside = _corners_in_region(bound, region.pose.as_array())
+        assert abs(inside[:, 2].min()) < 0.01, (obj.appearance, inside[:, 2].min())  # not floating
+        half = np.array(region.size_m[:2]) / 2
+        assert np.all(np.abs(inside[:, :2]) <= half + 1e-3), (obj.appearance, inside[:, :2])  # inside the bay
+
+
+# 3. Orientation rules: vehicles are never laid on a side
+
+
+def test_a_class_that_only_fits_lying_down_is_not_laid_down_unless_its_rule_allows(workdir, capsys):
+    from usdscene.errors import CompositionError
+    from usdscene.scene.compose import compose_stage
+    from usdscene.scene.placement import fits_region
+
+    glb_turned_nodes(workdir / "lot.glb")
+    import_asset("lot.glb", "lot", "assets", ImportOptions(kind="environment"))
+    truck = {"truck": VEHICLE_MODELS["truck"]}  # 2.58 m tall, the bays have 2.2 m clearance
+    vehicle_usd(workdir / "truck.usda", models=truck, paints={"red": PAINTS["red"]})
+    assert main(["assets", "add", "truck.usda", "--class", "truck", "--catalog", "assets"]) == 0
+    assert main(["assets", "add", "truck.usda", "--class", "crate_any", "--catalog", "assets",
+                 "--orientations", "any"]) == 0
+    catalog = load_catalog(["assets"], base_dir=workdir)
+    assert catalog["truck"].orientations == "upright_turned"  # the default of assets add
+    assert not fits_region(catalog["truck"], BAY_SIZE)
+    assert fits_region(catalog["crate_any"], BAY_SIZE)  # lying on a side, as the rule allows
+    with pytest.raises(CompositionError) as info:
+        compose_stage(_scene_on(["bay_A1"], "lot", ["truck"]), catalog, workdir / "stage")
+    assert "upright or turned" in str(info.value) and "lying" not in str(info.value)
+    # The generator leaves it out and says so; asked for it alone, it fails.
+    _setup_document(workdir / "setup.openlabel.json", "lot")
+    capsys.readouterr()
+    assert main(["generate", "appearance", "--setup", "setup.openlabel.json", "-o", "doc.openlabel.json",
+                 "--frames", "1", "--classes", "truck"]) == 1
+    assert "truck" in capsys.readouterr().err
+    # The shipped library: passengers and cups stay upright, luggage may lie in a bin.
+    shipped = load_catalog()
+    assert shipped["passenger"].orientations == "upright_turned"
+    assert shipped["coffee_cup"].orientations == "upright_turned"
+    assert shipped["trolley_suitcase"].orientations == "any"
+
+
+def _setup_document(path: Path, environment: str, width: int = 64, height: int = 48) -> Path:
+    from test_compose_support import look_at_cv
+    from usdscene.converters.openlabel import write_document, write_openlabel
+
+    camera = m.Camera(name="cam", intrinsics=m.Intrinsics(
+        lens=m.LensModel.PERSPECTIVE, width_px=width, height_px=height, fx_px=0.5 * width, fy_px=0.5 * width,
+        cx_px=(width - 1) / 2, cy_px=(height - 1) / 2, sensor_width_mm=6.4),
+        pose=look_at_cv((0.0, -1.0, 16.0), (0.0, 0.0, 0.0)))
+    sun = m.Light(uid="0", name="sun", kind=m.LightKind.SUN, power_w=4.0,
+                  pose=m.Pose.from_rotation_translation(np.eye(3), (0.0, 0.0, 10.0)))
+    setup = m.SceneSpec(name=f"{environment}_setup", cameras=(camera,), lights=(sun,), environment=environment,
+                        asset_paths=("assets",), seed=3,
+                        render=m.RenderSettings(samples=4, denoise=False, resolution_px=(width, height)))
+    write_document(path, write_openlabel(setup))
+    return path
+
+
+# 4. Colours: only a colour the asset really shows is recorded
+
+
+def test_a_colour_goes_to_the_named_paint_or_is_not_recorded(workdir, caplog):
+    from pxr import Usd
+
+    from usdscene.scene.compose import compose_stage
+
+    vehicle_usd(workdir / "car.usda", models={"sedan": VEHICLE_MODELS["sedan"]})
+    glb_turned_nodes(workdir / "lot.glb")
+    import_asset("lot.glb", "lot", "assets", ImportOptions(kind="environment"))
+    with caplog.at_level(logging.WARNING):
+        plain = import_asset("car.usda", "plain_car", "assets", ImportOptions())
+    assert plain.color_shader == "" and "--color-material" in caplog.text
+    painted = import_asset("car.usda", "car", "assets", ImportOptions(color_material="Looks/Paint"))
+    assert painted.color_shader == "Source/Looks/Paint/Surface"
+    with pytest.raises(AssetError) as info:
+        import_asset("car.usda", "bad", "assets", ImportOptions(color_material="Looks/Nothing"))
+    assert "Looks/Nothing" in str(info.value)
+
+    catalog = load_catalog(["assets"], base_dir=workdir)
+    scene = _scene_on(["bay_A1", "bay_A2"], "lot", ["plain_car", "car"])
+    scene = dataclasses.replace(scene, objects=tuple(dataclasses.replace(o, color_rgb=(0.54, 0.94, 0.13))
+                                                     for o in scene.objects))
+    with caplog.at_level(logging.WARNING):
+        result = compose_stage(scene, catalog, workdir / "stage")
+    assert "plain_car" in caplog.text
+    colours = {o.class_name: o.color_rgb for o in result.resolved.objects}
+    assert colours == {"plain_car": None, "car": (0.54, 0.94, 0.13)}  # what the labels will record
+    stage = Usd.Stage.Open(str(result.root_layer))
+    for obj in result.resolved.objects:
+        prim, _ = _world_bounds(stage, obj.uid, 0)
+        shader = stage.GetPrimAtPath(prim.GetPath().AppendPath("Source/Looks/Paint/Surface"))
+        value = tuple(shader.GetAttribute("inputs:diffuseColor").Get())
+        if obj.class_name == "car":
+            np.testing.assert_allclose(value, (0.54, 0.94, 0.13), atol=1e-6)
+        else:
+            np.testing.assert_allclose(value, PAINTS["red"], atol=1e-6)  # the asset's own paint, unrecorded
+        assert not stage.GetPrimAtPath(prim.GetPath().AppendPath("Looks/Body/Surface"))
+
+
+# 5. Forward axis
+
+
+def test_an_asset_facing_plus_y_is_turned_to_face_minus_y(workdir):
+    from pxr import Usd, UsdGeom
+
+    vehicle_usd(workdir / "car.usda", models={"sedan": VEHICLE_MODELS["sedan"]}, paints={"red": PAINTS["red"]})
+    entries = {axis: import_asset("car.usda", f"car_{i}", "assets", ImportOptions(forward_axis=axis))
+               for i, axis in enumerate(("-Y", "+Y"))}
+    assert load_catalog(["assets"], base_dir=workdir)["car_1"].forward_axis == "+Y"
+    noses = {}
+    for axis, entry in entries.items():
+        stage = Usd.Stage.Open(str(entry.usd_path))
+        cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_])
+        nose = stage.GetDefaultPrim().GetPrimAtPath("Source/Nose")
+        noses[axis] = np.array(cache.ComputeWorldBound(nose).ComputeAlignedRange().GetMidpoint())
+    assert noses["-Y"][1] > 2.0  # as written, the front is at +Y ...
+    assert noses["+Y"][1] < -2.0  # ... and turned, at -Y, where a document's "forward" is
+    np.testing.assert_allclose(entries["+Y"].extent_min_m, (-0.9, -2.3, 0.0), atol=1e-3)
+    with pytest.raises(AssetError):
+        import_asset("car.usda", "car_x", "assets", ImportOptions(forward_axis="up"))
