@@ -414,3 +414,61 @@ def test_an_asset_facing_plus_y_is_turned_to_face_minus_y(workdir):
     np.testing.assert_allclose(entries["+Y"].extent_min_m, (-0.9, -2.3, 0.0), atol=1e-3)
     with pytest.raises(AssetError):
         import_asset("car.usda", "car_x", "assets", ImportOptions(forward_axis="up"))
+
+
+# Must show: a generated car park sequence from a multi-variant vehicle class
+
+
+@pytest.mark.blender
+def test_generated_car_park_vehicles_stand_in_their_bays_in_the_colour_recorded(workdir):
+    import cv2
+    from pxr import Usd
+
+    from usdscene.document.output_layout import image_path, mask_ids, mask_path
+    from usdscene.pipeline import run_pipeline
+
+    glb_turned_nodes(workdir / "lot.glb")
+    vehicle_usd(workdir / "vehicle.usda")
+    assert main(["assets", "add", "lot.glb", "--class", "lot", "--kind", "environment", "--catalog", "assets"]) == 0
+    assert main(["assets", "add", "vehicle.usda", "--class", "vehicle", "--catalog", "assets", "--forward-axis", "+Y",
+                 "--orientations", "upright", "--color-material", "Looks/Paint"]) == 0
+    _setup_document(workdir / "setup.openlabel.json", "lot", 128, 96)
+    assert main(["generate", "appearance", "--setup", "setup.openlabel.json", "-o", "doc.openlabel.json",
+                 "--frames", "2", "--objects-per-frame", "3", "--classes", "vehicle", "--seed", "2"]) == 0
+    summary = run_pipeline(workdir / "doc.openlabel.json", workdir / "out", progress=False)
+    assert summary.images_written == 2
+
+    from usdscene.converters.openlabel import read_openlabel
+
+    scene = read_openlabel(workdir / "doc.openlabel.json")
+    catalog = load_catalog(["assets"], base_dir=workdir)
+    places, place_names = catalog.places("lot"), {p.uid: p.name for p in scene.places}
+    ids = mask_ids(scene)
+    stage = Usd.Stage.Open(str(workdir / "out" / "stage" / "scene.usda"))
+    models = set()
+    checked = 0
+    for rel in scene.relations:
+        frame = rel.frame_intervals[0].frame_start
+        obj = scene.object_by_uid()[rel.subject_uid]
+        models.add(obj.appearance.split("-")[0])
+        region = places[place_names[rel.object_uid]].regions[rel.type]
+        prim, bound = _world_bounds(stage, obj.uid, frame)
+        inside = _corners_in_region(bound, region.pose.as_array())
+        assert abs(inside[:, 2].min()) < 0.01, (obj.appearance, inside[:, 2].min())  # on the asphalt
+        assert np.all(np.abs(inside[:, :2]) <= np.array(region.size_m[:2]) / 2 + 1e-3), obj.appearance
+        from pxr import UsdGeom
+
+        up = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode(frame)))[2, :3]
+        np.testing.assert_allclose(up, (0.0, 0.0, 1.0), atol=1e-9)  # upright, never on a side
+        # The rendered paint has the hue of the colour the document (and so the labels) records.
+        image = cv2.imread(str(image_path(workdir / "out", "cam", frame)))[:, :, ::-1] / 255.0
+        mask = cv2.imread(str(mask_path(workdir / "out", "cam", frame)), cv2.IMREAD_UNCHANGED)
+        pixels = image[mask == ids[obj.uid]]
+        assert len(pixels) >= 20, (obj.uid, len(pixels))
+        linear = np.where(pixels <= 0.04045, pixels / 12.92, ((pixels + 0.055) / 1.055) ** 2.4).mean(axis=0)
+        recorded = np.array(obj.color_rgb)
+        assert np.argmax(linear) == np.argmax(recorded), (obj.appearance, linear, recorded)
+        cosine = linear @ recorded / np.linalg.norm(linear) / np.linalg.norm(recorded)
+        assert cosine > 0.95, (obj.appearance, linear, recorded)
+        checked += 1
+    assert checked == 6 and "truck" not in models and len(models) >= 2
