@@ -472,3 +472,148 @@ def test_generated_car_park_vehicles_stand_in_their_bays_in_the_colour_recorded(
         assert cosine > 0.95, (obj.appearance, linear, recorded)
         checked += 1
     assert checked == 6 and "truck" not in models and len(models) >= 2
+
+
+# 6. Implausible sizes are named, with the likely unit
+
+
+def test_a_vehicle_modelled_in_centimetres_but_declared_in_metres_is_warned_about(workdir, caplog):
+    from pxr import Usd, UsdGeom
+
+    vehicle_usd(workdir / "car.usda", models={"sedan": VEHICLE_MODELS["sedan"]}, paints={"red": PAINTS["red"]})
+    stage = Usd.Stage.Open(str(workdir / "car.usda"))  # the kit: centimetres, declared as metres
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.Save()
+    with caplog.at_level(logging.WARNING):
+        entry = import_asset("car.usda", "car", "assets", ImportOptions())
+    assert max(entry.size_m) > 400  # registered as asked ...
+    assert "implausible" in caplog.text and "--unit-scale 0.01" in caplog.text  # ... but not silently
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        import_asset("car.usda", "car_m", "assets", ImportOptions(unit_scale_m=0.01))
+    assert "implausible" not in caplog.text
+    glb_turned_nodes(workdir / "lot.glb")
+    with caplog.at_level(logging.WARNING):
+        import_asset("lot.glb", "tiny_lot", "assets", ImportOptions(kind="environment", unit_scale_m=0.001))
+    assert "an environment" in caplog.text and "--unit-scale 1" in caplog.text
+
+
+# 7. Requested classes that fit nowhere are named on the terminal
+
+
+def test_generate_names_the_classes_it_leaves_out(workdir, capsys):
+    glb_turned_nodes(workdir / "lot.glb")
+    import_asset("lot.glb", "lot", "assets", ImportOptions(kind="environment"))
+    vehicle_usd(workdir / "car.usda", models={"sedan": VEHICLE_MODELS["sedan"]}, paints={"red": PAINTS["red"]})
+    import_asset("car.usda", "sedan", "assets", ImportOptions())
+    vehicle_usd(workdir / "truck.usda", models={"truck": VEHICLE_MODELS["truck"]}, paints={"red": PAINTS["red"]})
+    import_asset("truck.usda", "truck", "assets", ImportOptions())
+    import_asset("truck.usda", "lorry", "assets", ImportOptions())
+    _setup_document(workdir / "setup.openlabel.json", "lot")
+    capsys.readouterr()
+    assert main(["generate", "appearance", "--setup", "setup.openlabel.json", "-o", "doc.openlabel.json",
+                 "--frames", "1", "--classes", "sedan", "truck", "lorry", "backpack"]) == 0
+    out = capsys.readouterr().out
+    assert "left out" in out and "lorry, truck" in out
+    assert "over 2 classes" in out
+    assert main(["generate", "appearance", "--setup", "setup.openlabel.json", "-o", "none.openlabel.json",
+                 "--frames", "1", "--classes", "truck", "lorry"]) == 1
+    err = capsys.readouterr().err
+    assert "none of the classes lorry, truck fits" in err
+
+
+# 8. Variants nobody can reach are warned about
+
+
+def test_variant_sets_below_the_default_prim_and_classes_without_variants_are_warned_about(workdir, caplog,
+                                                                                           capsys):
+    from pxr import Usd, UsdGeom
+
+    vehicle_usd(workdir / "car.usda", models={"sedan": VEHICLE_MODELS["sedan"]}, paints={"red": PAINTS["red"]})
+    stage = Usd.Stage.Open(str(workdir / "car.usda"))
+    for i in range(1, 3):  # the kit's wheels: a variant set on every wheel prim
+        wheel = UsdGeom.Xform.Define(stage, f"/Car/wheel{i}").GetPrim()
+        wheels = wheel.GetVariantSets().AddVariantSet("wheels")
+        for name in ("wheelRed", "wheelBlack"):
+            wheels.AddVariant(name)
+        wheels.SetVariantSelection("wheelBlack")
+    stage.Save()
+    with caplog.at_level(logging.WARNING):
+        entry = import_asset("car.usda", "car", "assets", ImportOptions())
+    assert "wheel1:wheels" in caplog.text and "wheel2:wheels" in caplog.text
+    assert entry.appearances == ("sedan-red",)
+    glb_turned_nodes(workdir / "lot.glb")
+    import_asset("lot.glb", "lot", "assets", ImportOptions(kind="environment"))
+    _setup_document(workdir / "setup.openlabel.json", "lot")
+    capsys.readouterr()
+    assert main(["generate", "appearance", "--setup", "setup.openlabel.json", "-o", "doc.openlabel.json",
+                 "--frames", "1", "--classes", "car"]) == 0
+    out = capsys.readouterr().out
+    assert "one appearance only, so not varied: car" in out
+    report = json.loads((workdir / "doc.openlabel.json.report.json").read_text())
+    assert report["coverage"]["classes_without_variants"] == ["car"]
+
+
+# 9. A file named on the command line may lie outside the working folder
+
+
+def test_assets_add_reads_a_file_outside_the_working_folder(tmp_path, monkeypatch, caplog):
+    project = tmp_path / "project"
+    project.mkdir()
+    monkeypatch.chdir(project)
+    glb_turned_nodes(tmp_path / "lot.glb")
+    assert main(["assets", "add", "../lot.glb", "--class", "lot", "--kind", "environment",
+                 "--catalog", "assets"]) == 0
+    assert len(load_catalog(["assets"], include_default=False)["lot"].places) == len(BAYS)
+    vehicle_usd(tmp_path / "car.usda", models={"sedan": VEHICLE_MODELS["sedan"]}, paints={"red": PAINTS["red"]})
+    with caplog.at_level(logging.WARNING):
+        assert main(["assets", "add", "../car.usda", "--class", "car", "--catalog", "assets"]) == 0
+    assert "--asset-path" in caplog.text  # scenes reading it there need the folder allowed
+    # Paths found inside documents and catalogs stay contained.
+    (project / "assets" / "catalog.json").write_text(json.dumps({"format": "usdscene-catalog", "version": 1, "classes": {
+        "car": {"kind": "object", "usd": "../../car.usda"}}}))
+    with pytest.raises(AssetError) as info:
+        load_catalog(["assets"], base_dir=project, include_default=False)
+    assert "outside" in str(info.value)
+
+
+# 10. Place kinds: the name without its number, row letters included
+
+
+def test_place_kinds_drop_row_letters_with_the_number(workdir):
+    from usdscene.scene.catalog import place_kind
+
+    entry = import_asset(glb_turned_nodes(workdir / "lot.glb"), "lot", "assets", ImportOptions(kind="environment"))
+    assert {place.kind for place in entry.places.values()} == {"bay"}
+    assert [place_kind(n) for n in ("bay_A3", "bay_B12", "seat_03A", "bin_02L", "aisle_04", "gate_12_bench_3",
+                                    "row12")] == ["bay", "bay", "seat", "bin", "aisle", "gate_12_bench", "row"]
+
+
+# 11. The catalog listing: plain off a terminal, per region, and removing a class
+
+
+def test_assets_list_off_a_terminal_per_region_and_remove(workdir, capsys):
+    glb_turned_nodes(workdir / "lot.glb")
+    _crate_obj(workdir / "crate.obj")
+    assert main(["assets", "add", "lot.glb", "--class", "lot", "--kind", "environment", "--catalog", "assets"]) == 0
+    assert main(["assets", "add", "crate.obj", "--class", "crate", "--catalog", "assets", "--up-axis", "Z"]) == 0
+    capsys.readouterr()
+    assert main(["assets", "list", "--catalog", "assets", "--no-default"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split("\t")[:3] == ["class", "kind", "size x*y*z (m)"]
+    rows = {line.split("\t")[0]: line.split("\t") for line in lines[1:]}
+    assert set(rows) == {"crate", "lot"} and rows["lot"][5] == "3" and rows["crate"][6] == "upright_turned"
+    assert all("\t" in line and len(line.split("\t")) == 8 for line in lines)  # never wrapped
+    assert main(["assets", "list", "--catalog", "assets", "--no-default", "--regions"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    regions = {line.split("\t")[1]: line.split("\t") for line in lines[1:]}
+    assert set(regions) == {name for name, *_ in BAYS}
+    assert regions["bay_B1"][4] == "2.40 x 5.00 x 2.20" and regions["bay_B1"][5] == "+0.00 +0.00 +1.00"
+    assert regions["bay_B1"][7] == "30.0"
+    assert main(["assets", "remove", "crate", "--catalog", "assets"]) == 0
+    assert not (workdir / "assets" / "imported" / "crate.usda").exists()
+    assert "crate" not in load_catalog(["assets"], include_default=False)
+    assert main(["assets", "remove", "crate", "--catalog", "assets"]) == 1
+    assert "not in this catalog" in capsys.readouterr().err
+    assert main(["assets", "remove", "backpack"]) == 1  # the generated library is rebuilt, not edited
+    assert "generated library" in capsys.readouterr().err

@@ -89,6 +89,38 @@ class ImportOptions:
     color_material: str | None = None
 
 
+PLAUSIBLE_SIZE_M = {"object": (0.02, 25.0), "passenger": (0.3, 3.0), "environment": (2.0, 5000.0)}
+"""Largest dimension (metres) an asset of each kind plausibly has; outside it the file's unit
+is most likely misread (a car in centimetres read as metres is 467 m long)."""
+# Common file units (metres per unit, name), most likely first: metres, then the usual mix-ups,
+# centimetres (many DCC tools and the USD default), millimetres (CAD), inches, decimetres,
+# feet, kilometres.
+_UNITS_M = ((1.0, "metres"), (0.01, "centimetres"), (0.001, "millimetres"), (0.0254, "inches"),
+            (0.1, "decimetres"), (0.3048, "feet"), (1000.0, "kilometres"))
+
+
+def size_warnings(size_m, kind: str, unit_scale_m: float) -> list[str]:
+    """Warnings for an asset whose size is implausible for its kind, naming the likely
+    ``--unit-scale`` (the most often mixed-up unit that makes the size plausible).
+
+    Args:
+        size_m: (3,) size of the asset in metres, as converted.
+        kind: catalog kind.
+        unit_scale_m: the metres per file unit the conversion used.
+    """
+    largest = float(np.max(size_m))
+    low, high = PLAUSIBLE_SIZE_M[kind]
+    if low <= largest <= high or largest <= 0:
+        return []
+    units = largest / unit_scale_m  # the size in file units
+    likely = [(u, name) for u, name in _UNITS_M if low <= units * u <= high and u != unit_scale_m]
+    hint = (f": if it is in {likely[0][1]}, give --unit-scale {likely[0][0]:g}" if likely
+            else "; check --unit-scale")
+    article = "an" if kind[0] in "aeiou" else "a"
+    return [f"{article} {kind} {largest:.4g} m across is implausible (expected {low:g} to {high:g} m); the file "
+            f"is probably not in the unit assumed ({unit_scale_m:g} m per unit){hint}"]
+
+
 def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: ImportOptions,
                   allowed_roots: Sequence[Path]) -> tuple[Path, dict]:
     """Validate everything that does not need reading the asset; returns the resolved source
@@ -289,6 +321,7 @@ class _Written:
     default_variants: Mapping[str, str] = field(default_factory=dict)
     variant_extents: Mapping[str, Mapping[str, tuple]] = field(default_factory=dict)
     color_shader: str = DEFAULT_COLOR_SHADER
+    unit_scale_m: float = 1.0
 
 
 def _bottom_centre_offset(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -428,6 +461,26 @@ def _lift_variants(src_default, root, holder, source: Path) -> tuple[dict, dict]
     return variants, {stage_schema.VARIANT_SET_APPEARANCE: label[current]}
 
 
+def _warn_unreachable_variants(default, source: Path) -> list[str]:
+    """Warn about variant sets below the default prim: only the default prim's sets become
+    ``appearance`` variants, so a document cannot reach these (the kit's ``wheels`` on each
+    wheel). Returns ``<prim>:<set>`` for each."""
+    from pxr import Usd
+
+    found = []
+    for prim in Usd.PrimRange(default):
+        if prim == default:
+            continue
+        sets = prim.GetVariantSets()
+        found += [f"{prim.GetPath().MakeRelativePath(default.GetPath())}:{name}" for name in sets.GetNames()
+                  if len(sets.GetVariantSet(name).GetVariantNames()) > 1]
+    if found:
+        shown = ", ".join(found[:6]) + (f" and {len(found) - 6} more" if len(found) > 6 else "")
+        log.warning("%s: variant sets below the default prim stay at their selection (documents can only choose "
+                    "the default prim's sets): %s", source.name, shown)
+    return found
+
+
 def _color_slot(default, color_material: str | None, source: Path) -> str:
     """The shader (path relative to the file's default prim) whose ``inputs:diffuseColor`` a
     scene's colour sets, or ``""`` when the class cannot be recoloured.
@@ -516,6 +569,7 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
         stage.OverridePrim(holder.GetPath().AppendPath(relative)).SetActive(False)
     variants, defaults = _lift_variants(default, root, holder.GetPrim(), source)
     color_shader = _color_slot(default, options.color_material, source) if options.kind != "environment" else ""
+    _warn_unreachable_variants(default, source)
     m = forward_turn(options.forward_axis) @ file_to_world(up_axis, scale)
     op = holder.AddTransformOp()
     op.Set(Gf.Matrix4d(m.T.tolist()))
@@ -539,7 +593,7 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
     layer.GetPrimAtPath(holder.GetPath()).referenceList.prependedItems = [Sdf.Reference(relative)]
     write_text_atomic(target, layer.ExportToString())
     return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults, variant_extents,
-                    f"{holder.GetPath().name}/{color_shader}" if color_shader else "")
+                    f"{holder.GetPath().name}/{color_shader}" if color_shader else "", scale)
 
 
 def _export_blend(blend: Path, usd_path: Path) -> Path:
@@ -575,8 +629,9 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         class_name: lower_snake_case class name (the OpenLABEL object type).
         catalog_dir: folder of the catalog (``catalog.json`` created when missing).
         options: kind, up axis, unit scale, description, replace.
-        allowed_roots: folders the source must lie in (default: the working folder and
-            ``catalog_dir``); a path escaping them is refused.
+        allowed_roots: folders the source must lie in (default: the working folder,
+            ``catalog_dir``, the allowed asset folders and the source's own folder: naming a
+            file is consent to read it); a path escaping them is refused.
 
     Returns:
         The registered catalog entry (extents in metres, asset frame Z up).
@@ -588,11 +643,21 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     catalog = Path(catalog_dir).resolve()
     from usdscene.document.containment import consented_folders
 
-    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
-                               else (Path.cwd(), catalog, *consented_folders()))]
     src = Path(source)
-    resolved, data = _check_inputs(src if src.is_absolute() else Path.cwd() / src, class_name, catalog,
-                                   options, roots)
+    src_abs = src if src.is_absolute() else Path.cwd() / src
+    # A file named on the command line is the user's consent to read it (and what it refers
+    # to beside it); containment guards the paths found inside documents and catalogs.
+    usual = (Path.cwd(), catalog, *consented_folders())
+    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
+                               else (*usual, src_abs.resolve().parent))]
+    resolved, data = _check_inputs(src_abs, class_name, catalog, options, roots)
+    from usdscene.document.containment import is_inside
+
+    if resolved.suffix.lower() in USD_FORMATS and not is_inside(resolved, [Path(r).resolve() for r in usual]):
+        # The wrapper references the file where it is: scenes must be allowed to read there.
+        log.warning("%s lies outside the working and catalog folders and is referenced where it is; scenes "
+                    "using class %r need --asset-path %s (or $USDSCENE_ASSET_PATH)", resolved, class_name,
+                    resolved.parent)
     target = catalog / IMPORTED_FOLDER / f"{class_name}.usda"
     suffix = resolved.suffix.lower()
     from usdscene.document import stage_schema
@@ -610,7 +675,7 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         authored, places = places_from_boxes(boxes, up_axis, scale, source=str(resolved))
         lo, hi = _write_mesh_asset(parts, class_name, options, up_axis, scale, target, authored)
         variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)}
-        written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()})
+        written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()}, unit_scale_m=scale)
         fmt = MESH_FORMATS[suffix].upper()
     elif suffix == BLEND_FORMAT:
         exported = _export_blend(resolved, target.with_name(f"{class_name}.blend.usda"))
@@ -622,6 +687,8 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     if options.kind == "environment":
         log.info("%s: %d places found (%s)", resolved.name, len(written.places),
                  ", ".join(sorted(written.places)[:8]) + (" ..." if len(written.places) > 8 else ""))
+    for warning in size_warnings(np.asarray(written.hi) - np.asarray(written.lo), options.kind, written.unit_scale_m):
+        log.warning("%s: %s", resolved.name, warning)
     entry = AssetEntry(
         class_name=class_name, kind=options.kind, usd_path=target,
         description=options.description or f"Imported from {resolved.name} ({fmt}).",
@@ -649,3 +716,46 @@ def register_entry(catalog_dir: Path, entry: AssetEntry, data: dict | None = Non
     _entry_from_json(entry.class_name, classes[entry.class_name], catalog_dir)  # round-trip check
     data = {**data, "classes": dict(sorted(classes.items()))}
     return write_text_atomic(catalog_dir / CATALOG_FILE, dumps_json(data))
+
+
+def remove_entry(catalog_dir: str | os.PathLike, class_name: str, *, imported_only: bool = False) -> list[Path]:
+    """Unregister ``class_name`` from ``catalog_dir/catalog.json`` (atomically) and delete the
+    files ``assets add`` wrote for it under ``imported/`` (``<class>.usda``, ``<class>.blend.usda``).
+
+    Args:
+        catalog_dir: the catalog folder.
+        class_name: the class to remove.
+        imported_only: refuse classes whose file is not under ``imported/`` (the generated
+            library's classes, which ``assets build`` would write back).
+
+    Returns:
+        The files deleted.
+
+    Raises:
+        AssetError: no such catalog or class, or a generated class with ``imported_only``.
+    """
+    folder = Path(catalog_dir).resolve()
+    path = folder / CATALOG_FILE
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise AssetError(f"cannot read asset catalog: {exc}", where=str(path)) from exc
+    classes = data.get("classes") if isinstance(data, dict) else None
+    if not isinstance(classes, dict) or class_name not in classes:
+        known = ", ".join(sorted(classes)) if isinstance(classes, dict) else "none"
+        raise AssetError(f"class {class_name!r} is not in this catalog (classes: {known})", where=str(path))
+    usd = str(classes[class_name].get("usd", ""))
+    imported = usd.startswith(f"{IMPORTED_FOLDER}/")
+    if imported_only and not imported:
+        raise AssetError(f"class {class_name!r} belongs to the generated library ({usd}); only classes added "
+                         "with 'assets add' can be removed from it", where=f"{path}:classes.{class_name}")
+    remaining = {k: v for k, v in classes.items() if k != class_name}
+    write_text_atomic(path, dumps_json({**data, "classes": remaining}))
+    deleted = []
+    if imported:
+        for name in (f"{class_name}.usda", f"{class_name}.blend.usda"):
+            candidate = folder / IMPORTED_FOLDER / name
+            if candidate.is_file():
+                candidate.unlink()
+                deleted.append(candidate)
+    return deleted

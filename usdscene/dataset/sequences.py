@@ -415,7 +415,22 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
                                      else frames_for_coverage(combos, classes, per_frame)),
         "classes_fitting_nowhere": sorted(set(options.classes or catalog.classes("object")) - set(classes)),
     }
+    single = _without_variants(catalog, classes, options)
+    if single:  # only then: reports of documents without such classes stay as they were
+        report["coverage"]["classes_without_variants"] = single
     return GeneratedSequence(scene=scene, report=report)
+
+
+def _without_variants(catalog: Catalog, classes: Sequence[str], options: GenerateOptions) -> list[str]:
+    """Classes ``appearance`` cannot vary (one appearance variant or none), warned about: a USD
+    file's variant sets on child prims are not lifted (see :mod:`usdscene.assetgen.asset_import`)."""
+    if options.strategy != "appearance":
+        return []
+    single = [c for c in classes if len(catalog[c].appearances) < 2]
+    for name in single:
+        log.warning("class %r has %d appearance variant(s); the appearance strategy cannot vary it",
+                    name, len(catalog[name].appearances))
+    return single
 
 
 def _most_combinations(combos: Sequence[Combination], classes: Sequence[str]) -> int:

@@ -478,11 +478,15 @@ def places_for_catalog(places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]
             for name, (kind, regions) in places.items()}
 
 
-_KIND_SUFFIX = re.compile(r"[_-]?[0-9]+[A-Za-z]?$")
+# The place's number: a last ``_``/``-`` part holding digits with up to two letters around
+# them (``03``, ``03A``, ``A3``, ``B12``), or digits ending the name (``row12``).
+_KIND_SUFFIX = re.compile(r"(?:[_-][A-Za-z]{0,2}[0-9]+[A-Za-z]{0,2}|[0-9]+[A-Za-z]?)$")
 
 
 def place_kind(place: str) -> str:
-    """Kind of a place from its name: ``bay_03`` → ``bay``, ``seat_03A`` → ``seat``."""
+    """Kind of a place from its name: the name without its number, letters of the number
+    included (row or seat letters): ``bay_03``, ``bay_A3``, ``bay_B12`` → ``bay``,
+    ``seat_03A`` → ``seat``, ``gate_12_bench_3`` → ``gate_12_bench``, ``row12`` → ``row``."""
     return _KIND_SUFFIX.sub("", place) or place
 
 
