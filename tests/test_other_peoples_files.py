@@ -552,6 +552,15 @@ def test_variant_sets_below_the_default_prim_and_classes_without_variants_are_wa
     assert "one appearance only, so not varied: car" in out
     report = json.loads((workdir / "doc.openlabel.json.report.json").read_text())
     assert report["coverage"]["classes_without_variants"] == ["car"]
+    from usdscene.scene.compose import draw_looks
+
+    scene = _scene_on(["bay_A1"], "lot", ["car"])
+    scene = dataclasses.replace(scene, objects=tuple(dataclasses.replace(
+        o, randomization=m.Randomization(random_appearance=True)) for o in scene.objects))
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        draw_looks(scene, load_catalog(["assets"], base_dir=workdir), np.random.default_rng(0))
+    assert "random appearance" in caplog.text and "'car'" in caplog.text
 
 
 # 9. A file named on the command line may lie outside the working folder

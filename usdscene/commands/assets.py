@@ -163,6 +163,11 @@ def _add(args: argparse.Namespace) -> int:
     entry = import_asset(args.file, args.class_name, catalog, options)
     size = _fmt_size(entry.size_m)
     print(f"registered {entry.class_name} ({entry.kind}, {size} m) -> {entry.usd_path}", file=sys.stderr)
+    if entry.places:
+        regions = sum(len(place.regions) for place in entry.places.values())
+        kinds = sorted({place.kind for place in entry.places.values()})
+        print(f"  {len(entry.places)} places ({', '.join(kinds)}), {regions} regions; check their sizes and up "
+              f"axes with: usdscene assets list --catalog {catalog} --no-default --regions", file=sys.stderr)
     return 0
 
 

@@ -226,12 +226,17 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
     """
     out = {}
     uncoloured: set[str] = set()
+    unvaried: set[str] = set()
     for obj in scene.objects:
         entry = catalog[obj.class_name]
         variants = entry.appearances
         appearance = obj.appearance
         if appearance is None and obj.randomization.random_appearance and variants:
             appearance = variants[int(rng.integers(len(variants)))]
+        if obj.randomization.random_appearance and len(variants) < 2 and obj.class_name not in unvaried:
+            log.warning("object %r asks for a random appearance, but class %r has %d appearance variant(s); "
+                        "its objects all look the same", obj.uid, obj.class_name, len(variants))
+            unvaried.add(obj.class_name)
         if appearance is None:
             appearance = entry.default_appearance
         color = obj.color_rgb
