@@ -552,6 +552,10 @@ def test_variant_sets_below_the_default_prim_and_classes_without_variants_are_wa
     assert "one appearance only, so not varied: car" in out
     report = json.loads((workdir / "doc.openlabel.json.report.json").read_text())
     assert report["coverage"]["classes_without_variants"] == ["car"]
+    # The car names no colour material (4.): the generated document records no colour for it.
+    doc = json.loads((workdir / "doc.openlabel.json").read_text())["openlabel"]
+    cars = [o for o in doc["objects"].values() if o["type"] == "car"]
+    assert cars and all("color_rgb" not in json.dumps(o) for o in cars)
     from usdscene.scene.compose import draw_looks
 
     scene = _scene_on(["bay_A1"], "lot", ["car"])
