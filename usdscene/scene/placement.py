@@ -505,7 +505,7 @@ def place_objects(scene: SceneSpec, catalog: Catalog, rng: np.random.Generator,
     spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
     states: dict[str, _State] = {}
     for fi in range(n_frames):
-        frame = _FrameWork(fi, scene.frame_start + fi)
+        frame = _Frame(fi, scene.frame_start + fi)
         present = [order[index] for index in np.flatnonzero(presence[:, fi]).tolist()]
         pending = _keep_unchanged(run, frame, present, states)
         _place_pending(run, frame, pending, states)
@@ -534,7 +534,7 @@ class _Run:
 
 
 @dataclass
-class _FrameWork:
+class _Frame:
     """One frame being placed: its boxes, the objects done and every present object's key."""
 
     index: int
@@ -577,7 +577,7 @@ def _object_infos(scene: SceneSpec, catalog: Catalog,
     return infos
 
 
-def _keep_unchanged(run: _Run, frame: _FrameWork, present: list["_Info"],
+def _keep_unchanged(run: _Run, frame: _Frame, present: list["_Info"],
                     states: Mapping[str, "_State"]) -> list["_Info"]:
     """Phase A: objects that keep exactly what they had (same key, support unchanged) are done;
     returns the others, in placement order."""
@@ -598,7 +598,7 @@ def _keep_unchanged(run: _Run, frame: _FrameWork, present: list["_Info"],
     return pending
 
 
-def _place_pending(run: _Run, frame: _FrameWork, pending: list["_Info"], states: Mapping[str, "_State"]) -> None:
+def _place_pending(run: _Run, frame: _Frame, pending: list["_Info"], states: Mapping[str, "_State"]) -> None:
     """Phase B: every other object, supports first: explicit poses, the origin for objects
     without relation, and a sampled (or followed) pose in its support region."""
     for info in pending:
@@ -643,7 +643,7 @@ def _place_pending(run: _Run, frame: _FrameWork, pending: list["_Info"], states:
         frame.boxes.add(uid, info, world_m, label)
 
 
-def _support_of(run: _Run, frame: _FrameWork, uid: str, rel) -> tuple | None:
+def _support_of(run: _Run, frame: _Frame, uid: str, rel) -> tuple | None:
     """The support region of ``uid``'s relation in this frame: (region → world (4, 4), size,
     label, region matrix as 16 floats or None, uid to ignore in collisions, upright only);
     None (and a problem recorded) when the related object is absent."""
@@ -671,7 +671,7 @@ def _support_of(run: _Run, frame: _FrameWork, uid: str, rel) -> tuple | None:
             target_entry.declares_support(rel.type))
 
 
-def _follow_support(frame: _FrameWork, info: "_Info", prev: "_State | None", key: tuple, region_pose: np.ndarray,
+def _follow_support(frame: _Frame, info: "_Info", prev: "_State | None", key: tuple, region_pose: np.ndarray,
                     exclude: str | None, label: str) -> tuple[np.ndarray, np.ndarray] | None:
     """Keep the previous frame's pose relative to a moved support while that stays collision
     free: (object → region, object → world), or None."""
@@ -692,7 +692,7 @@ def _no_fit_message(uid: str, info: "_Info", label: str, size: tuple[float, floa
             f"{size[1]:.3f} m, {size[2]:.3f} m clearance) {ways}")
 
 
-def _extend_spans(spans: dict[str, list[list]], frame: _FrameWork, scene: SceneSpec) -> None:
+def _extend_spans(spans: dict[str, list[list]], frame: _Frame, scene: SceneSpec) -> None:
     """Append this frame's poses to the runs of equal poses per object."""
     for uid, state in frame.done.items():
         rel_uid = scene.relations[state.key[1]].uid if state.key[0] == "rel" else None
