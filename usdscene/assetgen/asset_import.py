@@ -27,7 +27,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.scene.catalog import ASSET_KINDS, CATALOG_FILE, AssetEntry, _entry_from_json, entry_to_json
+from usdscene.scene.catalog import ASSET_KINDS, CATALOG_FILE, DEFAULT_COLOR_SHADER, ORIENTATION_RULES, AssetEntry, _entry_from_json, entry_to_json
 from usdscene.errors import AssetError, OutputError, Problem
 from usdscene.files import dumps_json, resolve_inside, write_text_atomic
 from usdscene.scene.place_discovery import file_to_world, up_axis_rotation
@@ -44,6 +44,20 @@ DEFAULT_UP_AXIS = {"obj": "Y", "glb": "Y", "gltf": "Y", "ply": "Z", "stl": "Z"}
 DEFAULT_RELATIONS = {"object": ("is_on", "is_below", "is_in", "is_in_front_of"),
                      "passenger": ("is_on",), "environment": ()}
 IMPORTED_FOLDER = "imported"
+FORWARD_AXES = ("-Y", "+Y", "+X", "-X")
+"""Where an asset's front may face (after the turn to Z up); the library's convention is -Y."""
+# Quarter turns about Z that take each forward axis to -Y.
+_FORWARD_YAW_DEG = {"-Y": 0, "+Y": 180, "+X": -90, "-X": 90}
+
+
+def forward_turn(forward_axis: str) -> np.ndarray:
+    """(4, 4) turn about Z taking an asset whose front faces ``forward_axis`` (Z up) to the
+    library's convention (front at -Y); exact quarter turns, no float noise."""
+    yaw = _FORWARD_YAW_DEG[forward_axis]
+    c, s = {0: (1, 0), 90: (0, 1), 180: (-1, 0), -90: (0, -1)}[yaw]
+    out = np.eye(4)
+    out[:2, :2] = [[c, -s], [s, c]]
+    return out
 _CLASS_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
@@ -57,6 +71,12 @@ class ImportOptions:
         unit_scale_m: metres per file unit; None = 1 (USD: the file's metersPerUnit).
         description: catalog description.
         replace: allow replacing a class that the catalog already has.
+        forward_axis: where the file's front faces once Z up (``-Y``, ``+Y``, ``+X``, ``-X``);
+            the asset is turned about Z so that it faces -Y, the library's convention.
+        orientations: how placement may lay the class (see :data:`usdscene.scene.catalog.ORIENTATION_RULES`).
+        color_material: path of a material (or its surface shader) under the file's default
+            prim whose ``diffuseColor`` a scene's colour sets (referenced USD files); None = the
+            library's ``Looks/Body/Surface`` when the file has it, else the class is not recoloured.
     """
 
     kind: str = "object"
@@ -64,6 +84,41 @@ class ImportOptions:
     unit_scale_m: float | None = None
     description: str = ""
     replace: bool = False
+    forward_axis: str = "-Y"
+    orientations: str = "upright_turned"
+    color_material: str | None = None
+
+
+PLAUSIBLE_SIZE_M = {"object": (0.02, 25.0), "passenger": (0.3, 3.0), "environment": (2.0, 5000.0)}
+"""Largest dimension (metres) an asset of each kind plausibly has; outside it the file's unit
+is most likely misread (a car in centimetres read as metres is 467 m long)."""
+# Common file units (metres per unit, name), most likely first: metres, then the usual mix-ups,
+# centimetres (many DCC tools and the USD default), millimetres (CAD), inches, decimetres,
+# feet, kilometres.
+_UNITS_M = ((1.0, "metres"), (0.01, "centimetres"), (0.001, "millimetres"), (0.0254, "inches"),
+            (0.1, "decimetres"), (0.3048, "feet"), (1000.0, "kilometres"))
+
+
+def size_warnings(size_m, kind: str, unit_scale_m: float) -> list[str]:
+    """Warnings for an asset whose size is implausible for its kind, naming the likely
+    ``--unit-scale`` (the most often mixed-up unit that makes the size plausible).
+
+    Args:
+        size_m: (3,) size of the asset in metres, as converted.
+        kind: catalog kind.
+        unit_scale_m: the metres per file unit the conversion used.
+    """
+    largest = float(np.max(size_m))
+    low, high = PLAUSIBLE_SIZE_M[kind]
+    if low <= largest <= high or largest <= 0:
+        return []
+    units = largest / unit_scale_m  # the size in file units
+    likely = [(u, name) for u, name in _UNITS_M if low <= units * u <= high and u != unit_scale_m]
+    hint = (f": if it is in {likely[0][1]}, give --unit-scale {likely[0][0]:g}" if likely
+            else "; check --unit-scale")
+    article = "an" if kind[0] in "aeiou" else "a"
+    return [f"{article} {kind} {largest:.4g} m across is implausible (expected {low:g} to {high:g} m); the file "
+            f"is probably not in the unit assumed ({unit_scale_m:g} m per unit){hint}"]
 
 
 def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: ImportOptions,
@@ -77,6 +132,15 @@ def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: Imp
         raise AssetError(f"kind {options.kind!r} is not one of {ASSET_KINDS}", where="--kind")
     if options.up_axis not in (None, "Y", "Z"):
         raise AssetError(f"up axis {options.up_axis!r} must be 'Y' or 'Z'", where="--up-axis")
+    if options.forward_axis not in FORWARD_AXES:
+        raise AssetError(f"forward axis {options.forward_axis!r} must be one of {', '.join(FORWARD_AXES)}",
+                         where="--forward-axis")
+    if options.kind == "environment" and options.forward_axis != "-Y":
+        raise AssetError("an environment keeps its own axes (its places are where they are modelled); "
+                         "--forward-axis is for objects and passengers", where="--forward-axis")
+    if options.orientations not in ORIENTATION_RULES:
+        raise AssetError(f"orientation rule {options.orientations!r} must be one of {', '.join(ORIENTATION_RULES)}",
+                         where="--orientations")
     if options.unit_scale_m is not None and not (np.isfinite(options.unit_scale_m) and options.unit_scale_m > 0):
         raise AssetError(f"unit scale {options.unit_scale_m!r} must be a positive number of metres per unit",
                          where="--unit-scale")
@@ -196,7 +260,7 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
     from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
                                              in_variant, new_asset_stage, set_material_color)
 
-    rotation = up_axis_rotation(up_axis)
+    rotation = forward_turn(options.forward_axis)[:3, :3] @ up_axis_rotation(up_axis)
     meshes = [mesh for _, mesh in parts]
     if options.kind == "environment":
         by_color: dict[tuple[float, float, float], list] = {}
@@ -255,6 +319,68 @@ class _Written:
     places: Mapping = field(default_factory=dict)
     variants: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     default_variants: Mapping[str, str] = field(default_factory=dict)
+    variant_extents: Mapping[str, Mapping[str, tuple]] = field(default_factory=dict)
+    color_shader: str = DEFAULT_COLOR_SHADER
+    unit_scale_m: float = 1.0
+
+
+def _bottom_centre_offset(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(3,) translation that puts the origin at the centre of the bottom face of [lo, hi]."""
+    return np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+
+
+def _per_variant_origins(stage, root, holder, op, m: np.ndarray, variants: Mapping, defaults: Mapping,
+                         source: Path) -> dict:
+    """Give every ``appearance`` variant its own origin when the variants differ in size or
+    offset (a van is taller than a sedan; a file's variants rarely share one bottom centre).
+
+    Each variant then authors the holder's transform with its own bottom-centre offset (a
+    variant opinion loses to a direct one, so the direct value is cleared), and the catalog
+    records each variant's extent. Variants that all share the default's bounds keep the one
+    direct transform and record nothing.
+
+    Returns:
+        ``{"appearance": {variant: ((3,) min, (3,) max)}}`` in metres, or ``{}``.
+    """
+    from pxr import Gf
+
+    from usdscene.document import stage_schema
+    from usdscene.assetgen.usd_write import bounds_of_stage, in_variant
+
+    names = variants.get(stage_schema.VARIANT_SET_APPEARANCE, ())
+    if len(names) < 2:
+        return {}
+    raw = m.copy()
+    raw[:3, 3] = 0.0
+    op.Set(Gf.Matrix4d(raw.T.tolist()))
+    vset = root.GetVariantSets().GetVariantSet(stage_schema.VARIANT_SET_APPEARANCE)
+    bounds = {}
+    for name in names:
+        vset.SetVariantSelection(name)
+        lo, hi = bounds_of_stage(stage)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))) or np.any(hi < lo):
+            raise AssetError(f"variant {name!r} of the USD file's default prim has no geometry with bounds",
+                             where=str(source))
+        bounds[name] = (lo, hi)
+    vset.SetVariantSelection(defaults[stage_schema.VARIANT_SET_APPEARANCE])
+    first = bounds[names[0]]
+    if all(np.allclose(b[0], first[0], atol=1e-6) and np.allclose(b[1], first[1], atol=1e-6)
+           for b in bounds.values()):
+        op.Set(Gf.Matrix4d(m.T.tolist()))
+        return {}
+    op.GetAttr().Clear()
+    extents = {}
+    for name in names:
+        lo, hi = bounds[name]
+        offset = _bottom_centre_offset(lo, hi)
+        placed = raw.copy()
+        placed[:3, 3] = offset
+        with in_variant(root, stage_schema.VARIANT_SET_APPEARANCE, name):
+            op.Set(Gf.Matrix4d(placed.T.tolist()))
+        extents[name] = (tuple(float(v) + 0.0 for v in np.round(lo + offset, 4)),
+                         tuple(float(v) + 0.0 for v in np.round(hi + offset, 4)))
+    vset.SetVariantSelection(defaults[stage_schema.VARIANT_SET_APPEARANCE])
+    return {stage_schema.VARIANT_SET_APPEARANCE: extents}
 
 
 MAX_LIFTED_VARIANTS = 512
@@ -335,6 +461,75 @@ def _lift_variants(src_default, root, holder, source: Path) -> tuple[dict, dict]
     return variants, {stage_schema.VARIANT_SET_APPEARANCE: label[current]}
 
 
+def _warn_unreachable_variants(default, source: Path) -> list[str]:
+    """Warn about variant sets below the default prim: only the default prim's sets become
+    ``appearance`` variants, so a document cannot reach these (the kit's ``wheels`` on each
+    wheel). Returns ``<prim>:<set>`` for each."""
+    from pxr import Usd
+
+    found = []
+    for prim in Usd.PrimRange(default):
+        if prim == default:
+            continue
+        sets = prim.GetVariantSets()
+        found += [f"{prim.GetPath().MakeRelativePath(default.GetPath())}:{name}" for name in sets.GetNames()
+                  if len(sets.GetVariantSet(name).GetVariantNames()) > 1]
+    if found:
+        shown = ", ".join(found[:6]) + (f" and {len(found) - 6} more" if len(found) > 6 else "")
+        log.warning("%s: variant sets below the default prim stay at their selection (documents can only choose "
+                    "the default prim's sets): %s", source.name, shown)
+    return found
+
+
+def _color_slot(default, color_material: str | None, source: Path) -> str:
+    """The shader (path relative to the file's default prim) whose ``inputs:diffuseColor`` a
+    scene's colour sets, or ``""`` when the class cannot be recoloured.
+
+    ``color_material`` names a material (its surface shader is used) or a shader; without it,
+    the library's ``Looks/Body/Surface`` is used when the file has one. A colour written
+    anywhere else would be recorded in the labels but never rendered.
+
+    Raises:
+        AssetError: ``color_material`` is missing, not a material or shader, has no
+            ``diffuseColor`` input, or that input is driven by a texture (an authored value
+            would not show).
+    """
+    from pxr import Sdf, UsdShade
+
+    where = f"{source}:{default.GetPath()}"
+    if color_material is None:
+        shader = UsdShade.Shader(default.GetStage().GetPrimAtPath(default.GetPath().AppendPath(DEFAULT_COLOR_SHADER)))
+        if shader and shader.GetInput("diffuseColor"):
+            return DEFAULT_COLOR_SHADER
+        log.warning("%s has no %s shader: scenes cannot recolour class objects (no colour is recorded); "
+                    "name the paint material with --color-material", source.name, DEFAULT_COLOR_SHADER)
+        return ""
+    relative = color_material.strip("/")
+    try:
+        path = default.GetPath().AppendPath(relative)
+    except Exception:  # Sdf raises on malformed paths
+        path = Sdf.Path()
+    prim = default.GetStage().GetPrimAtPath(path) if not path.isEmpty else None
+    if not prim:
+        raise AssetError(f"--color-material {color_material!r}: no prim {relative!r} under the default prim",
+                         where=where)
+    shader = UsdShade.Shader(prim) if prim.IsA(UsdShade.Shader) else None
+    if prim.IsA(UsdShade.Material):
+        source_shader = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+        shader = source_shader if source_shader else None
+    if shader is None:
+        raise AssetError(f"--color-material {color_material!r} is neither a material with a surface shader "
+                         "nor a shader", where=where)
+    color = shader.GetInput("diffuseColor")
+    if not color:
+        raise AssetError(f"--color-material {color_material!r}: shader {str(shader.GetPath())!r} has no "
+                         "diffuseColor input", where=where)
+    if color.HasConnectedSource():
+        raise AssetError(f"--color-material {color_material!r}: the diffuseColor of {str(shader.GetPath())!r} "
+                         "comes from a texture, so a colour value would not show", where=where)
+    return str(shader.GetPath().MakeRelativePath(default.GetPath()))
+
+
 def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, target: Path,
                        roots: Sequence[Path]) -> _Written:
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom
@@ -373,17 +568,21 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
         relative = Sdf.Path(box.node).MakeRelativePath(default.GetPath())
         stage.OverridePrim(holder.GetPath().AppendPath(relative)).SetActive(False)
     variants, defaults = _lift_variants(default, root, holder.GetPrim(), source)
-    m = file_to_world(up_axis, scale)
+    color_shader = _color_slot(default, options.color_material, source) if options.kind != "environment" else ""
+    _warn_unreachable_variants(default, source)
+    m = forward_turn(options.forward_axis) @ file_to_world(up_axis, scale)
     op = holder.AddTransformOp()
     op.Set(Gf.Matrix4d(m.T.tolist()))
     lo, hi = bounds_of_stage(stage)
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))) or np.any(hi < lo):
         raise AssetError("the USD file's default prim has no geometry with bounds", where=str(source))
+    variant_extents: dict = {}
     if options.kind == "object":
-        offset = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+        offset = _bottom_centre_offset(lo, hi)
         m[:3, 3] = offset
         op.Set(Gf.Matrix4d(m.T.tolist()))
         lo, hi = lo + offset, hi + offset
+        variant_extents = _per_variant_origins(stage, root, holder, op, m, variants, defaults, source)
     if authored:
         author_places(stage, str(root.GetPath()), authored)
     # Swap in the relative reference on a detached copy of the layer (no stage recomposes
@@ -393,7 +592,8 @@ def _write_usd_wrapper(source: Path, class_name: str, options: ImportOptions, ta
     relative = os.path.relpath(source, target.parent).replace(os.sep, "/")
     layer.GetPrimAtPath(holder.GetPath()).referenceList.prependedItems = [Sdf.Reference(relative)]
     write_text_atomic(target, layer.ExportToString())
-    return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults)
+    return _Written(np.round(lo, 4), np.round(hi, 4), places, variants, defaults, variant_extents,
+                    f"{holder.GetPath().name}/{color_shader}" if color_shader else "", scale)
 
 
 def _export_blend(blend: Path, usd_path: Path) -> Path:
@@ -429,8 +629,9 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         class_name: lower_snake_case class name (the OpenLABEL object type).
         catalog_dir: folder of the catalog (``catalog.json`` created when missing).
         options: kind, up axis, unit scale, description, replace.
-        allowed_roots: folders the source must lie in (default: the working folder and
-            ``catalog_dir``); a path escaping them is refused.
+        allowed_roots: folders the source must lie in (default: the working folder,
+            ``catalog_dir``, the allowed asset folders and the source's own folder: naming a
+            file is consent to read it); a path escaping them is refused.
 
     Returns:
         The registered catalog entry (extents in metres, asset frame Z up).
@@ -442,11 +643,21 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     catalog = Path(catalog_dir).resolve()
     from usdscene.document.containment import consented_folders
 
-    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
-                               else (Path.cwd(), catalog, *consented_folders()))]
     src = Path(source)
-    resolved, data = _check_inputs(src if src.is_absolute() else Path.cwd() / src, class_name, catalog,
-                                   options, roots)
+    src_abs = src if src.is_absolute() else Path.cwd() / src
+    # A file named on the command line is the user's consent to read it (and what it refers
+    # to beside it); containment guards the paths found inside documents and catalogs.
+    usual = (Path.cwd(), catalog, *consented_folders())
+    roots = [Path(r) for r in (allowed_roots if allowed_roots is not None
+                               else (*usual, src_abs.resolve().parent))]
+    resolved, data = _check_inputs(src_abs, class_name, catalog, options, roots)
+    from usdscene.document.containment import is_inside
+
+    if resolved.suffix.lower() in USD_FORMATS and not is_inside(resolved, [Path(r).resolve() for r in usual]):
+        # The wrapper references the file where it is: scenes must be allowed to read there.
+        log.warning("%s lies outside the working and catalog folders and is referenced where it is; scenes "
+                    "using class %r need --asset-path %s (or $USDSCENE_ASSET_PATH)", resolved, class_name,
+                    resolved.parent)
     target = catalog / IMPORTED_FOLDER / f"{class_name}.usda"
     suffix = resolved.suffix.lower()
     from usdscene.document import stage_schema
@@ -454,13 +665,17 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     if suffix in MESH_FORMATS:
         from usdscene.scene.place_discovery import places_from_boxes
 
+        if options.color_material is not None:
+            raise AssetError("--color-material names a material of a USD file; a converted mesh is "
+                             f"recoloured through its {DEFAULT_COLOR_SHADER} material", where="--color-material")
+
         parts, boxes = _load_parts(resolved, discover_places=options.kind == "environment")
         up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[suffix]]
         scale = options.unit_scale_m if options.unit_scale_m is not None else 1.0
         authored, places = places_from_boxes(boxes, up_axis, scale, source=str(resolved))
         lo, hi = _write_mesh_asset(parts, class_name, options, up_axis, scale, target, authored)
         variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)}
-        written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()})
+        written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()}, unit_scale_m=scale)
         fmt = MESH_FORMATS[suffix].upper()
     elif suffix == BLEND_FORMAT:
         exported = _export_blend(resolved, target.with_name(f"{class_name}.blend.usda"))
@@ -472,6 +687,8 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     if options.kind == "environment":
         log.info("%s: %d places found (%s)", resolved.name, len(written.places),
                  ", ".join(sorted(written.places)[:8]) + (" ..." if len(written.places) > 8 else ""))
+    for warning in size_warnings(np.asarray(written.hi) - np.asarray(written.lo), options.kind, written.unit_scale_m):
+        log.warning("%s: %s", resolved.name, warning)
     entry = AssetEntry(
         class_name=class_name, kind=options.kind, usd_path=target,
         description=options.description or f"Imported from {resolved.name} ({fmt}).",
@@ -480,7 +697,11 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         extent_min_m=tuple(float(v) + 0.0 for v in written.lo),  # type: ignore[arg-type]
         extent_max_m=tuple(float(v) + 0.0 for v in written.hi),  # type: ignore[arg-type]
         relations=DEFAULT_RELATIONS[options.kind],
-        places=written.places)
+        places=written.places,
+        variant_extents=written.variant_extents,
+        orientations=options.orientations if options.kind != "environment" else "any",
+        color_shader=written.color_shader,
+        forward_axis=options.forward_axis)
     register_entry(catalog, entry, data)
     log.info("registered %s (%s) in %s", class_name, fmt, catalog)
     return entry
@@ -495,3 +716,46 @@ def register_entry(catalog_dir: Path, entry: AssetEntry, data: dict | None = Non
     _entry_from_json(entry.class_name, classes[entry.class_name], catalog_dir)  # round-trip check
     data = {**data, "classes": dict(sorted(classes.items()))}
     return write_text_atomic(catalog_dir / CATALOG_FILE, dumps_json(data))
+
+
+def remove_entry(catalog_dir: str | os.PathLike, class_name: str, *, imported_only: bool = False) -> list[Path]:
+    """Unregister ``class_name`` from ``catalog_dir/catalog.json`` (atomically) and delete the
+    files ``assets add`` wrote for it under ``imported/`` (``<class>.usda``, ``<class>.blend.usda``).
+
+    Args:
+        catalog_dir: the catalog folder.
+        class_name: the class to remove.
+        imported_only: refuse classes whose file is not under ``imported/`` (the generated
+            library's classes, which ``assets build`` would write back).
+
+    Returns:
+        The files deleted.
+
+    Raises:
+        AssetError: no such catalog or class, or a generated class with ``imported_only``.
+    """
+    folder = Path(catalog_dir).resolve()
+    path = folder / CATALOG_FILE
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise AssetError(f"cannot read asset catalog: {exc}", where=str(path)) from exc
+    classes = data.get("classes") if isinstance(data, dict) else None
+    if not isinstance(classes, dict) or class_name not in classes:
+        known = ", ".join(sorted(classes)) if isinstance(classes, dict) else "none"
+        raise AssetError(f"class {class_name!r} is not in this catalog (classes: {known})", where=str(path))
+    usd = str(classes[class_name].get("usd", ""))
+    imported = usd.startswith(f"{IMPORTED_FOLDER}/")
+    if imported_only and not imported:
+        raise AssetError(f"class {class_name!r} belongs to the generated library ({usd}); only classes added "
+                         "with 'assets add' can be removed from it", where=f"{path}:classes.{class_name}")
+    remaining = {k: v for k, v in classes.items() if k != class_name}
+    write_text_atomic(path, dumps_json({**data, "classes": remaining}))
+    deleted = []
+    if imported:
+        for name in (f"{class_name}.usda", f"{class_name}.blend.usda"):
+            candidate = folder / IMPORTED_FOLDER / name
+            if candidate.is_file():
+                candidate.unlink()
+                deleted.append(candidate)
+    return deleted

@@ -95,7 +95,13 @@ def write_object_asset(cls: ObjectClass, folder: Path) -> AssetEntry:
                      f"{stage_schema.ASSET_COLOR_SHADER}.{stage_schema.ATTR_ASSET_COLOR}."),
         variants={stage_schema.VARIANT_SET_APPEARANCE: tuple(v.name for v in cls.variants)},
         default_variants={stage_schema.VARIANT_SET_APPEARANCE: default.name},
-        extent_min_m=lo, extent_max_m=hi, relations=cls.relations)  # type: ignore[arg-type]
+        extent_min_m=lo, extent_max_m=hi, relations=cls.relations,  # type: ignore[arg-type]
+        orientations=UPRIGHT_OBJECTS.get(cls.name, "any"))
+
+
+UPRIGHT_OBJECTS = {"coffee_cup": "upright_turned"}
+"""Orientation rules of the shipped object classes that may not be laid on a side (a cup
+spills); luggage keeps ``any``: people lay bags, even wheeled cases, into bins and under seats."""
 
 
 def write_cabin_asset(folder: Path, config: CabinConfig = CabinConfig()) -> AssetEntry:

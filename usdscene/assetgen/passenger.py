@@ -291,4 +291,5 @@ def write_passenger_asset(folder: Path) -> AssetEntry:
         default_variants={stage_schema.VARIANT_SET_POSE: DEFAULT_POSE,
                           stage_schema.VARIANT_SET_APPEARANCE: DEFAULT_APPEARANCE},
         extent_min_m=lo, extent_max_m=hi, relations=("is_on",),  # type: ignore[arg-type]
-        variant_places={stage_schema.VARIANT_SET_POSE: lap_places()})
+        variant_places={stage_schema.VARIANT_SET_POSE: lap_places()},
+        orientations="upright_turned")  # people sit; nobody is laid on a seat

@@ -69,6 +69,13 @@ def run(args: argparse.Namespace) -> int:
     if placed:
         console.print(f"  per class: {min(placed.values())}..{max(placed.values())} instance-frames "
                       f"over {len(placed)} classes")
+    left_out = coverage.get("classes_fitting_nowhere", [])
+    if left_out:
+        console.print(f"  left out, fitting no selected place (as their orientation rule allows): "
+                      f"{', '.join(left_out)}")
+    single = coverage.get("classes_without_variants", [])
+    if single:
+        console.print(f"  one appearance only, so not varied: {', '.join(single)}")
     console.print(f"  coverage: {coverage['covered']} of {coverage['combinations']} (class, relation, place) "
                   f"combinations")
     if coverage["uncovered_count"]:

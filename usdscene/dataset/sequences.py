@@ -60,6 +60,7 @@ from usdscene.scene.catalog import Catalog, Place, PlaceRegion, place_items
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Pose, Randomization, Relation, SceneObject, SceneSpec
 from usdscene.scene.placement import fits_region
+from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE
 
 log = logging.getLogger(__name__)
 
@@ -394,7 +395,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         plan = plan_balanced(combos, classes, n_frames, per_frame, taken, conflicts, rng)
 
     slots = _pool_indices(plan, options.strategy)
-    looks = _draw_looks(plan, slots, catalog, options, rng)
+    looks = _draw_looks(plan, slots, catalog, setup.environment, options, rng)
     seats = _dress_passengers(seated, plan, catalog, laps, rng)
     scene = _sequence_scene(setup, plan, slots, looks, seats, options)
     covered = {c for frame in plan for c in frame}
@@ -414,7 +415,22 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
                                      else frames_for_coverage(combos, classes, per_frame)),
         "classes_fitting_nowhere": sorted(set(options.classes or catalog.classes("object")) - set(classes)),
     }
+    single = _without_variants(catalog, classes, options)
+    if single:  # only then: reports of documents without such classes stay as they were
+        report["coverage"]["classes_without_variants"] = single
     return GeneratedSequence(scene=scene, report=report)
+
+
+def _without_variants(catalog: Catalog, classes: Sequence[str], options: GenerateOptions) -> list[str]:
+    """Classes ``appearance`` cannot vary (one appearance variant or none), warned about: a USD
+    file's variant sets on child prims are not lifted (see :mod:`usdscene.assetgen.asset_import`)."""
+    if options.strategy != "appearance":
+        return []
+    single = [c for c in classes if len(catalog[c].appearances) < 2]
+    for name in single:
+        log.warning("class %r has %d appearance variant(s); the appearance strategy cannot vary it",
+                    name, len(catalog[name].appearances))
+    return single
 
 
 def _most_combinations(combos: Sequence[Combination], classes: Sequence[str]) -> int:
@@ -493,11 +509,36 @@ def _random_color(rng: np.random.Generator) -> tuple[float, float, float]:
     return tuple(round(float(v), COLOR_DECIMALS) for v in rng.random(3))  # type: ignore[return-value]
 
 
-def _draw_looks(plan: list[list[Combination]], slots: list[list[int]], catalog: Catalog,
+def _variants_fitting_everywhere(plan: list[list[Combination]], slots: list[list[int]], catalog: Catalog,
+                                 environment: str) -> dict[tuple[str, int], tuple[str, ...]]:
+    """(class, pool index) → the appearance variants that fit every place region that pool
+    object visits, for classes whose variants differ in size (``variant_extents``). The
+    default variant fits them all (the plan is made with it), so it is the fallback."""
+    places = catalog.places(environment)
+    sizes: dict[tuple[str, int], set] = collections.defaultdict(set)
+    for frame, combos in enumerate(plan):
+        for combo, slot in zip(combos, slots[frame]):
+            # Lap places move with the passenger's pose; the placement checks those.
+            if catalog[combo.class_name].variant_extents and "/" not in combo.place:
+                sizes[(combo.class_name, slot)].add(tuple(places[combo.place].regions[combo.relation].size_m))
+    out = {}
+    for key, needed in sizes.items():
+        entry = catalog[key[0]]
+        out[key] = tuple(v for v in entry.appearances
+                         if all(fits_region(entry.for_variants({VARIANT_SET_APPEARANCE: v}), size) for size in needed)
+                         ) or (entry.default_appearance,)
+    return out
+
+
+def _draw_looks(plan: list[list[Combination]], slots: list[list[int]], catalog: Catalog, environment: str,
                 options: GenerateOptions, rng: np.random.Generator) -> list[list[tuple[str | None, tuple[float, float, float] | None]]]:
     """Per frame and instance: (appearance variant, colour). ``appearance`` draws one per
-    object of the pool (``slots``, see :func:`_pool_indices`), the others use the class default."""
+    object of the pool (``slots``, see :func:`_pool_indices`) among the variants that fit every
+    region the object visits, the others use the class default. A class that cannot be
+    recoloured gets no colour (a colour is drawn all the same, so later draws stay put)."""
     drawn: dict[tuple[str, int], tuple] = {}
+    fitting_variants = (_variants_fitting_everywhere(plan, slots, catalog, environment)
+                        if options.strategy == "appearance" else {})
     out = []
     for frame, combos in enumerate(plan):
         row = []
@@ -509,8 +550,10 @@ def _draw_looks(plan: list[list[Combination]], slots: list[list[int]], catalog: 
                 continue
             key = (combo.class_name, slot)
             if key not in drawn:
-                variant = variants[int(rng.integers(len(variants)))] if variants else None
-                drawn[key] = (variant, _random_color(rng))
+                fitting = fitting_variants.get(key, variants)
+                variant = fitting[int(rng.integers(len(fitting)))] if fitting else None
+                color = _random_color(rng)  # drawn for every class, so later draws do not move
+                drawn[key] = (variant, color if entry.recolourable else None)
             row.append(drawn[key])
         out.append(row)
     return out
@@ -847,8 +890,8 @@ def check_composes(scene: SceneSpec, catalog: Catalog) -> None:
     from usdscene.scene.placement import place_objects
 
     rng = np.random.default_rng(scene.seed)
-    draw_looks(scene, catalog, rng)
-    place_objects(scene, catalog, rng)
+    looks = draw_looks(scene, catalog, rng)
+    place_objects(scene, catalog, rng, appearances={uid: look[0] for uid, look in looks.items()})
 
 
 def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:

@@ -18,7 +18,11 @@ same generator (or by ``usdscene assets add``) and mirrors what composition need
           "extent_m": [[-0.16, -0.11, 0.0], [0.16, 0.11, 0.45]],  # asset frame, Z up
           "relations": ["is_on", "is_below", "is_in", "is_in_front_of"],
           "places": {},                           # see Place
-          "variant_places": {}                    # objects and passengers, see below
+          "variant_places": {},                   # objects and passengers, see below
+          "orientations": "any",                  # upright | upright_turned | any (default any)
+          "variant_extents": {"appearance": {"navy": [[...], [...]]}},  # when variants differ
+          "color_shader": "Looks/Body/Surface",   # shader a colour overrides; "" = none
+          "forward_axis": "-Y"                    # the source file's front, recorded
         }
       }
     }
@@ -48,11 +52,21 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from usdscene.document.model import Pose, SceneSpec
+from usdscene.document.stage_schema import ASSET_COLOR_SHADER
 from usdscene.errors import AssetError, ProblemCollector
 from usdscene.shipped import default_asset_folder
 
 CATALOG_FILE = "catalog.json"
 ASSET_KINDS = ("environment", "object", "passenger")
+
+ORIENTATION_RULES = ("upright", "upright_turned", "any")
+"""How placement may lay an object of a class: ``upright`` only as modelled (yaw noise only),
+``upright_turned`` also turned a quarter about its up axis, ``any`` also lying on a side when
+it does not fit upright (luggage under a seat). A catalog entry without the key is ``any``."""
+
+DEFAULT_COLOR_SHADER = ASSET_COLOR_SHADER
+"""Where a scene's colour goes unless the entry names another shader (``color_shader``): the
+library's ``Body`` material (:data:`usdscene.document.stage_schema.ASSET_COLOR_SHADER`)."""
 
 # Place region prim names in environment assets and the placement relation each serves.
 REGION_RELATIONS = {
@@ -115,6 +129,14 @@ class AssetEntry:
             when no ``variant_places`` entry applies.
         variant_places: variant set → variant → the support places (object coordinates) of
             that variant, replacing ``places`` when it is selected (see :meth:`places_for`).
+        orientations: placement rule, one of :data:`ORIENTATION_RULES`.
+        variant_extents: variant set → variant → (min (3,), max (3,)) bounds in metres of that
+            variant, for variants whose size or origin differ from the default's (``extent_*``
+            is the default variant's); see :meth:`for_variants`.
+        color_shader: prim path, relative to the asset's default prim, of the shader whose
+            ``inputs:diffuseColor`` a scene's colour sets; ``""`` = the class is not recoloured.
+        forward_axis: where the source file's front faced (Z up), before the import turned
+            it to -Y; recorded for the reader.
     """
 
     class_name: str
@@ -128,6 +150,28 @@ class AssetEntry:
     relations: tuple[str, ...] = ()
     places: Mapping[str, Place] = field(default_factory=dict)
     variant_places: Mapping[str, Mapping[str, Mapping[str, Place]]] = field(default_factory=dict)
+    orientations: str = "any"
+    variant_extents: Mapping[str, Mapping[str, tuple[tuple[float, float, float], tuple[float, float, float]]]] = \
+        field(default_factory=dict)
+    color_shader: str = DEFAULT_COLOR_SHADER
+    forward_axis: str = "-Y"
+
+    def for_variants(self, selection: Mapping[str, str | None] | None = None) -> "AssetEntry":
+        """This entry with the extent of the selected variants (``self`` when no selected
+        variant has an extent of its own): what placement and the fit test use."""
+        for set_name, by_variant in sorted(self.variant_extents.items()):
+            chosen = (selection or {}).get(set_name) or self.default_variants.get(set_name)
+            if chosen in by_variant:
+                lo, hi = by_variant[chosen]
+                if (tuple(lo), tuple(hi)) != (tuple(self.extent_min_m), tuple(self.extent_max_m)):
+                    return dataclasses.replace(self, extent_min_m=tuple(lo), extent_max_m=tuple(hi),
+                                               variant_extents={})
+        return self
+
+    @property
+    def recolourable(self) -> bool:
+        """Does a scene's colour reach a material of this class?"""
+        return bool(self.color_shader)
 
     def places_for(self, selection: Mapping[str, str] | None = None) -> Mapping[str, Place]:
         """The places of this asset with the given variants selected.
@@ -346,9 +390,30 @@ def _variant_places_from_json(raw: Mapping, variants: Mapping[str, tuple[str, ..
     return out
 
 
+def _variant_extents_from_json(raw: Mapping, variants: Mapping[str, tuple[str, ...]]) -> dict:
+    """``variant_extents`` read and checked against the entry's variant sets.
+
+    Raises:
+        ValueError: an unknown variant set or variant, or bounds that are not two triples.
+    """
+    out: dict = {}
+    for set_name, by_variant in raw.items():
+        for variant, bounds in by_variant.items():
+            if variant not in variants.get(set_name, ()):
+                raise ValueError(f"variant_extents.{set_name}.{variant}: not a variant of the entry")
+            lo, hi = bounds
+            if len(lo) != 3 or len(hi) != 3:
+                raise ValueError(f"variant_extents.{set_name}.{variant}: expected [[x, y, z], [x, y, z]]")
+            out.setdefault(set_name, {})[variant] = (tuple(float(v) for v in lo), tuple(float(v) for v in hi))
+    return out
+
+
 def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:
     lo, hi = raw.get("extent_m", [[0, 0, 0], [0, 0, 0]])
     variants = {k: tuple(v) for k, v in raw.get("variants", {}).items()}
+    orientations = str(raw.get("orientations", "any"))
+    if orientations not in ORIENTATION_RULES:
+        raise ValueError(f"orientations: {orientations!r} is not one of {', '.join(ORIENTATION_RULES)}")
     return AssetEntry(
         class_name=name,
         kind=str(raw["kind"]),
@@ -361,6 +426,10 @@ def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:
         relations=tuple(raw.get("relations", ())),
         places=_places_from_json(raw.get("places", {})),
         variant_places=_variant_places_from_json(raw.get("variant_places", {}), variants),
+        orientations=orientations,
+        variant_extents=_variant_extents_from_json(raw.get("variant_extents", {}), variants),
+        color_shader=str(raw.get("color_shader", DEFAULT_COLOR_SHADER)),
+        forward_axis=str(raw.get("forward_axis", "-Y")),
     )
 
 
@@ -381,6 +450,16 @@ def entry_to_json(entry: AssetEntry, folder: Path) -> dict:
     if entry.variant_places:
         out["variant_places"] = {set_name: {variant: _places_to_json(places) for variant, places in by_variant.items()}
                                  for set_name, by_variant in entry.variant_places.items()}
+    # Only what differs from the defaults: catalogs written before these keys stay byte-identical.
+    if entry.orientations != "any":
+        out["orientations"] = entry.orientations
+    if entry.variant_extents:
+        out["variant_extents"] = {set_name: {v: [list(lo), list(hi)] for v, (lo, hi) in by_variant.items()}
+                                  for set_name, by_variant in entry.variant_extents.items()}
+    if entry.color_shader != DEFAULT_COLOR_SHADER:
+        out["color_shader"] = entry.color_shader
+    if entry.forward_axis != "-Y":
+        out["forward_axis"] = entry.forward_axis
     return out
 
 
@@ -399,11 +478,15 @@ def places_for_catalog(places: Mapping[str, tuple[str, Mapping[str, PlaceRegion]
             for name, (kind, regions) in places.items()}
 
 
-_KIND_SUFFIX = re.compile(r"[_-]?[0-9]+[A-Za-z]?$")
+# The place's number: a last ``_``/``-`` part holding digits with up to two letters around
+# them (``03``, ``03A``, ``A3``, ``B12``), or digits ending the name (``row12``).
+_KIND_SUFFIX = re.compile(r"(?:[_-][A-Za-z]{0,2}[0-9]+[A-Za-z]{0,2}|[0-9]+[A-Za-z]?)$")
 
 
 def place_kind(place: str) -> str:
-    """Kind of a place from its name: ``bay_03`` → ``bay``, ``seat_03A`` → ``seat``."""
+    """Kind of a place from its name: the name without its number, letters of the number
+    included (row or seat letters): ``bay_03``, ``bay_A3``, ``bay_B12`` → ``bay``,
+    ``seat_03A`` → ``seat``, ``gate_12_bench_3`` → ``gate_12_bench``, ``row12`` → ``row``."""
     return _KIND_SUFFIX.sub("", place) or place
 
 

@@ -49,8 +49,9 @@ Conventions of the authored stage:
   ``/World/Lights``; the variant ``off`` has no lights, and further lighting rigs are further
   variants.
 * Objects: references are not instanceable (Blender realises instances badly). The colour
-  opinion goes to the asset's colour shader (``Looks/Body/Surface.inputs:diffuseColor``, see
-  :mod:`usdscene.document.stage_schema`), to ``primvars:displayColor`` for viewers and, exact, to
+  opinion goes to the asset's colour shader (the catalog entry's ``color_shader``, by default
+  ``Looks/Body/Surface``, ``.inputs:diffuseColor``, see :mod:`usdscene.document.stage_schema`;
+  a class without one gets no colour, with a warning), to ``primvars:displayColor`` for viewers and, exact, to
   ``userProperties:usdscene_color``.
 
 Everything random (appearance, colour, placement) is drawn from one
@@ -162,7 +163,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     _check_prim_names(scene)
     _check_asset_arcs(scene, catalog)
     choices = draw_looks(scene, catalog, rng)
-    placements = place_objects(scene, catalog, rng)
+    placements = place_objects(scene, catalog, rng, appearances={uid: look[0] for uid, look in choices.items()})
     resolved = resolved_scene(scene, placements, choices, catalog)
     try:
         ids = mask_ids(scene)
@@ -220,20 +221,35 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
     """uid → (appearance variant, colour) as composed.
 
     The first draws of a composition (document order), before placement; ``usdscene.dataset.sequences``
-    replays them to check that a generated document composes.
+    replays them to check that a generated document composes. A class that cannot be
+    recoloured (:attr:`usdscene.scene.catalog.AssetEntry.recolourable`) gets no colour.
     """
     out = {}
+    uncoloured: set[str] = set()
+    unvaried: set[str] = set()
     for obj in scene.objects:
         entry = catalog[obj.class_name]
         variants = entry.appearances
         appearance = obj.appearance
         if appearance is None and obj.randomization.random_appearance and variants:
             appearance = variants[int(rng.integers(len(variants)))]
+        if obj.randomization.random_appearance and len(variants) < 2 and obj.class_name not in unvaried:
+            log.warning("object %r asks for a random appearance, but class %r has %d appearance variant(s); "
+                        "its objects all look the same", obj.uid, obj.class_name, len(variants))
+            unvaried.add(obj.class_name)
         if appearance is None:
             appearance = entry.default_appearance
         color = obj.color_rgb
         if color is None and obj.randomization.random_color:
             color = tuple(float(v) for v in rng.random(3))
+        if color is not None and not entry.recolourable:
+            # A colour the asset cannot show must not reach the labels (drawn all the same, so
+            # the draws after it stay where they were).
+            if obj.class_name not in uncoloured:
+                log.warning("class %r names no colour material (catalog color_shader); the colour of %r "
+                            "and its class's other objects is not composed nor recorded", obj.class_name, obj.uid)
+                uncoloured.add(obj.class_name)
+            color = None
         out[obj.uid] = (appearance, tuple(float(c) for c in color) if color is not None else None)
     return out
 
@@ -667,7 +683,7 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
             color.SetInfo("interpolation", "constant")
             _attr(prim, ss.ATTR_USER_COLOR, T.Double3, Gf.Vec3d(*rgb), custom=True)
             shader = prim
-            for part in ss.ASSET_COLOR_SHADER.split("/"):
+            for part in entry.color_shader.split("/"):
                 shader = _prim(shader, part, specifier=Sdf.SpecifierOver)
             _attr(shader, ss.ATTR_ASSET_COLOR, T.Color3f, Gf.Vec3f(*rgb))
     return layer.ExportToString()

@@ -17,8 +17,10 @@ plane, origin at the face's centre), its axes are the region's axes and its size
 usable size. A box is a mesh node (its own bounding box in its local frame, times the node's
 scale); an empty stands for the cube from -1 to 1 on each axis of its frame (Blender's cube
 empty of display size 1), so scale the empty to the region. Files that are Y up or not in
-metres are converted: region frames come out Z up, in metres, with the box's own up axis
-(local +Y of a Y-up file) as the region's +Z.
+metres are converted: region frames come out Z up, in metres, with the box axis that points up
+after the conversion as the region's +Z (wherever the file put the Z-up → Y-up turn: in the
+vertices, in the nodes' transforms or in a rotated root); a box with no vertical axis is
+refused.
 
 Pure module (numpy): the format readers in :mod:`usdscene.assetgen.asset_import` hand it node names,
 matrices and local bounds.
@@ -26,6 +28,7 @@ matrices and local bounds.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Iterable
@@ -108,8 +111,19 @@ def file_to_world(up_axis: str, unit_scale_m: float) -> np.ndarray:
     return m
 
 
+VERTICAL_TOLERANCE_DEG = 1.0
+"""Most a place box's up axis may lean from the vertical after conversion (degrees): a region
+is a support surface, and a tilted one would leave objects floating at one end."""
+
+
 def region_from_box(box: PlaceBox, up_axis: str, unit_scale_m: float) -> PlaceRegion:
     """The catalog region (Z up, metres) of one box of a file.
+
+    The box's matrix and bounds are taken to the library's frame first; the box axis that
+    then points up (whichever local axis it is: a Y-up file may carry the Z-up → Y-up turn in
+    its vertices, in its nodes' transforms or in a rotated root) becomes the region's +Z, the
+    first of the two other axes (in x, y, z order, its positive direction) the region's +X.
+    So every valid way of writing one scene gives the same regions.
 
     Args:
         box: the box as read from the file.
@@ -117,29 +131,42 @@ def region_from_box(box: PlaceBox, up_axis: str, unit_scale_m: float) -> PlaceRe
         unit_scale_m: metres per file unit.
 
     Raises:
-        AssetError: the box is sheared, mirrored or flat (no usable size).
+        AssetError: the box is sheared, mirrored, flat (no usable size), or none of its axes
+            is vertical (within :data:`VERTICAL_TOLERANCE_DEG`), naming the node.
     """
-    to_world = file_to_world(up_axis, unit_scale_m)
-    up = np.eye(4)
-    up[:3, :3] = up_axis_rotation(up_axis)
-    # The box's local frame is a file frame too: express it Z up so that the box's own up
-    # axis becomes the region's +Z.
-    world = to_world @ np.asarray(box.matrix, dtype=np.float64) @ up.T
-    corners = np.array([[x, y, z] for x in (box.local_min[0], box.local_max[0])
-                        for y in (box.local_min[1], box.local_max[1])
-                        for z in (box.local_min[2], box.local_max[2])]) @ up[:3, :3].T
-    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    world = file_to_world(up_axis, unit_scale_m) @ np.asarray(box.matrix, dtype=np.float64)
     linear = world[:3, :3]
     scale = np.linalg.norm(linear, axis=0)
-    size = np.round((hi - lo) * scale, 4)
-    if np.any(scale < 1e-12) or np.any(size <= 0):
-        raise AssetError(f"place box {box.node!r} has no volume (size {size.tolist()} m)", where=box.node)
-    rotation = linear / scale
-    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-5) or np.linalg.det(rotation) < 0:
+    local_size = (np.asarray(box.local_max, float) - np.asarray(box.local_min, float)) * scale
+    if np.any(scale < 1e-12) or np.any(np.round(local_size, 4) <= 0):
+        raise AssetError(f"place box {box.node!r} has no volume (size {np.round(local_size, 4).tolist()} m)",
+                         where=box.node)
+    axes = linear / scale  # columns: the box's local axes in the library's frame
+    if not np.allclose(axes.T @ axes, np.eye(3), atol=1e-5) or np.linalg.det(axes) < 0:
         raise AssetError(f"place box {box.node!r} is sheared or mirrored; apply its transform's "
                          "rotation and scale without negative or non-uniform skew", where=box.node)
-    bottom = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2], 1.0])
-    origin = (world @ bottom)[:3]
+    up_index = int(np.argmax(np.abs(axes[2])))
+    if abs(axes[2, up_index]) < math.cos(math.radians(VERTICAL_TOLERANCE_DEG)):
+        tilt = math.degrees(math.acos(min(1.0, abs(axes[2, up_index]))))
+        raise AssetError(f"place box {box.node!r} has no vertical axis after conversion to Z up (the "
+                         f"closest leans {tilt:.1f}°); a region's bottom face must be level "
+                         "(check the file's up axis, --up-axis)", where=box.node)
+    up_sign = 1.0 if axes[2, up_index] > 0 else -1.0
+    x_index = min(i for i in range(3) if i != up_index)
+    y_index = 3 - up_index - x_index
+    # Region axes as signed local axes: +Z = the upward local axis, +X = the first other one,
+    # +Y = Z × X (a rotation, never a mirror).
+    z_axis = up_sign * axes[:, up_index]
+    x_axis = axes[:, x_index]
+    y_axis = np.cross(z_axis, x_axis)
+    y_sign = 1.0 if float(np.dot(y_axis, axes[:, y_index])) > 0 else -1.0
+    rotation = np.column_stack([x_axis, y_sign * axes[:, y_index], z_axis])
+    size = np.round(np.array([local_size[x_index], local_size[y_index], local_size[up_index]]), 4)
+    # The bottom face's centre, in the box's own coordinates.
+    lo, hi = np.asarray(box.local_min, float), np.asarray(box.local_max, float)
+    bottom = (lo + hi) / 2.0
+    bottom[up_index] = lo[up_index] if up_sign > 0 else hi[up_index]
+    origin = (world @ np.append(bottom, 1.0))[:3]
     # Rounding keeps catalog.json readable and free of float noise from the file's matrices.
     pose = Pose.from_rotation_translation(np.round(rotation, 9) + 0.0, np.round(origin, 6) + 0.0)
     relation = REGION_RELATIONS[box.region]

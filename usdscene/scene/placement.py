@@ -30,7 +30,11 @@ Rules, in order of precedence:
    support surface, with its height within the region's clearance.
 
    * Orientation: upright if it fits (also turned a quarter, which is tried too when packing),
-     else lying on a side (bags under seats and in bins lie down, as people put them).
+     else lying on a side (bags under seats and in bins lie down, as people put them), as far
+     as the class's rule allows (``orientations`` in the catalog: ``upright`` = as modelled,
+     ``upright_turned`` = also a quarter turn, ``any`` = also on a side).
+   * Extent: the object's chosen appearance variant's, when the catalog gives variants
+     extents of their own (``variant_extents``).
    * *Seated* assets, whose extent reaches below their origin (a passenger's origin is the hip
      contact on the cushion, the feet 0.45 m lower), rest on their origin instead: only the
      origin must lie inside the region, and only the part above the origin counts for
@@ -58,13 +62,14 @@ import collections
 import functools
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Iterable, Mapping
 
 import numpy as np
 
 from usdscene.scene.catalog import AssetEntry, Catalog
 from usdscene.errors import CompositionError, ProblemCollector
+from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE
 from usdscene.document.model import PLACEMENT_RELATIONS, Pose, RelationType, SceneObject, SceneSpec
 
 log = logging.getLogger(__name__)
@@ -466,8 +471,8 @@ class _State:
     size: tuple[float, float, float] | None
 
 
-def place_objects(scene: SceneSpec, catalog: Catalog,
-                  rng: np.random.Generator) -> dict[str, ObjectPlacement]:
+def place_objects(scene: SceneSpec, catalog: Catalog, rng: np.random.Generator,
+                  appearances: Mapping[str, str | None] | None = None) -> dict[str, ObjectPlacement]:
     """Resolve every object's pose in every frame it is present.
 
     Args:
@@ -475,6 +480,9 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
         catalog: asset catalog (extents of the classes, places of the environment).
         rng: the generator all random draws come from (draw order: frames ascending, then
             objects by support depth and document order).
+        appearances: uid → the appearance variant composition chose (drawn ones included);
+            objects left out use the document's ``appearance``. A variant with an extent of its
+            own (:meth:`usdscene.scene.catalog.AssetEntry.for_variants`) is placed with it.
 
     Returns:
         uid → :class:`ObjectPlacement`, in document order.
@@ -487,11 +495,62 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
 
     catalog = scene_catalog(catalog, scene)  # places the document declares itself
     check_placement_inputs(scene, catalog)
+    run = _Run(scene=scene, env_places=catalog.places(scene.environment) if scene.environment in catalog else {},
+               infos=_object_infos(scene, catalog, appearances), objects=scene.object_by_uid(),
+               places=scene.place_by_uid(), rng=rng,
+               explicit={o.uid: {f: p.matrix for f, p in o.frame_poses} for o in scene.objects})
+    order = sorted(run.infos.values(), key=lambda i: i.level)  # stable: document order per level
+    n_frames = len(scene.frames)
+    presence = np.array([info.present for info in order]).reshape(len(order), n_frames)  # (objects, frames)
+    spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
+    states: dict[str, _State] = {}
+    for fi in range(n_frames):
+        frame = _Frame(fi, scene.frame_start + fi)
+        present = [order[index] for index in np.flatnonzero(presence[:, fi]).tolist()]
+        pending = _keep_unchanged(run, frame, present, states)
+        _place_pending(run, frame, pending, states)
+        run.problems.raise_if_any(CompositionError)
+        _extend_spans(spans, frame, scene)
+        states.update(frame.done)
+    return _placements_from_spans(scene, spans)
+
+
+@dataclass
+class _Run:
+    """What one :func:`place_objects` call reads and keeps across frames."""
+
+    scene: SceneSpec
+    env_places: Mapping
+    infos: dict[str, "_Info"]
+    objects: Mapping[str, SceneObject]
+    places: Mapping
+    rng: np.random.Generator
+    explicit: dict[str, dict[int, tuple[float, ...]]]
+    warned_unplaced: set[str] = field(default_factory=set)
+    # (place name, relation) → (region → world (4, 4), size, label, that matrix as 16 floats):
+    # places do not move, and a few hundred of them serve tens of thousands of placements.
+    place_supports: dict = field(default_factory=dict)
+    problems: ProblemCollector = field(default_factory=ProblemCollector)
+
+
+@dataclass
+class _Frame:
+    """One frame being placed: its boxes, the objects done and every present object's key."""
+
+    index: int
+    frame: int
+    boxes: "_FrameBoxes" = field(default_factory=lambda: _FrameBoxes())
+    done: dict[str, "_State"] = field(default_factory=dict)
+    keys: dict[str, tuple] = field(default_factory=dict)  # uid → _key of every present object
+    shared: collections.Counter | None = None  # (target, relation) → users, on demand
+
+
+def _object_infos(scene: SceneSpec, catalog: Catalog,
+                  appearances: Mapping[str, str | None] | None) -> dict[str, "_Info"]:
+    """Per object: its entry (with the chosen variant's extent), presence, relation per frame
+    and support depth, in document order."""
     frame_start, n_frames = scene.frame_start, len(scene.frames)
     objects = scene.object_by_uid()
-    places = scene.place_by_uid()
-    env_places = catalog.places(scene.environment) if scene.environment in catalog else {}
-
     # Placement relations per subject, in document order (one pass: generated sequences hold
     # thousands of relations).
     by_subject: dict[str, list[int]] = collections.defaultdict(list)
@@ -500,7 +559,10 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
             by_subject[rel.subject_uid].append(index)
     infos: dict[str, _Info] = {}
     for obj in scene.objects:
-        entry = catalog[obj.class_name]
+        selection = object_variants(obj)
+        if appearances is not None and appearances.get(obj.uid) is not None:
+            selection[VARIANT_SET_APPEARANCE] = appearances[obj.uid]
+        entry = catalog[obj.class_name].for_variants(selection)
         rel_index = np.full(n_frames, -1, dtype=np.int64)
         present = _frame_mask(obj.frame_intervals, frame_start, n_frames)
         # Reverse document order so the first relation that holds wins.
@@ -512,127 +574,139 @@ def place_objects(scene: SceneSpec, catalog: Catalog,
     memo: dict[str, int] = {}
     for info in infos.values():
         info.level = _level(info.obj.uid, scene, objects, memo, by_subject)
-    order = sorted(infos.values(), key=lambda i: i.level)  # stable: document order per level
+    return infos
 
-    explicit: dict[str, dict[int, tuple[float, ...]]] = {
-        o.uid: {f: p.matrix for f, p in o.frame_poses} for o in scene.objects}
-    spans: dict[str, list[list]] = {o.uid: [] for o in scene.objects}
-    states: dict[str, _State] = {}
-    warned_unplaced: set[str] = set()
-    # (place name, relation) → (region → world (4, 4), size, label, that matrix as 16 floats):
-    # places do not move, and a few hundred of them serve tens of thousands of placements.
-    place_supports: dict[tuple[str, str], tuple[np.ndarray, tuple[float, float, float], str, tuple[float, ...]]] = {}
-    problems = ProblemCollector()
 
-    presence = np.array([info.present for info in order]).reshape(len(order), n_frames)  # (objects, frames)
-    for fi in range(n_frames):
-        frame = frame_start + fi
-        boxes = _FrameBoxes()
-        done: dict[str, _State] = {}
-        pending: list[_Info] = []
-        keys: dict[str, tuple] = {}  # uid → _key of every object present in this frame
-        # Phase A: objects that keep exactly what they had (same key, support unchanged).
-        for index in np.flatnonzero(presence[:, fi]).tolist():
-            info = order[index]
-            uid = info.obj.uid
-            key = keys[uid] = _key(info, fi, frame, scene, explicit)
-            prev = states.get(uid)
-            if prev is not None and prev.frame == frame - 1 and prev.key == key:
-                ri = int(info.relation_index[fi])
-                target = scene.relations[ri].object_uid if key[0] == "rel" else None
-                # A support object counts as unchanged only when it was itself carried over.
-                if target is None or target in places or target in done:
-                    state = _State(frame, key, prev.local, prev.world, prev.region, prev.label, prev.size)
-                    done[uid] = state
-                    boxes.add(uid, info, np.asarray(prev.world).reshape(4, 4), prev.label)
-                    continue
-            pending.append(info)
-        # Phase B: everything else, supports first.
-        shared = None  # (target, relation) → objects using that region in this frame, on demand
-        for info in pending:
-            uid = info.obj.uid
-            key = keys[uid]
-            if key[0] == "explicit":
-                world = key[1]
-                done[uid] = _State(frame, key, None, world, None, "", None)
-                boxes.add(uid, info, np.asarray(world).reshape(4, 4), "")
+def _keep_unchanged(run: _Run, frame: _Frame, present: list["_Info"],
+                    states: Mapping[str, "_State"]) -> list["_Info"]:
+    """Phase A: objects that keep exactly what they had (same key, support unchanged) are done;
+    returns the others, in placement order."""
+    pending = []
+    for info in present:
+        uid = info.obj.uid
+        key = frame.keys[uid] = _key(info, frame.index, frame.frame, run.scene, run.explicit)
+        prev = states.get(uid)
+        if prev is not None and prev.frame == frame.frame - 1 and prev.key == key:
+            ri = int(info.relation_index[frame.index])
+            target = run.scene.relations[ri].object_uid if key[0] == "rel" else None
+            # A support object counts as unchanged only when it was itself carried over.
+            if target is None or target in run.places or target in frame.done:
+                frame.done[uid] = _State(frame.frame, key, prev.local, prev.world, prev.region, prev.label, prev.size)
+                frame.boxes.add(uid, info, np.asarray(prev.world).reshape(4, 4), prev.label)
                 continue
-            if key[0] == "none":
-                if uid not in warned_unplaced:
-                    log.warning("object %r has neither a pose nor a placement relation at frame %d; "
-                                "it stays at the world origin", uid, frame)
-                    warned_unplaced.add(uid)
-                done[uid] = _State(frame, key, None, _IDENTITY, None, "", None)
-                boxes.add(uid, info, np.eye(4), "")
-                continue
-            rel = scene.relations[key[1]]
-            if rel.object_uid in places:
-                place_name = places[rel.object_uid].name
-                if (place_name, rel.type) not in place_supports:
-                    region = env_places[place_name].regions[rel.type]
-                    pose_m = region.pose.as_array()
-                    place_supports[(place_name, rel.type)] = (
-                        pose_m, tuple(float(v) for v in region.size_m), f"place {place_name!r} ({rel.type})",
-                        tuple(pose_m.reshape(16).tolist()))
-                region_pose, size, label, region_values = place_supports[(place_name, rel.type)]
-                exclude = None
-                upright_only = False
-            else:
-                region_values = None
-                target = done.get(rel.object_uid)
-                if target is None:
-                    problems.add(f"relations.{rel.uid}",
-                                 f"relation {rel.uid!r}: object {uid!r} {rel.type} object {rel.object_uid!r} "
-                                 f"at frame {frame}, but {rel.object_uid!r} is not present in that frame")
-                    continue
-                region_pose, size = object_support_region(rel.type, infos[rel.object_uid].entry,
-                                                          np.asarray(target.world).reshape(4, 4),
-                                                          object_variants(objects[rel.object_uid]))
-                label = f"object {rel.object_uid!r} ({rel.type})"
-                exclude = rel.object_uid
-                # On a declared support place (a lap) objects lie as modelled, never on an edge.
-                upright_only = infos[rel.object_uid].entry.declares_support(rel.type)
-            orientations = _orientations(info.entry, size, upright_only)
-            if not orientations:
-                lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
-                dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
-                problems.add(f"objects.{uid}", f"object {uid!r} ({info.obj.class_name}, {dims} m) does not fit "
-                                               f"{label} ({size[0]:.3f} × {size[1]:.3f} m, {size[2]:.3f} m "
-                                               "clearance) upright, turned or lying on a side")
-                continue
-            prev = states.get(uid)
-            placed = None  # (object → region, object → world)
-            if prev is not None and prev.frame == frame - 1 and prev.key == key and prev.local is not None:
-                # Follow a moved support while that stays collision free.
-                world_m = region_pose @ prev.local
-                if not boxes.collides(info, world_m, exclude, label):
-                    placed = prev.local, world_m
+        pending.append(info)
+    return pending
+
+
+def _place_pending(run: _Run, frame: _Frame, pending: list["_Info"], states: Mapping[str, "_State"]) -> None:
+    """Phase B: every other object, supports first: explicit poses, the origin for objects
+    without relation, and a sampled (or followed) pose in its support region."""
+    for info in pending:
+        uid = info.obj.uid
+        key = frame.keys[uid]
+        if key[0] == "explicit":
+            frame.done[uid] = _State(frame.frame, key, None, key[1], None, "", None)
+            frame.boxes.add(uid, info, np.asarray(key[1]).reshape(4, 4), "")
+            continue
+        if key[0] == "none":
+            if uid not in run.warned_unplaced:
+                log.warning("object %r has neither a pose nor a placement relation at frame %d; "
+                            "it stays at the world origin", uid, frame.frame)
+                run.warned_unplaced.add(uid)
+            frame.done[uid] = _State(frame.frame, key, None, _IDENTITY, None, "", None)
+            frame.boxes.add(uid, info, np.eye(4), "")
+            continue
+        rel = run.scene.relations[key[1]]
+        support = _support_of(run, frame, uid, rel)
+        if support is None:
+            continue
+        region_pose, size, label, region_values, exclude, upright_only = support
+        orientations = _orientations(info.entry, size, upright_only)
+        if not orientations:
+            run.problems.add(f"objects.{uid}", _no_fit_message(uid, info, label, size))
+            continue
+        placed = _follow_support(frame, info, states.get(uid), key, region_pose, exclude, label)
+        if placed is None:
+            frame.boxes.blockers.clear()
+            if frame.shared is None:
+                frame.shared = _region_users(frame.keys.values(), run.scene)
+            alone = frame.shared[(rel.object_uid, rel.type)] <= 1
+            placed = _sample(info, orientations, region_pose, size, run.rng, frame.boxes, exclude, label, alone)
             if placed is None:
-                boxes.blockers.clear()
-                if shared is None:
-                    shared = _region_users(keys.values(), scene)
-                alone = shared[(rel.object_uid, rel.type)] <= 1
-                placed = _sample(info, orientations, region_pose, size, rng, boxes, exclude, label, alone)
-                if placed is None:
-                    problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame, boxes))
-                    problems.raise_if_any(CompositionError)
-            local, world_m = placed
-            world = tuple(world_m.reshape(16).tolist())
-            if region_values is None:
-                region_values = tuple(region_pose.reshape(16).tolist())
-            done[uid] = _State(frame, key, local, world, region_values, label, size)
-            boxes.add(uid, info, world_m, label)
-        problems.raise_if_any(CompositionError)
-        for uid, state in done.items():
-            rel_uid = scene.relations[state.key[1]].uid if state.key[0] == "rel" else None
-            runs = spans[uid]
-            if runs and runs[-1][1] == frame - 1 and runs[-1][2] == state.world and runs[-1][3] == rel_uid:
-                runs[-1][1] = frame
-            else:
-                runs.append([frame, frame, state.world, rel_uid, state.label, state.region, state.size])
-        states.update(done)
+                run.problems.add(f"objects.{uid}", _overfull_message(uid, info, label, size, frame.frame, frame.boxes))
+                run.problems.raise_if_any(CompositionError)
+        local, world_m = placed
+        if region_values is None:
+            region_values = tuple(region_pose.reshape(16).tolist())
+        frame.done[uid] = _State(frame.frame, key, local, tuple(world_m.reshape(16).tolist()), region_values,
+                                 label, size)
+        frame.boxes.add(uid, info, world_m, label)
 
-    support_poses: dict[tuple[float, ...], Pose] = {}  # one Pose per support region: places serve thousands
+
+def _support_of(run: _Run, frame: _Frame, uid: str, rel) -> tuple | None:
+    """The support region of ``uid``'s relation in this frame: (region → world (4, 4), size,
+    label, region matrix as 16 floats or None, uid to ignore in collisions, upright only);
+    None (and a problem recorded) when the related object is absent."""
+    if rel.object_uid in run.places:
+        place_name = run.places[rel.object_uid].name
+        if (place_name, rel.type) not in run.place_supports:
+            region = run.env_places[place_name].regions[rel.type]
+            pose_m = region.pose.as_array()
+            run.place_supports[(place_name, rel.type)] = (
+                pose_m, tuple(float(v) for v in region.size_m), f"place {place_name!r} ({rel.type})",
+                tuple(pose_m.reshape(16).tolist()))
+        region_pose, size, label, region_values = run.place_supports[(place_name, rel.type)]
+        return region_pose, size, label, region_values, None, False
+    target = frame.done.get(rel.object_uid)
+    if target is None:
+        run.problems.add(f"relations.{rel.uid}",
+                         f"relation {rel.uid!r}: object {uid!r} {rel.type} object {rel.object_uid!r} "
+                         f"at frame {frame.frame}, but {rel.object_uid!r} is not present in that frame")
+        return None
+    target_entry = run.infos[rel.object_uid].entry
+    region_pose, size = object_support_region(rel.type, target_entry, np.asarray(target.world).reshape(4, 4),
+                                              object_variants(run.objects[rel.object_uid]))
+    # On a declared support place (a lap) objects lie as modelled, never on an edge.
+    return (region_pose, size, f"object {rel.object_uid!r} ({rel.type})", None, rel.object_uid,
+            target_entry.declares_support(rel.type))
+
+
+def _follow_support(frame: _Frame, info: "_Info", prev: "_State | None", key: tuple, region_pose: np.ndarray,
+                    exclude: str | None, label: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Keep the previous frame's pose relative to a moved support while that stays collision
+    free: (object → region, object → world), or None."""
+    if prev is None or prev.frame != frame.frame - 1 or prev.key != key or prev.local is None:
+        return None
+    world_m = region_pose @ prev.local
+    if frame.boxes.collides(info, world_m, exclude, label):
+        return None
+    return prev.local, world_m
+
+
+def _no_fit_message(uid: str, info: "_Info", label: str, size: tuple[float, float, float]) -> str:
+    lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
+    dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
+    ways = {"upright": "upright", "upright_turned": "upright or turned",
+            "any": "upright, turned or lying on a side"}[info.entry.orientations]
+    return (f"object {uid!r} ({info.obj.class_name}, {dims} m) does not fit {label} ({size[0]:.3f} × "
+            f"{size[1]:.3f} m, {size[2]:.3f} m clearance) {ways}")
+
+
+def _extend_spans(spans: dict[str, list[list]], frame: _Frame, scene: SceneSpec) -> None:
+    """Append this frame's poses to the runs of equal poses per object."""
+    for uid, state in frame.done.items():
+        rel_uid = scene.relations[state.key[1]].uid if state.key[0] == "rel" else None
+        runs = spans[uid]
+        if runs and runs[-1][1] == frame.frame - 1 and runs[-1][2] == state.world and runs[-1][3] == rel_uid:
+            runs[-1][1] = frame.frame
+        else:
+            runs.append([frame.frame, frame.frame, state.world, rel_uid, state.label, state.region, state.size])
+
+
+def _placements_from_spans(scene: SceneSpec, spans: Mapping[str, list[list]]) -> dict[str, ObjectPlacement]:
+    """uid → :class:`ObjectPlacement` in document order; one Pose per support region (places
+    serve thousands)."""
+    support_poses: dict[tuple[float, ...], Pose] = {}
 
     def support_pose(region: tuple[float, ...]) -> Pose:
         if region not in support_poses:
@@ -781,7 +855,8 @@ def fits_region(entry: AssetEntry, size_m: tuple[float, float, float], upright_o
     """Can an object of this class rest alone in a support region of this size?
 
     The same test :func:`place_objects` applies before sampling (upright, turned a quarter or
-    lying on a side), so a region that passes holds one such object whatever the noise draws.
+    lying on a side, as the class's orientation rule allows), so a region that passes holds one
+    such object whatever the noise draws. Pass ``entry.for_variants(...)`` to test one variant.
 
     Args:
         entry: catalog entry of the object's class.
@@ -796,17 +871,19 @@ def _orientations(entry: AssetEntry, size: tuple[float, float, float],
                   upright_only: bool = False) -> tuple[_Orientation, ...]:
     """Every orientation that fits the region, preferred first: upright, upright turned a
     quarter, then lying on a side (a bag too tall for the space under a seat is laid down, as
-    people do), unless ``upright_only``. Seated assets stay upright and only their part above
+    people do), as far as the class's rule (``entry.orientations``) allows, and never lying
+    with ``upright_only``. Seated assets stay upright and only their part above
     the origin counts for clearance.
 
     Cached per (extent, region size, rule): generating asks for the same few sizes tens of
     thousands of times. The orientations are shared; callers must not change them."""
-    return _orientations_of_extent(tuple(entry.extent_min_m), tuple(entry.extent_max_m), size, upright_only)
+    rule = "upright_turned" if upright_only and entry.orientations == "any" else entry.orientations
+    return _orientations_of_extent(tuple(entry.extent_min_m), tuple(entry.extent_max_m), size, rule)
 
 
 @functools.lru_cache(maxsize=4096)
 def _orientations_of_extent(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...],
-                            size: tuple[float, float, float], upright_only: bool) -> tuple[_Orientation, ...]:
+                            size: tuple[float, float, float], rule: str) -> tuple[_Orientation, ...]:
     lo0 = np.asarray(extent_min_m, dtype=np.float64)
     hi0 = np.asarray(extent_max_m, dtype=np.float64)
     seated = bool(lo0[2] < 0.0)  # as _seated(entry)
@@ -828,9 +905,12 @@ def _orientations_of_extent(extent_min_m: tuple[float, ...], extent_max_m: tuple
             orientation = _Orientation(rot, lo, hi, yaw, seated, corners)
             if _footprint_range(orientation, 0.0, size) is not None:
                 fitting.append(orientation)
-    # Lying down is only for objects that do not fit upright.
+    # Lying down is only for objects that do not fit upright, and only for classes whose rule
+    # allows it (a vehicle on its side is no training image).
     upright = tuple(o for o in fitting if o.rotation is _LAY_ROTATIONS[0] or o.seated)
-    return upright if upright or upright_only else tuple(fitting)
+    if rule == "upright":
+        return tuple(o for o in upright if o.yaw_rad == 0.0)
+    return upright if upright or rule != "any" else tuple(fitting)
 
 
 def _footprint_range(orientation: _Orientation, yaw_rad: float, size: tuple[float, float, float]):
