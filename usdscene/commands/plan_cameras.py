@@ -59,12 +59,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.setup or not args.out:
         return _usage("plan-cameras needs --setup SETUP_DOC and -o PLAN_DIR (or --verify PLAN_DIR)")
-    from usdscene.design.camera_design import DEFAULT_TARGETS, plan_cameras
+    from usdscene.design.camera_design import plan_cameras
 
-    result = plan_cameras(args.setup, args.out, targets=args.targets or DEFAULT_TARGETS, mounts=args.mounts,
-                          spacing_m=args.spacing, lenses_file=args.lenses, lens_names=args.lens, k=args.k,
-                          dori=args.dori, dori_table_file=args.dori_table, occluders=args.occluders,
-                          min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit)
+    result = plan_cameras(plan_request(args), args.out)
     s = result.coverage["summary"]
     sel = result.selection
     console.print(f"planned {s['cameras']} cameras from {s['candidates']} candidates ({s['mounts']} mounts) "
@@ -79,6 +76,16 @@ def run(args: argparse.Namespace) -> int:
     console.print(f"  outputs: {args.out}/cameras.openlabel.json, coverage.json, coverage.png")
     console.print(f"  next:    usdscene plan-cameras --verify {args.out}")
     return 0
+
+
+def plan_request(args: argparse.Namespace):
+    """The :class:`usdscene.design.plan_request.PlanRequest` of parsed arguments (checked)."""
+    from usdscene.design.plan_request import PlanRequest
+
+    return PlanRequest.build(args.setup, targets=args.targets, mounts=args.mounts, spacing_m=args.spacing,
+                             lenses_file=args.lenses, lens_names=args.lens, k=args.k, dori=args.dori,
+                             dori_table_file=args.dori_table, occluders=args.occluders,
+                             min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit)
 
 
 def _usage(message: str) -> int:

@@ -40,6 +40,7 @@ from usdscene.design.candidates import candidate_cameras, candidate_mounts
 from usdscene.design.lenses import Lens, load_lenses
 from usdscene.design.occluders import Occluders, RAY_MARGIN_M
 from usdscene.design.plan_picture import plan_picture
+from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
 from usdscene.design.visibility import Visibility, coverage_matrix, evaluate_visibility
@@ -49,14 +50,12 @@ from usdscene.document.model import Camera, Relation, SceneObject, SceneSpec, Pl
 
 log = logging.getLogger(__name__)
 
-OCCLUDER_MODES = ("worst-case", "setup")
 CAMERAS_FILE = "cameras.openlabel.json"
 COVERAGE_FILE = "coverage.json"
 PLAN_PICTURE = "coverage.png"
 OCCLUDER_STAGE_DIR = "occluders"
 VERIFY_DIR = "verify"
 VERIFY_FILE = "verification.json"
-DEFAULT_TARGETS = ("*:on,below,in_front,in",)
 
 
 @dataclass(frozen=True)
@@ -137,37 +136,18 @@ def _read_setup(document: Path):
     return setup, scene_catalog(catalog, setup)
 
 
-def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
-                 targets: Sequence[str] = DEFAULT_TARGETS, mounts: str = "auto", spacing_m: float = 0.8,
-                 lenses_file: str | Path | None = None, lens_names: Sequence[str] | None = None,
-                 k: int = 1, dori: str = "observe", dori_table_file: str | Path | None = None,
-                 occluders: str = "worst-case", min_visible: float = 0.25, aims: int = 4,
-                 target_spacing_m: float = 0.2, time_limit_s: float = 60.0) -> PlanResult:
+def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     """Plan the smallest camera set that covers the targets, and write the plan folder.
 
     Args:
-        setup_document: OpenLABEL setup (environment, optional cameras, lights, render).
+        request: what to plan (:class:`usdscene.design.plan_request.PlanRequest`).
         out_dir: plan folder (created).
-        targets: ``PLACE_GLOB:REGION,...`` or ``box:NAME:x0,y0,z0,x1,y1,z1`` specs.
-        mounts: ``auto`` (ceiling and wall positions every ``spacing_m``) or ``setup``
-            (re-score the setup's own cameras; lenses are then the cameras' own).
-        spacing_m: mount grid spacing, metres.
-        lenses_file: user lens catalog extending the shipped one.
-        lens_names: catalog lenses to try (default: all).
-        k: cameras each target needs.
-        dori: required image-detail class name.
-        dori_table_file: DORI table replacing the shipped IEC 62676-4:2015 one.
-        occluders: ``worst-case`` or ``setup`` (:func:`occluder_scene`).
-        min_visible: fraction of a target's points a camera must see to count.
-        aims: target-cluster aims per mount (besides the surface normal).
-        target_spacing_m: spacing of the sample points in each target region.
-        time_limit_s: MILP time limit, seconds.
 
     Returns:
         A :class:`PlanResult`.
 
     Raises:
-        DocumentError: bad document, arguments, lens or DORI file (every problem at once
+        DocumentError: bad document, request, lens or DORI file (every problem at once
             where possible).
         OutputError: the output document fails the official OpenLABEL schema.
     """
@@ -177,21 +157,20 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
 
     seconds: dict[str, float] = {}
     started = time.perf_counter()
-    document, out = Path(setup_document), Path(out_dir)
-    _check_numbers(k=k, min_visible=min_visible, spacing_m=spacing_m, target_spacing_m=target_spacing_m,
-                   aims=aims, time_limit_s=time_limit_s)
-    if mounts not in ("auto", "setup"):
-        raise DocumentError(f"unknown mounts {mounts!r}; expected 'auto' or 'setup'", where="--mounts")
-    specs = [parse_target_spec(s) for s in targets]
-    table = load_dori(dori_table_file)
+    document, out = Path(request.setup_document), Path(out_dir)
+    request.check()
+    mounts, k, dori = request.mounts, request.k, request.dori
+    specs = [parse_target_spec(s) for s in request.targets]
+    table = load_dori(request.dori_table_file)
     required = class_index(dori, table, where="--dori")
     setup, catalog = _read_setup(document)
-    lenses = _pick_lenses(load_lenses(lenses_file), lens_names) if mounts == "auto" else []
+    lenses = _pick_lenses(load_lenses(request.lenses_file), request.lens_names) if mounts == "auto" else []
     if mounts == "setup" and not setup.cameras:
         raise DocumentError("--mounts setup re-scores the setup's cameras, but the document has none",
                             where=str(document))
-    scene = occluder_scene(setup, catalog, occluders)
-    target_list = targets_from_places(catalog.places(setup.environment), specs, spacing_m=target_spacing_m)
+    scene = occluder_scene(setup, catalog, request.occluders)
+    target_list = targets_from_places(catalog.places(setup.environment), specs,
+                                      spacing_m=request.target_spacing_m)
     seconds["targets"] = time.perf_counter() - started
 
     t = time.perf_counter()
@@ -207,19 +186,19 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
         mount_count = len(candidates)
     else:
         lo, hi = occ.bounds_m
-        mount_list = candidate_mounts(occ, lo, hi, spacing_m=spacing_m)
-        candidates = candidate_cameras(mount_list, target_list, lenses, aims=aims)
+        mount_list = candidate_mounts(occ, lo, hi, spacing_m=request.spacing_m)
+        candidates = candidate_cameras(mount_list, target_list, lenses, aims=request.aims)
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
     visibility = evaluate_visibility(candidates, target_list, occ, table)
-    cover = coverage_matrix(visibility, min_visible=min_visible, min_dori=required)
+    cover = coverage_matrix(visibility, min_visible=request.min_visible, min_dori=required)
     seconds["visibility"] = time.perf_counter() - t
 
     t = time.perf_counter()
     weights = np.where(cover, visibility.px_per_m, 0.0).sum(axis=1)
-    selection = select_cameras(cover, k, time_limit_s=time_limit_s, weights=weights)
+    selection = select_cameras(cover, k, time_limit_s=request.time_limit_s, weights=weights)
     seconds["select"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -229,12 +208,8 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
                         os.path.relpath((document.resolve().parent / p).resolve(), out.resolve())
                         for p in setup.asset_paths)
     planned = dataclasses.replace(setup, cameras=tuple(chosen), asset_paths=asset_paths)
-    request = {"setup": document.name, "targets": list(targets), "mounts": mounts, "spacing_m": spacing_m,
-               "lenses": [lens.name for lens in lenses], "k": k, "dori": dori, "min_visible": min_visible,
-               "occluders": occluders, "aims": aims, "target_spacing_m": target_spacing_m,
-               "dori_table": [{"name": c.name, "px_per_m": c.px_per_m} for c in table]}
-    report = coverage_report(request, target_list, candidates, chosen, selection, visibility, cover, table,
-                             mount_count)
+    report = coverage_report(request.record([lens.name for lens in lenses], table), target_list, candidates,
+                             chosen, selection, visibility, cover, table, mount_count)
     out.mkdir(parents=True, exist_ok=True)
     write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
@@ -250,22 +225,6 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
     seconds["write"] = time.perf_counter() - t
     return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
                       seconds, occ.backend)
-
-
-def _check_numbers(**values: float) -> None:
-    from usdscene.errors import ProblemCollector
-
-    problems = ProblemCollector()
-    limits = {"k": (1, None), "min_visible": (0.0, 1.0), "spacing_m": (0.05, None),
-              "target_spacing_m": (0.01, None), "aims": (0, None), "time_limit_s": (0.1, None)}
-    for name, value in values.items():
-        lo, hi = limits[name]
-        if not math.isfinite(value) or value < lo or (hi is not None and value > hi):
-            span = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-            problems.add(f"--{name.replace('_', '-')}", f"expected a number {span}, got {value!r}")
-    if "min_visible" in values and values["min_visible"] == 0:
-        problems.add("--min-visible", "0 would let a camera that sees nothing count; use a positive fraction")
-    problems.raise_if_any(DocumentError)
 
 
 def _pick_lenses(catalog: Mapping[str, Lens], names: Sequence[str] | None) -> list[Lens]:
