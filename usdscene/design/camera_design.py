@@ -36,15 +36,18 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.design.candidates import candidate_cameras, candidate_mounts
+from usdscene.design.candidates import Mount, candidate_cameras, candidate_mounts, open_air_mounts
+from usdscene.design.mount_surfaces import mount_surfaces
+from usdscene.design.user_mounts import load_mounts
 from usdscene.design.lenses import Lens, load_lenses
 from usdscene.design.occluders import Occluders, RAY_MARGIN_M
 from usdscene.design.plan_picture import plan_picture
 from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
-from usdscene.design.visibility import Visibility, coverage_matrix, evaluate_visibility
-from usdscene.labels.pixel_density import DoriClass, class_index, load_dori, pixel_density
+from usdscene.design.visibility import Uncovered, Visibility, coverage_matrix, evaluate_visibility, why_uncovered
+from usdscene.labels.pixel_density import (STANDARD_FILES, DoriClass, class_index, load_dori, pixel_density,
+                                           standard_file, table_standard)
 from usdscene.errors import DocumentError, OutputError
 from usdscene.document.model import Camera, Relation, SceneObject, SceneSpec, PlaceRef
 
@@ -127,6 +130,25 @@ def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def scene_geometry(stage_path: Path, frame: int):
+    """The composed stage's world triangles (as :func:`stage_triangles`), their mountability
+    (:func:`usdscene.design.mount_surfaces.mount_surfaces`) and the environment's mount nodes.
+
+    Returns:
+        ((T, 3, 3) float64 triangles in metres, MountSurfaces, list of (name, (3,) position m,
+        (3,) facing)).
+    """
+    from usdscene.scene.stage_geometry import StageGeometry, environment_meshes, mount_nodes
+
+    geometry = StageGeometry(stage_path)
+    meshes = environment_meshes(geometry.stage, frame)
+    objects = list(geometry.triangles(frame).values())
+    parts = [m.triangles_m for m in meshes] + objects
+    triangles = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+    surfaces = mount_surfaces(meshes, sum(len(o) for o in objects))
+    return triangles, surfaces, mount_nodes(geometry.stage, frame)
+
+
 def _read_setup(document: Path):
     from usdscene.scene.catalog import load_catalog, scene_catalog
     from usdscene.converters.openlabel import read_openlabel
@@ -159,12 +181,15 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     started = time.perf_counter()
     document, out = Path(request.setup_document), Path(out_dir)
     request.check()
-    mounts, k, dori = request.mounts, request.k, request.dori
+    mounts, k, dori = request.mounts, request.k, request.level
     specs = [parse_target_spec(s) for s in request.targets]
-    table = load_dori(request.dori_table_file)
-    required = class_index(dori, table, where="--dori")
+    table_file = request.dori_table_file or standard_file(request.standard)
+    table = load_dori(table_file)
+    standard_name = table_standard(table_file)
+    required = _required_class(dori, table, standard_name, request.dori_table_file is None)
+    user_mounts = load_mounts(mounts) if mounts not in ("auto", "setup") else []
     setup, catalog = _read_setup(document)
-    lenses = _pick_lenses(load_lenses(request.lenses_file), request.lens_names) if mounts == "auto" else []
+    lenses = _pick_lenses(load_lenses(request.lenses_file), request.lens_names) if mounts != "setup" else []
     if mounts == "setup" and not setup.cameras:
         raise DocumentError("--mounts setup re-scores the setup's cameras, but the document has none",
                             where=str(document))
@@ -176,7 +201,7 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     t = time.perf_counter()
     # No cameras in the occluder stage: they do not block anything and the planner adds its own.
     composed = compose_stage(dataclasses.replace(scene, cameras=()), catalog, out / OCCLUDER_STAGE_DIR)
-    triangles = stage_triangles(composed.root_layer, scene.frame_start)
+    triangles, surfaces, nodes = scene_geometry(composed.root_layer, scene.frame_start)
     occ = Occluders(triangles)
     seconds["compose"] = time.perf_counter() - t
 
@@ -185,8 +210,18 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
         candidates = list(setup.cameras)
         mount_count = len(candidates)
     else:
-        lo, hi = occ.bounds_m
-        mount_list = candidate_mounts(occ, lo, hi, spacing_m=request.spacing_m)
+        if mounts == "auto":
+            lo, hi = occ.bounds_m
+            structure = Occluders(triangles[surfaces.mountable])
+            mount_list = candidate_mounts(occ, lo, hi, spacing_m=request.spacing_m, surfaces=surfaces,
+                                          structure=structure)
+            if request.pole_heights_m:
+                mount_list += open_air_mounts(occ, triangles, surfaces, lo, hi, heights_m=request.pole_heights_m,
+                                              spacing_m=request.pole_spacing_m)
+            mount_list += [Mount(tuple(float(v) for v in p), "node", tuple(float(v) for v in f), (), name)
+                           for name, p, f in nodes]
+        else:
+            mount_list = user_mounts
         candidates = candidate_cameras(mount_list, target_list, lenses, aims=request.aims)
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
@@ -208,8 +243,10 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
                         os.path.relpath((document.resolve().parent / p).resolve(), out.resolve())
                         for p in setup.asset_paths)
     planned = dataclasses.replace(setup, cameras=tuple(chosen), asset_paths=asset_paths)
-    report = coverage_report(request.record([lens.name for lens in lenses], table), target_list, candidates,
-                             chosen, selection, visibility, cover, table, mount_count)
+    why = why_uncovered(visibility, selection.uncoverable, min_visible=request.min_visible,
+                        candidates=len(candidates))
+    report = coverage_report(request.record([lens.name for lens in lenses], table, standard_name), target_list,
+                             candidates, chosen, selection, visibility, cover, table, mount_count, why)
     out.mkdir(parents=True, exist_ok=True)
     write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
@@ -218,13 +255,28 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     best = np.where(cover[picked], visibility.dori[picked], -1).max(axis=0) if picked else \
         np.full(len(target_list), -1)
     title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
-             f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori}, "
+             f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori} "
+             f"({standard_name}), "
              f"{len(selection.uncoverable)} uncoverable by any candidate")
     picture = plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
     write_png_atomic(out / PLAN_PICTURE, picture)
     seconds["write"] = time.perf_counter() - t
     return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
                       seconds, occ.backend)
+
+
+def _required_class(name: str, table, standard_name: str, shipped: bool) -> int:
+    """Index of the required class; a class of the other shipped edition gets a hint."""
+    try:
+        return class_index(name, table, where="--dori")
+    except DocumentError:
+        if shipped:
+            for edition, file in STANDARD_FILES.items():
+                if any(c.name == name for c in load_dori(file)):
+                    raise DocumentError(
+                        f"{name!r} is a class of {table_standard(file)}, not of {standard_name}; add --standard "
+                        f"{edition}, or name one of {', '.join(c.name for c in table)}", where="--dori") from None
+        raise
 
 
 def _pick_lenses(catalog: Mapping[str, Lens], names: Sequence[str] | None) -> list[Lens]:
@@ -256,11 +308,14 @@ def _round(value: float, digits: int = 4) -> float:
 
 def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Sequence[Camera],
                     chosen: Sequence[Camera], selection: Selection, visibility: Visibility,
-                    cover: np.ndarray, table: Sequence[DoriClass], mount_count: int) -> dict:
+                    cover: np.ndarray, table: Sequence[DoriClass], mount_count: int,
+                    why: Sequence[Uncovered] = ()) -> dict:
     """The ``coverage.json`` content: request, summary, per target, per chosen camera.
 
     Per (camera, target) pair the visible fraction, the median px/m over the visible points
-    and its DORI class; ``covers`` says whether the pair meets the requirement.
+    and its DORI class; ``covers`` says whether the pair meets the requirement. ``why``
+    (:func:`usdscene.design.visibility.why_uncovered`, one per uncoverable target) becomes
+    ``summary.why_uncoverable``: per target the reason and the best class any candidate reaches.
     """
     picked = list(selection.chosen)
     names = {c: chosen[i].name for i, c in enumerate(picked)}
@@ -301,6 +356,8 @@ def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Seq
         "targets_covered": len(targets) - len(holes), "holes": holes,
         "uncoverable": [targets[t].name for t in selection.uncoverable],
         "short_of_k": [targets[t].name for t in selection.short],
+        "why_uncoverable": {targets[u.target].name: {"reason": u.reason, "best_dori": table[u.best_dori].name
+                                                     if u.best_dori >= 0 else None} for u in why},
     }
     return {"format": "usdscene-coverage", "version": 1, "request": dict(request), "summary": summary,
             "cameras": camera_rows, "targets": target_rows}
