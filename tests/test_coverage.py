@@ -199,7 +199,7 @@ def rescored(room_setup):
     from usdscene.design.camera_design import plan_cameras
 
     root, document = room_setup
-    return plan_cameras(PlanRequest.build(document, targets=["spot_*:on"], mounts="setup", dori="monitor",
+    return plan_cameras(PlanRequest.build(document, targets=["spot_*:on"], mounts="setup", dori="monitor", standard="2015",
                                           occluders="setup", target_spacing_m=0.1), root / "rescored")
 
 
@@ -244,7 +244,7 @@ def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(ro
     lenses.write_text(json.dumps({"lenses": {"small_wide": {
         "model": "perspective", "focal_length_mm": 2.8, "sensor_width_mm": 4.8, "resolution_px": [160, 120]}}}))
     request = PlanRequest.build(document, targets=["spot_*:on"], lenses_file=lenses, lens_names=["small_wide"],
-                                dori="monitor", occluders="setup", spacing_m=1.0)
+                                dori="monitor", standard="2015", occluders="setup", spacing_m=1.0)
     plan = plan_cameras(request, root / "auto")
     assert plan.coverage["summary"]["holes"] == [] and 1 <= len(plan.chosen) <= 2
     written = json.loads((root / "auto" / "cameras.openlabel.json").read_text())
@@ -269,7 +269,7 @@ def test_predicted_and_rendered_visibility_agree(room_setup, monkeypatch):
     # The plan document in root/both names ../assets: outside its folder, so consent to root.
     monkeypatch.setenv("USDSCENE_ASSET_PATH", str(root))
     # Re-score both wall cameras at k = 2 so that the blocked west camera is part of the plan.
-    plan_cameras(PlanRequest.build(document, targets=["spot_*:on"], mounts="setup", dori="monitor",
+    plan_cameras(PlanRequest.build(document, targets=["spot_*:on"], mounts="setup", dori="monitor", standard="2015",
                                    occluders="setup", target_spacing_m=0.1, k=2), root / "both")
     result = verify_plan(root / "both", resolution_scale=1.0, samples=1, marker_radius_m=0.06, progress=False)
     pairs = {(p["camera"], p["target"]): p for p in result.report["pairs"]}
