@@ -146,6 +146,20 @@ def test_a_bad_mounts_file_names_every_problem(tmp_path):
     assert np.allclose(mount.aims[0], np.array([0, 10, -5]) / np.linalg.norm([0, 10, -5]))
 
 
+def test_a_point_beyond_the_image_border_is_not_seen_in_the_render():
+    from usdscene.design.camera_design import _rendered_points
+
+    # Looking down +z from the origin; the first point projects 40 px above the image, the
+    # second onto its centre. The mask holds the target's id everywhere but the centre.
+    cam = Camera("c", Intrinsics(LensModel.PERSPECTIVE, 64, 48, 40.0, 40.0, 31.5, 23.5))
+    mask = np.full((48, 64), 7, np.uint16)
+    mask[20:28, 28:36] = 0
+    pts = np.array([[0.0, -1.6, 1.0], [0.0, 0.0, 1.0]])
+    assert _rendered_points(cam, pts, mask, 7, 0.01).tolist() == [False, False]
+    mask[20:28, 28:36] = 7
+    assert _rendered_points(cam, pts, mask, 7, 0.01).tolist() == [False, True]
+
+
 # --------------------------------------------------------------------------------------------
 # The open lot, composed and planned
 

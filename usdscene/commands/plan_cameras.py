@@ -52,6 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
                         help="render size of --verify relative to the cameras' resolution (0.5)")
     parser.add_argument("--verify-samples", type=positive_int, default=1, metavar="N", help="Cycles samples of --verify (1)")
+    parser.add_argument("--marker-radius", type=float, default=0.02, metavar="M",
+                        help="radius of the target markers of --verify in metres (0.02; larger for distant "
+                             "open-air targets, so that a marker covers a pixel)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
             return _usage("--verify PLAN_DIR takes no --setup or -o")
         from usdscene.design.camera_design import VERIFY_DIR, verify_plan
 
-        result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples)
+        result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples,
+                             marker_radius_m=args.marker_radius)
         console.print(f"verified {args.verify}: {result.agreeing}/{result.pairs} (camera, target) pairs agree "
                       f"({100 * result.agreement:.1f} %, visible fractions within {result.tolerance:g}); "
                       f"{result.points_agreeing}/{result.points} target points agree")

@@ -569,6 +569,10 @@ def _rendered_points(camera: Camera, points_m: np.ndarray, mask: np.ndarray, mas
     for i in np.flatnonzero(ok):
         r = max(1, int(math.ceil(density[i] * radius_m)))
         u, v = int(round(uv[i, 0])), int(round(uv[i, 1]))
-        window = mask[max(0, v - r):min(h, v + r + 1), max(0, u - r):min(w, u + r + 1)]
-        out[i] = bool(window.size) and bool((window == mask_id).any())
+        v0, v1, u0, u1 = max(0, v - r), min(h, v + r + 1), max(0, u - r), min(w, u + r + 1)
+        # A point beyond the image border projects to an empty window (a negative end would
+        # wrap around in numpy and look at the far side of the image).
+        if v1 <= v0 or u1 <= u0:
+            continue
+        out[i] = bool((mask[v0:v1, u0:u1] == mask_id).any())
     return out
