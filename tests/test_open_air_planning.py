@@ -274,3 +274,18 @@ def test_open_air_plan_agrees_with_its_cycles_render(open_lot, lot_plan, monkeyp
     result = verify_plan(root / "plan", resolution_scale=1.0, samples=1, marker_radius_m=0.08, progress=False)
     assert result.pairs >= len(lot_plan.chosen)
     assert result.agreement >= 0.95, result.report["pairs"]
+
+
+@pytest.mark.usd
+def test_cli_says_why_a_target_is_uncoverable_in_one_line(open_lot, capsys):
+    from usdscene.cli import main
+
+    root, document, lenses = open_lot
+    assert main(["plan-cameras", "--setup", str(document), "-o", str(root / "cli"), "--lenses", str(lenses),
+                 "--occluders", "setup", "--dori", "validate", "--pole-heights", "4",
+                 "--targets", "spot_a:on", "box:far_away:100,100,0,101,101,1"]) == 0
+    out = capsys.readouterr().out
+    assert "at >= validate (IEC 62676-4:2025)" in out
+    assert "far_away: out of range; best class any candidate reaches: none" in out
+    line = next(l for l in out.splitlines() if l.strip().startswith("spot_a:on:"))
+    assert "too few pixels; best class any candidate reaches: " in line and line.split()[-1] != "none"

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
-    console = Console(highlight=False, soft_wrap=True)
+    console = Console(highlight=False, soft_wrap=True, emoji=False, markup=False)
     if args.verify:
         if args.setup or args.out:
             return _usage("--verify PLAN_DIR takes no --setup or -o")
