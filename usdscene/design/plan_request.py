@@ -133,7 +133,7 @@ class PlanRequest:
             standard_name: the standard that table follows (``IEC 62676-4:2025``).
         """
         mounts = self.mounts if self.mounts in ("auto", "setup") else Path(self.mounts).name
-        return {"setup": self.setup_document.name, "targets": list(self.targets), "mounts": mounts,
+        return {"setup": Path(self.setup_document).name, "targets": list(self.targets), "mounts": mounts,
                 "spacing_m": self.spacing_m, "lenses": list(lens_names), "k": self.k, "dori": self.level,
                 "min_visible": self.min_visible, "occluders": self.occluders, "aims": self.aims,
                 "target_spacing_m": self.target_spacing_m,
