@@ -129,6 +129,22 @@ def test_iec_62676_4_2025_is_the_planners_table_and_400_px_per_m_is_below_valida
     assert [c.name for c in load_dori(standard_file("2015"))][-1] == "inspect"
 
 
+def test_each_reason_for_an_uncoverable_target():
+    from usdscene.design.visibility import Visibility, why_uncovered
+
+    # Three candidates, four targets: nobody has t0 in view; t1 is in view but hidden; t2 is
+    # seen by half of its points (>= 0.25) at class 0 only; t3 is seen too little and at class 1.
+    vis = Visibility(in_image=np.array([[0, 1, 1, 1], [0, 1, 0, 1], [0, 0, 0, 1.0]]),
+                     visible=np.array([[0, 0, 0.5, 0.1], [0, 0, 0, 0.2], [0, 0, 0, 0.0]]),
+                     px_per_m=np.zeros((3, 4)), dori=np.array([[-1, -1, 0, 1], [-1, -1, -1, 1], [-1, -1, -1, -1]]))
+    why = why_uncovered(vis, [0, 1, 2, 3], min_visible=0.25, candidates=3)
+    assert [(u.reason, u.best_dori) for u in why] == [("out of range", -1), ("occluded", -1),
+                                                     ("too few pixels", 0), ("occluded", 1)]
+    empty = Visibility(np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1), int))
+    assert [(u.reason, u.best_dori) for u in why_uncovered(empty, [0], min_visible=0.25, candidates=0)] == \
+        [("no mount", -1)]
+
+
 def test_a_bad_mounts_file_names_every_problem(tmp_path):
     from usdscene.design.user_mounts import load_mounts
 

@@ -42,7 +42,7 @@ from usdscene.design.user_mounts import load_mounts
 from usdscene.design.lenses import Lens, load_lenses
 from usdscene.design.occluders import Occluders, RAY_MARGIN_M
 from usdscene.design.plan_picture import plan_picture
-from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest
+from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
 from usdscene.design.visibility import Uncovered, Visibility, coverage_matrix, evaluate_visibility, why_uncovered
