@@ -145,6 +145,15 @@ def test_each_reason_for_an_uncoverable_target():
         [("no mount", -1)]
 
 
+def test_a_bad_request_names_every_option_at_once(tmp_path):
+    with pytest.raises(DocumentError) as err:
+        PlanRequest.build(tmp_path / "setup.json", mounts=str(tmp_path / "nowhere.json"), pole_heights_m=[-1],
+                          standard="2019", min_visible=0.0)
+    where = [p.where for p in err.value.problems]
+    assert set(where) == {"--min-visible", "--pole-heights", "--standard", "--mounts"}
+    assert "nowhere.json" in str(err.value) and "-1.0" in str(err.value)
+
+
 def test_a_bad_mounts_file_names_every_problem(tmp_path):
     from usdscene.design.user_mounts import load_mounts
 
