@@ -299,6 +299,7 @@ def test_open_air_plan_agrees_with_its_cycles_render(open_lot, lot_plan, monkeyp
     result = verify_plan(root / "plan", resolution_scale=1.0, samples=1, marker_radius_m=0.08, progress=False)
     assert result.pairs >= len(lot_plan.chosen)
     assert result.agreement >= 0.95, result.report["pairs"]
+    assert result.points_agreeing >= 0.95 * result.points
 
 
 @pytest.mark.usd
