@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 from usdscene.design.camera_design import plan_cameras, verify_plan
+from usdscene.design.plan_request import PlanRequest
 
 CABIN = Path(__file__).resolve().parents[1] / "examples" / "aircraft_cabin" / "cabin.openlabel.json"
 TARGETS = ["seat_*:on,below,in_front"]
@@ -45,9 +46,9 @@ def main() -> None:
     parser.add_argument("--no-verify", action="store_true", help="skip the Cycles verification")
     args = parser.parse_args()
     root = args.out or Path(tempfile.mkdtemp(prefix="plan_cameras_"))
-    planned = plan_cameras(CABIN, root / "auto", targets=TARGETS)
+    planned = plan_cameras(PlanRequest.build(CABIN, targets=TARGETS, standard="2015", dori="observe"), root / "auto")
     _summary("planner (auto mounts, shipped lenses)", planned)
-    rescored = plan_cameras(CABIN, root / "paper39", targets=TARGETS, mounts="setup")
+    rescored = plan_cameras(PlanRequest.build(CABIN, targets=TARGETS, mounts="setup", standard="2015", dori="observe"), root / "paper39")
     _summary("paper's 39 cameras re-scored", rescored)
     if not args.no_verify:
         started = time.perf_counter()

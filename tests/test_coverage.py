@@ -13,6 +13,7 @@ import pytest
 from usdscene.design.candidates import look_rotation
 from usdscene.design.lenses import lens_intrinsics, load_lenses
 from usdscene.design.occluders import Occluders
+from usdscene.design.plan_request import PlanRequest
 from usdscene.design.selection import select_cameras
 from usdscene.design.targets import SURFACE_LIFT_M, box_points, parse_target_spec, targets_from_places
 from usdscene.design.visibility import evaluate_visibility
@@ -198,8 +199,8 @@ def rescored(room_setup):
     from usdscene.design.camera_design import plan_cameras
 
     root, document = room_setup
-    return plan_cameras(document, root / "rescored", targets=["spot_*:on"], mounts="setup", dori="monitor",
-                        occluders="setup", target_spacing_m=0.1)
+    return plan_cameras(PlanRequest.build(document, targets=["spot_*:on"], mounts="setup", dori="monitor", standard="2015",
+                                          occluders="setup", target_spacing_m=0.1), root / "rescored")
 
 
 @pytest.mark.usd
@@ -242,8 +243,9 @@ def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(ro
     lenses = root / "lenses.json"
     lenses.write_text(json.dumps({"lenses": {"small_wide": {
         "model": "perspective", "focal_length_mm": 2.8, "sensor_width_mm": 4.8, "resolution_px": [160, 120]}}}))
-    plan = plan_cameras(document, root / "auto", targets=["spot_*:on"], lenses_file=lenses,
-                        lens_names=["small_wide"], dori="monitor", occluders="setup", spacing_m=1.0)
+    request = PlanRequest.build(document, targets=["spot_*:on"], lenses_file=lenses, lens_names=["small_wide"],
+                                dori="monitor", standard="2015", occluders="setup", spacing_m=1.0)
+    plan = plan_cameras(request, root / "auto")
     assert plan.coverage["summary"]["holes"] == [] and 1 <= len(plan.chosen) <= 2
     written = json.loads((root / "auto" / "cameras.openlabel.json").read_text())
     assert schema_problems(written, openlabel_schema_path) == []
@@ -253,8 +255,7 @@ def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(ro
     image = (root / "auto" / "coverage.png").read_bytes()
     assert image[:8] == b"\x89PNG\r\n\x1a\n"
     # Same inputs, same bytes.
-    plan_cameras(document, root / "auto2", targets=["spot_*:on"], lenses_file=lenses,
-                 lens_names=["small_wide"], dori="monitor", occluders="setup", spacing_m=1.0)
+    plan_cameras(request, root / "auto2")
     for name in ("cameras.openlabel.json", "coverage.json", "coverage.png"):
         assert (root / "auto" / name).read_bytes() == (root / "auto2" / name).read_bytes()
 
@@ -268,8 +269,8 @@ def test_predicted_and_rendered_visibility_agree(room_setup, monkeypatch):
     # The plan document in root/both names ../assets: outside its folder, so consent to root.
     monkeypatch.setenv("USDSCENE_ASSET_PATH", str(root))
     # Re-score both wall cameras at k = 2 so that the blocked west camera is part of the plan.
-    plan_cameras(document, root / "both", targets=["spot_*:on"], mounts="setup", dori="monitor",
-                 occluders="setup", target_spacing_m=0.1, k=2)
+    plan_cameras(PlanRequest.build(document, targets=["spot_*:on"], mounts="setup", dori="monitor", standard="2015",
+                                   occluders="setup", target_spacing_m=0.1, k=2), root / "both")
     result = verify_plan(root / "both", resolution_scale=1.0, samples=1, marker_radius_m=0.06, progress=False)
     pairs = {(p["camera"], p["target"]): p for p in result.report["pairs"]}
     assert set(pairs) == {(c, t) for c in ("west", "east") for t in ("spot_hidden:on", "spot_open:on")}

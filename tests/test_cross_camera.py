@@ -148,6 +148,7 @@ def test_stats_shows_the_cross_camera_summary(rendered, tmp_path, capsys):
     assert main(["stats", str(out), "--chart", str(chart)]) == 0
     text = capsys.readouterr().out
     assert "6 object-frames" in text and "median cameras" in text
+    assert "IEC 62676-4:2015" in text  # the standard of the annotations' classes is named
     assert "2 cameras" in text and "detect" in text
     image = cv2.imread(str(chart))
     assert image is not None and image.shape[1] == 720 and image.shape[0] > 400

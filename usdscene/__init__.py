@@ -60,6 +60,7 @@ _LAZY = {
     "GenerateOptions": ("usdscene.dataset.sequences", "GenerateOptions"),
     "balance_report": ("usdscene.dataset.sequences", "balance_report"),
     "plan_cameras": ("usdscene.design.camera_design", "plan_cameras"),
+    "PlanRequest": ("usdscene.design.plan_request", "PlanRequest"),
     "verify_plan": ("usdscene.design.camera_design", "verify_plan"),
 }
 

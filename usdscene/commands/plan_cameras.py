@@ -21,16 +21,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--targets", metavar="SPEC", nargs="+", default=None,
                         help="PLACE_GLOB:REGION,... (e.g. 'seat_*:on,below,in_front') or "
                              "box:NAME:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in metres (default: every region of every place)")
-    parser.add_argument("--mounts", default="auto", metavar="auto|setup",
-                        help="'auto': ceiling and wall positions of the environment every --spacing metres; "
-                             "'setup': re-score the setup document's own cameras")
-    parser.add_argument("--spacing", type=float, default=0.8, metavar="M", help="mount grid spacing in metres (0.8)")
+    parser.add_argument("--mounts", default="auto", metavar="auto|setup|FILE",
+                        help="'auto': ceiling and wall positions every --spacing metres, poles and facades in the "
+                             "open air, and the environment's mount_* nodes; 'setup': re-score the setup document's "
+                             "own cameras; FILE: a JSON list of mounts (position_m, optional aims / look_at_m)")
+    parser.add_argument("--spacing", type=float, default=0.8, metavar="M",
+                        help="ceiling and wall mount grid spacing in metres (0.8)")
+    parser.add_argument("--pole-heights", type=float, nargs="*", default=None, metavar="M",
+                        help="camera heights of open-air poles and facade mounts above the ground in metres "
+                             "(4 6; none for no poles)")
+    parser.add_argument("--pole-spacing", type=float, default=4.0, metavar="M",
+                        help="grid spacing of open-air poles in metres (4)")
     parser.add_argument("--lenses", metavar="FILE", help="lens catalog JSON extending the shipped one")
     parser.add_argument("--lens", nargs="+", metavar="NAME", help="catalog lenses to try (default: all)")
     parser.add_argument("--k", type=positive_int, default=1, help="cameras each target needs (1)")
-    parser.add_argument("--dori", default="observe", metavar="CLASS",
-                        help="required image-detail class (monitor, detect, observe, recognise, identify, inspect)")
-    parser.add_argument("--dori-table", metavar="FILE", help="DORI table JSON replacing IEC 62676-4:2015's")
+    parser.add_argument("--dori", default=None, metavar="CLASS",
+                        help="required image-detail level: IEC 62676-4:2025 overview, outline, discern (default), "
+                             "perceive, characterize, validate, scrutinize; with --standard 2015 monitor, detect, "
+                             "observe (default), recognise, identify, inspect")
+    parser.add_argument("--standard", default="2025", choices=("2015", "2025"),
+                        help="edition of IEC 62676-4 whose image-detail table is used (2025)")
+    parser.add_argument("--dori-table", metavar="FILE",
+                        help="image-detail table JSON replacing the standard's (a site's own requirement)")
     parser.add_argument("--occluders", default="worst-case", metavar="worst-case|setup",
                         help="what blocks the views: a passenger in every seat (worst-case) or the setup's objects")
     parser.add_argument("--min-visible", type=float, default=0.25, metavar="FRACTION",
@@ -40,18 +52,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
                         help="render size of --verify relative to the cameras' resolution (0.5)")
     parser.add_argument("--verify-samples", type=positive_int, default=1, metavar="N", help="Cycles samples of --verify (1)")
+    parser.add_argument("--marker-radius", type=float, default=0.02, metavar="M",
+                        help="radius of the target markers of --verify in metres (0.02; larger for distant "
+                             "open-air targets, so that a marker covers a pixel)")
 
 
 def run(args: argparse.Namespace) -> int:
+    import collections
+
     from rich.console import Console
 
-    console = Console(highlight=False, soft_wrap=True)
+    console = Console(highlight=False, soft_wrap=True, emoji=False, markup=False)
     if args.verify:
         if args.setup or args.out:
             return _usage("--verify PLAN_DIR takes no --setup or -o")
         from usdscene.design.camera_design import VERIFY_DIR, verify_plan
 
-        result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples)
+        result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples,
+                             marker_radius_m=args.marker_radius)
         console.print(f"verified {args.verify}: {result.agreeing}/{result.pairs} (camera, target) pairs agree "
                       f"({100 * result.agreement:.1f} %, visible fractions within {result.tolerance:g}); "
                       f"{result.points_agreeing}/{result.points} target points agree")
@@ -59,26 +77,45 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.setup or not args.out:
         return _usage("plan-cameras needs --setup SETUP_DOC and -o PLAN_DIR (or --verify PLAN_DIR)")
-    from usdscene.design.camera_design import DEFAULT_TARGETS, plan_cameras
+    from usdscene.design.camera_design import plan_cameras
 
-    result = plan_cameras(args.setup, args.out, targets=args.targets or DEFAULT_TARGETS, mounts=args.mounts,
-                          spacing_m=args.spacing, lenses_file=args.lenses, lens_names=args.lens, k=args.k,
-                          dori=args.dori, dori_table_file=args.dori_table, occluders=args.occluders,
-                          min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit)
+    result = plan_cameras(plan_request(args), args.out)
     s = result.coverage["summary"]
     sel = result.selection
     console.print(f"planned {s['cameras']} cameras from {s['candidates']} candidates ({s['mounts']} mounts) "
                   f"for {s['targets']} targets in {sum(result.seconds.values()):.1f} s")
     console.print(f"  solver:  {sel.method}{' (optimal)' if sel.optimal else ''}, lower bound {sel.lower_bound}, "
                   f"gap {100 * sel.gap:.1f} %, greedy {sel.greedy_size}")
-    console.print(f"  covered: {s['targets_covered']}/{s['targets']} targets by >= {args.k} camera(s) at >= {args.dori}")
+    request = result.coverage["request"]
+    console.print(f"  covered: {s['targets_covered']}/{s['targets']} targets by >= {args.k} camera(s) at >= "
+                  f"{request['dori']} ({request['standard']})")
     if s["holes"]:
         console.print(f"  holes:   {len(s['holes'])}: {', '.join(s['holes'][:12])}{' ...' if len(s['holes']) > 12 else ''}")
+    why = s["why_uncoverable"]
+    if why:
+        counts = collections.Counter(w["reason"] for w in why.values())
+        console.print(f"  no candidate covers {len(why)} target(s): "
+                      + ", ".join(f"{n} {reason}" for reason, n in counts.most_common()))
+        for name, w in list(why.items())[:12]:
+            console.print(f"    {name}: {w['reason']}; best class any candidate reaches: {w['best_dori'] or 'none'}")
+        if len(why) > 12:
+            console.print(f"    ... {len(why) - 12} more in {args.out}/coverage.json (summary.why_uncoverable)")
     console.print("  steps:   " + ", ".join(f"{k} {v:.1f} s" for k, v in result.seconds.items())
                   + f" (ray casting: {result.backend})")
     console.print(f"  outputs: {args.out}/cameras.openlabel.json, coverage.json, coverage.png")
     console.print(f"  next:    usdscene plan-cameras --verify {args.out}")
     return 0
+
+
+def plan_request(args: argparse.Namespace):
+    """The :class:`usdscene.design.plan_request.PlanRequest` of parsed arguments (checked)."""
+    from usdscene.design.plan_request import PlanRequest
+
+    return PlanRequest.build(args.setup, targets=args.targets, mounts=args.mounts, spacing_m=args.spacing,
+                             lenses_file=args.lenses, lens_names=args.lens, k=args.k, dori=args.dori,
+                             dori_table_file=args.dori_table, standard=args.standard, occluders=args.occluders,
+                             min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit,
+                             pole_heights_m=args.pole_heights, pole_spacing_m=args.pole_spacing)
 
 
 def _usage(message: str) -> int:

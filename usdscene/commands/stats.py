@@ -117,7 +117,11 @@ def run(args: argparse.Namespace) -> int:
         for n, count in cross["by_camera_count"].items():
             table.add_row(f"{n} camera{'s' * (n != 1)}", str(count))
         console.print(table)
-        table = Table(title="cross-camera per class")
+        from usdscene.labels.cross_camera import ANNOTATION_DORI_FILE
+        from usdscene.labels.pixel_density import table_standard
+
+        table = Table(title="cross-camera per class",
+                      caption=f"DORI classes of {table_standard(ANNOTATION_DORI_FILE)} (the annotations' table)")
         for column in ("class", "object-frames", "unseen", "median cameras", "median best px/m", "best DORI"):
             table.add_column(column, justify="left" if column in ("class", "best DORI") else "right")
         for name, c in cross["classes"].items():

@@ -36,27 +36,29 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.design.candidates import candidate_cameras, candidate_mounts
+from usdscene.design.candidates import Mount, candidate_cameras, candidate_mounts, open_air_mounts
+from usdscene.design.mount_surfaces import mount_surfaces
+from usdscene.design.user_mounts import load_mounts
 from usdscene.design.lenses import Lens, load_lenses
 from usdscene.design.occluders import Occluders, RAY_MARGIN_M
 from usdscene.design.plan_picture import plan_picture
+from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
-from usdscene.design.visibility import Visibility, coverage_matrix, evaluate_visibility
-from usdscene.labels.pixel_density import DoriClass, class_index, load_dori, pixel_density
+from usdscene.design.visibility import Uncovered, Visibility, coverage_matrix, evaluate_visibility, why_uncovered
+from usdscene.labels.pixel_density import (STANDARD_FILES, DoriClass, class_index, load_dori, pixel_density,
+                                           standard_file, table_standard)
 from usdscene.errors import DocumentError, OutputError
 from usdscene.document.model import Camera, Relation, SceneObject, SceneSpec, PlaceRef
 
 log = logging.getLogger(__name__)
 
-OCCLUDER_MODES = ("worst-case", "setup")
 CAMERAS_FILE = "cameras.openlabel.json"
 COVERAGE_FILE = "coverage.json"
 PLAN_PICTURE = "coverage.png"
 OCCLUDER_STAGE_DIR = "occluders"
 VERIFY_DIR = "verify"
 VERIFY_FILE = "verification.json"
-DEFAULT_TARGETS = ("*:on,below,in_front,in",)
 
 
 @dataclass(frozen=True)
@@ -128,6 +130,25 @@ def stage_triangles(stage_path: Path, frame: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def scene_geometry(stage_path: Path, frame: int):
+    """The composed stage's world triangles (as :func:`stage_triangles`), their mountability
+    (:func:`usdscene.design.mount_surfaces.mount_surfaces`) and the environment's mount nodes.
+
+    Returns:
+        ((T, 3, 3) float64 triangles in metres, MountSurfaces, list of (name, (3,) position m,
+        (3,) facing)).
+    """
+    from usdscene.scene.stage_geometry import StageGeometry, environment_meshes, mount_nodes
+
+    geometry = StageGeometry(stage_path)
+    meshes = environment_meshes(geometry.stage, frame)
+    objects = list(geometry.triangles(frame).values())
+    parts = [m.triangles_m for m in meshes] + objects
+    triangles = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+    surfaces = mount_surfaces(meshes, sum(len(o) for o in objects))
+    return triangles, surfaces, mount_nodes(geometry.stage, frame)
+
+
 def _read_setup(document: Path):
     from usdscene.scene.catalog import load_catalog, scene_catalog
     from usdscene.converters.openlabel import read_openlabel
@@ -137,37 +158,18 @@ def _read_setup(document: Path):
     return setup, scene_catalog(catalog, setup)
 
 
-def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
-                 targets: Sequence[str] = DEFAULT_TARGETS, mounts: str = "auto", spacing_m: float = 0.8,
-                 lenses_file: str | Path | None = None, lens_names: Sequence[str] | None = None,
-                 k: int = 1, dori: str = "observe", dori_table_file: str | Path | None = None,
-                 occluders: str = "worst-case", min_visible: float = 0.25, aims: int = 4,
-                 target_spacing_m: float = 0.2, time_limit_s: float = 60.0) -> PlanResult:
+def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     """Plan the smallest camera set that covers the targets, and write the plan folder.
 
     Args:
-        setup_document: OpenLABEL setup (environment, optional cameras, lights, render).
+        request: what to plan (:class:`usdscene.design.plan_request.PlanRequest`).
         out_dir: plan folder (created).
-        targets: ``PLACE_GLOB:REGION,...`` or ``box:NAME:x0,y0,z0,x1,y1,z1`` specs.
-        mounts: ``auto`` (ceiling and wall positions every ``spacing_m``) or ``setup``
-            (re-score the setup's own cameras; lenses are then the cameras' own).
-        spacing_m: mount grid spacing, metres.
-        lenses_file: user lens catalog extending the shipped one.
-        lens_names: catalog lenses to try (default: all).
-        k: cameras each target needs.
-        dori: required image-detail class name.
-        dori_table_file: DORI table replacing the shipped IEC 62676-4:2015 one.
-        occluders: ``worst-case`` or ``setup`` (:func:`occluder_scene`).
-        min_visible: fraction of a target's points a camera must see to count.
-        aims: target-cluster aims per mount (besides the surface normal).
-        target_spacing_m: spacing of the sample points in each target region.
-        time_limit_s: MILP time limit, seconds.
 
     Returns:
         A :class:`PlanResult`.
 
     Raises:
-        DocumentError: bad document, arguments, lens or DORI file (every problem at once
+        DocumentError: bad document, request, lens or DORI file (every problem at once
             where possible).
         OutputError: the output document fails the official OpenLABEL schema.
     """
@@ -177,27 +179,29 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
 
     seconds: dict[str, float] = {}
     started = time.perf_counter()
-    document, out = Path(setup_document), Path(out_dir)
-    _check_numbers(k=k, min_visible=min_visible, spacing_m=spacing_m, target_spacing_m=target_spacing_m,
-                   aims=aims, time_limit_s=time_limit_s)
-    if mounts not in ("auto", "setup"):
-        raise DocumentError(f"unknown mounts {mounts!r}; expected 'auto' or 'setup'", where="--mounts")
-    specs = [parse_target_spec(s) for s in targets]
-    table = load_dori(dori_table_file)
-    required = class_index(dori, table, where="--dori")
+    document, out = Path(request.setup_document), Path(out_dir)
+    request.check()
+    mounts, k, dori = request.mounts, request.k, request.level
+    specs = [parse_target_spec(s) for s in request.targets]
+    table_file = request.dori_table_file or standard_file(request.standard)
+    table = load_dori(table_file)
+    standard_name = table_standard(table_file)
+    required = _required_class(dori, table, standard_name, request.dori_table_file is None)
+    user_mounts = load_mounts(mounts) if mounts not in ("auto", "setup") else []
     setup, catalog = _read_setup(document)
-    lenses = _pick_lenses(load_lenses(lenses_file), lens_names) if mounts == "auto" else []
+    lenses = _pick_lenses(load_lenses(request.lenses_file), request.lens_names) if mounts != "setup" else []
     if mounts == "setup" and not setup.cameras:
         raise DocumentError("--mounts setup re-scores the setup's cameras, but the document has none",
                             where=str(document))
-    scene = occluder_scene(setup, catalog, occluders)
-    target_list = targets_from_places(catalog.places(setup.environment), specs, spacing_m=target_spacing_m)
+    scene = occluder_scene(setup, catalog, request.occluders)
+    target_list = targets_from_places(catalog.places(setup.environment), specs,
+                                      spacing_m=request.target_spacing_m)
     seconds["targets"] = time.perf_counter() - started
 
     t = time.perf_counter()
     # No cameras in the occluder stage: they do not block anything and the planner adds its own.
     composed = compose_stage(dataclasses.replace(scene, cameras=()), catalog, out / OCCLUDER_STAGE_DIR)
-    triangles = stage_triangles(composed.root_layer, scene.frame_start)
+    triangles, surfaces, nodes = scene_geometry(composed.root_layer, scene.frame_start)
     occ = Occluders(triangles)
     seconds["compose"] = time.perf_counter() - t
 
@@ -206,20 +210,30 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
         candidates = list(setup.cameras)
         mount_count = len(candidates)
     else:
-        lo, hi = occ.bounds_m
-        mount_list = candidate_mounts(occ, lo, hi, spacing_m=spacing_m)
-        candidates = candidate_cameras(mount_list, target_list, lenses, aims=aims)
+        if mounts == "auto":
+            lo, hi = occ.bounds_m
+            structure = Occluders(triangles[surfaces.mountable])
+            mount_list = candidate_mounts(occ, lo, hi, spacing_m=request.spacing_m, surfaces=surfaces,
+                                          structure=structure)
+            if request.pole_heights_m:
+                mount_list += open_air_mounts(occ, triangles, surfaces, lo, hi, heights_m=request.pole_heights_m,
+                                              spacing_m=request.pole_spacing_m)
+            mount_list += [Mount(tuple(float(v) for v in p), "node", tuple(float(v) for v in f), (), name)
+                           for name, p, f in nodes]
+        else:
+            mount_list = user_mounts
+        candidates = candidate_cameras(mount_list, target_list, lenses, aims=request.aims)
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
     visibility = evaluate_visibility(candidates, target_list, occ, table)
-    cover = coverage_matrix(visibility, min_visible=min_visible, min_dori=required)
+    cover = coverage_matrix(visibility, min_visible=request.min_visible, min_dori=required)
     seconds["visibility"] = time.perf_counter() - t
 
     t = time.perf_counter()
     weights = np.where(cover, visibility.px_per_m, 0.0).sum(axis=1)
-    selection = select_cameras(cover, k, time_limit_s=time_limit_s, weights=weights)
+    selection = select_cameras(cover, k, time_limit_s=request.time_limit_s, weights=weights)
     seconds["select"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -229,12 +243,10 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
                         os.path.relpath((document.resolve().parent / p).resolve(), out.resolve())
                         for p in setup.asset_paths)
     planned = dataclasses.replace(setup, cameras=tuple(chosen), asset_paths=asset_paths)
-    request = {"setup": document.name, "targets": list(targets), "mounts": mounts, "spacing_m": spacing_m,
-               "lenses": [lens.name for lens in lenses], "k": k, "dori": dori, "min_visible": min_visible,
-               "occluders": occluders, "aims": aims, "target_spacing_m": target_spacing_m,
-               "dori_table": [{"name": c.name, "px_per_m": c.px_per_m} for c in table]}
-    report = coverage_report(request, target_list, candidates, chosen, selection, visibility, cover, table,
-                             mount_count)
+    why = why_uncovered(visibility, selection.uncoverable, min_visible=request.min_visible,
+                        candidates=len(candidates))
+    report = coverage_report(request.record([lens.name for lens in lenses], table, standard_name), target_list,
+                             candidates, chosen, selection, visibility, cover, table, mount_count, why)
     out.mkdir(parents=True, exist_ok=True)
     write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
@@ -243,7 +255,8 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
     best = np.where(cover[picked], visibility.dori[picked], -1).max(axis=0) if picked else \
         np.full(len(target_list), -1)
     title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
-             f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori}, "
+             f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori} "
+             f"({standard_name}), "
              f"{len(selection.uncoverable)} uncoverable by any candidate")
     picture = plan_picture(triangles, target_list, chosen, counts, best, table, occ, title=title)
     write_png_atomic(out / PLAN_PICTURE, picture)
@@ -252,20 +265,18 @@ def plan_cameras(setup_document: str | Path, out_dir: str | Path, *,
                       seconds, occ.backend)
 
 
-def _check_numbers(**values: float) -> None:
-    from usdscene.errors import ProblemCollector
-
-    problems = ProblemCollector()
-    limits = {"k": (1, None), "min_visible": (0.0, 1.0), "spacing_m": (0.05, None),
-              "target_spacing_m": (0.01, None), "aims": (0, None), "time_limit_s": (0.1, None)}
-    for name, value in values.items():
-        lo, hi = limits[name]
-        if not math.isfinite(value) or value < lo or (hi is not None and value > hi):
-            span = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-            problems.add(f"--{name.replace('_', '-')}", f"expected a number {span}, got {value!r}")
-    if "min_visible" in values and values["min_visible"] == 0:
-        problems.add("--min-visible", "0 would let a camera that sees nothing count; use a positive fraction")
-    problems.raise_if_any(DocumentError)
+def _required_class(name: str, table, standard_name: str, shipped: bool) -> int:
+    """Index of the required class; a class of the other shipped edition gets a hint."""
+    try:
+        return class_index(name, table, where="--dori")
+    except DocumentError:
+        if shipped:
+            for edition, file in STANDARD_FILES.items():
+                if any(c.name == name for c in load_dori(file)):
+                    raise DocumentError(
+                        f"{name!r} is a class of {table_standard(file)}, not of {standard_name}; add --standard "
+                        f"{edition}, or name one of {', '.join(c.name for c in table)}", where="--dori") from None
+        raise
 
 
 def _pick_lenses(catalog: Mapping[str, Lens], names: Sequence[str] | None) -> list[Lens]:
@@ -297,11 +308,14 @@ def _round(value: float, digits: int = 4) -> float:
 
 def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Sequence[Camera],
                     chosen: Sequence[Camera], selection: Selection, visibility: Visibility,
-                    cover: np.ndarray, table: Sequence[DoriClass], mount_count: int) -> dict:
+                    cover: np.ndarray, table: Sequence[DoriClass], mount_count: int,
+                    why: Sequence[Uncovered] = ()) -> dict:
     """The ``coverage.json`` content: request, summary, per target, per chosen camera.
 
     Per (camera, target) pair the visible fraction, the median px/m over the visible points
-    and its DORI class; ``covers`` says whether the pair meets the requirement.
+    and its DORI class; ``covers`` says whether the pair meets the requirement. ``why``
+    (:func:`usdscene.design.visibility.why_uncovered`, one per uncoverable target) becomes
+    ``summary.why_uncoverable``: per target the reason and the best class any candidate reaches.
     """
     picked = list(selection.chosen)
     names = {c: chosen[i].name for i, c in enumerate(picked)}
@@ -342,6 +356,8 @@ def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Seq
         "targets_covered": len(targets) - len(holes), "holes": holes,
         "uncoverable": [targets[t].name for t in selection.uncoverable],
         "short_of_k": [targets[t].name for t in selection.short],
+        "why_uncoverable": {targets[u.target].name: {"reason": u.reason, "best_dori": table[u.best_dori].name
+                                                     if u.best_dori >= 0 else None} for u in why},
     }
     return {"format": "usdscene-coverage", "version": 1, "request": dict(request), "summary": summary,
             "cameras": camera_rows, "targets": target_rows}
@@ -553,6 +569,10 @@ def _rendered_points(camera: Camera, points_m: np.ndarray, mask: np.ndarray, mas
     for i in np.flatnonzero(ok):
         r = max(1, int(math.ceil(density[i] * radius_m)))
         u, v = int(round(uv[i, 0])), int(round(uv[i, 1]))
-        window = mask[max(0, v - r):min(h, v + r + 1), max(0, u - r):min(w, u + r + 1)]
-        out[i] = bool(window.size) and bool((window == mask_id).any())
+        v0, v1, u0, u1 = max(0, v - r), min(h, v + r + 1), max(0, u - r), min(w, u + r + 1)
+        # A point beyond the image border projects to an empty window (a negative end would
+        # wrap around in numpy and look at the far side of the image).
+        if v1 <= v0 or u1 <= u0:
+            continue
+        out[i] = bool((mask[v0:v1, u0:u1] == mask_id).any())
     return out

@@ -1,5 +1,7 @@
-"""Candidate cameras of a plan: mount positions on the ceiling and the walls found by casting
-rays in the environment, aimed at clusters of targets, times every lens. Pure.
+"""Candidate cameras of a plan: mount positions found by casting rays in the environment
+(ceilings and walls of rooms; poles and façades in the open air), mounts the environment marks
+(``mount_*`` nodes) or the user gives, aimed at clusters of targets, times every lens. Only
+mountable structure carries a mount (:mod:`usdscene.design.mount_surfaces`). Pure.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 
 from usdscene.document.model import Camera, Pose
 from usdscene.design.lenses import Lens, lens_intrinsics
+from usdscene.design.mount_surfaces import MountSurfaces
 from usdscene.design.occluders import Occluders
 from usdscene.design.targets import Target
 
@@ -25,17 +28,25 @@ class Mount:
 
     Attributes:
         position_m: (3,) camera centre, metres (a little off the surface).
-        surface: ``ceiling`` or ``wall``.
-        normal: (3,) unit normal of the surface, pointing into the room.
+        surface: ``ceiling`` or ``wall`` (rooms), ``pole`` or ``facade`` (open air), ``node``
+            (an environment's ``mount_*`` node) or ``user`` (``--mounts FILE``).
+        normal: (3,) unit normal of the surface, pointing away from it (a node's facing);
+            (0, 0, 0) where the mount may look any way (poles, user mounts).
+        aims: (3,) unit directions the camera may take; empty = the surface normal (if any)
+            and the nearest target clusters.
+        name: the node's or user's name of the mount ("" for found mounts).
     """
 
     position_m: tuple[float, float, float]
     surface: str
     normal: tuple[float, float, float]
+    aims: tuple[tuple[float, float, float], ...] = ()
+    name: str = ""
 
 
 def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region_max_m: Sequence[float], *,
-                     spacing_m: float = 0.8, offset_m: float = 0.05, walls: bool = True) -> list[Mount]:
+                     spacing_m: float = 0.8, offset_m: float = 0.05, walls: bool = True,
+                     surfaces: MountSurfaces | None = None, structure: Occluders | None = None) -> list[Mount]:
     """Ceiling and wall positions of the environment inside an axis-aligned region.
 
     A grid of probe points at the region's mid-height (``spacing_m`` apart in X and Y) casts
@@ -49,11 +60,18 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
         spacing_m: grid spacing.
         offset_m: distance of the camera centre from its surface.
         walls: add wall mounts.
+        surfaces: when given, a mount must be clear of unmountable geometry
+            (:meth:`MountSurfaces.clear`).
+        structure: when given, the rays are cast against it instead of ``occluders``: the
+            mountable triangles alone, so that a passenger's head or a tree crown is neither a
+            ceiling nor a wall, and the ray goes on to the structure behind it.
 
     Returns:
         Mounts, deduplicated to a ``spacing_m / 2`` grid, in a deterministic order.
     """
     lo, hi = np.asarray(region_min_m, float), np.asarray(region_max_m, float)
+    if structure is not None:
+        occluders = structure
     xs = np.arange(lo[0] + spacing_m / 2, hi[0], spacing_m)
     ys = np.arange(lo[1] + spacing_m / 2, hi[1], spacing_m)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
@@ -67,6 +85,8 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
     keys: set[tuple[int, int, int]] = set()
 
     def add(p: np.ndarray, surface: str, normal: Sequence[float]) -> None:
+        if surfaces is not None and not surfaces.clear(p)[0]:
+            return
         key = tuple(int(round(v / (spacing_m / 2))) for v in p)
         if key not in keys and np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9):
             keys.add(key)  # type: ignore[arg-type]
@@ -87,6 +107,75 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
                 if np.isfinite(d) and d > offset_m:
                     add(p + np.asarray(direction) * (d - offset_m), "wall", tuple(-v for v in direction))
     return mounts
+
+
+def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: MountSurfaces,
+                    region_min_m: Sequence[float], region_max_m: Sequence[float], *,
+                    heights_m: Sequence[float] = (4.0, 6.0), spacing_m: float = 4.0, ground_band_m: float = 1.0,
+                    facade_reach_m: float = 12.0, offset_m: float = 0.05) -> list[Mount]:
+    """Poles and façade mounts of the open air.
+
+    A grid of rays (``spacing_m`` apart in X and Y) comes straight down from above the region.
+    Where the first surface it meets is *open ground* (mountable, facing up within 25°, and no
+    more than ``ground_band_m`` above the lowest point of the region: the walkable or drivable
+    level, not a roof or a tree crown), a pole stands, with a camera at each of ``heights_m``
+    above the ground. From each pole camera, rays in ±X and ±Y meet the nearest wall within
+    ``facade_reach_m``: where that wall is mountable and upright (within 20° of vertical), a
+    façade mount at that height faces away from it. Mounts within the keep-out boxes of
+    ``surfaces`` are dropped.
+
+    Args:
+        occluders: the whole scene.
+        triangles_m: (T, 3, 3) the same triangles (for surface normals).
+        surfaces: mountability of those triangles.
+        region_min_m, region_max_m: (3,) corners of the space to look in, metres.
+        heights_m: camera heights above the ground, metres.
+        spacing_m: pole grid spacing, metres.
+        ground_band_m: how far above the region's lowest point the ground may lie, metres.
+        facade_reach_m: how far from a pole a façade is looked for, metres.
+        offset_m: distance of a façade camera from its wall.
+
+    Returns:
+        Pole mounts, then façade mounts, deduplicated to a ``spacing_m / 4`` grid, deterministic.
+    """
+    lo, hi = np.asarray(region_min_m, float), np.asarray(region_max_m, float)
+    tris = np.asarray(triangles_m, dtype=np.float64).reshape(-1, 3, 3)
+    normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    xs = np.arange(lo[0] + spacing_m / 2, hi[0], spacing_m)
+    ys = np.arange(lo[1] + spacing_m / 2, hi[1], spacing_m)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    top = hi[2] + 1.0
+    starts = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, top)], axis=1)
+    dist, hit = occluders.first_hit_triangle(starts, np.tile([0.0, 0.0, -1.0], (len(starts), 1)), top - lo[2] + 1.0)
+    ground = np.isfinite(dist) & (hit >= 0)
+    ground[ground] &= surfaces.mountable[hit[ground]] & (np.abs(normals[hit[ground], 2]) >= math.cos(math.radians(25)))
+    ground &= (top - np.where(np.isfinite(dist), dist, 0.0)) <= lo[2] + ground_band_m
+    poles: list[Mount] = []
+    facades: list[Mount] = []
+    keys: set[tuple] = set()
+    cell = spacing_m / 4
+    for start, d in zip(starts[ground], dist[ground]):
+        foot = start - np.array([0.0, 0.0, d])
+        for h in heights_m:
+            p = foot + np.array([0.0, 0.0, float(h)])
+            if surfaces.clear(p)[0] and ("pole", *np.round(p / cell).astype(int)) not in keys:
+                keys.add(("pole", *np.round(p / cell).astype(int)))
+                poles.append(Mount(tuple(float(v) for v in p), "pole", (0.0, 0.0, 0.0)))  # type: ignore[arg-type]
+            for direction in ((1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0)):
+                reach, tri = occluders.first_hit_triangle(p[None], np.asarray([direction]), facade_reach_m)
+                t = int(tri[0])
+                if not np.isfinite(reach[0]) or t < 0 or reach[0] <= offset_m or not surfaces.mountable[t] \
+                        or abs(normals[t, 2]) > math.sin(math.radians(20)):
+                    continue
+                q = p + np.asarray(direction) * (reach[0] - offset_m)
+                key = ("facade", *np.round(q / cell).astype(int))
+                if key in keys or not surfaces.clear(q)[0]:
+                    continue
+                keys.add(key)
+                facades.append(Mount(tuple(float(v) for v in q), "facade",  # type: ignore[arg-type]
+                                     tuple(-v for v in direction)))  # type: ignore[arg-type]
+    return poles + facades
 
 
 def look_rotation(forward: Sequence[float]) -> np.ndarray:
@@ -120,10 +209,17 @@ def target_clusters(targets: Sequence[Target], cell_m: float) -> np.ndarray:
     return np.array([centres[groups[k]].mean(axis=0) for k in sorted(groups)]).reshape(-1, 3)
 
 
+# Surfaces of rooms (aims within the room's reach) and of the open air (longer reach).
+_ROOM_SURFACES = ("ceiling", "wall")
+
+
 def candidate_cameras(mounts: Sequence[Mount], targets: Sequence[Target], lenses: Sequence[Lens], *,
-                      aims: int = 4, cluster_m: float = 1.6, max_range_m: float = 8.0) -> list[Camera]:
-    """Cameras at every mount, aimed along the surface normal and at the ``aims`` nearest target
-    clusters (within ``max_range_m``), with every lens.
+                      aims: int = 4, cluster_m: float = 1.6, max_range_m: float = 8.0,
+                      open_air_range_m: float = 20.0) -> list[Camera]:
+    """Cameras at every mount, with every lens, aimed along the mount's own ``aims`` when it has
+    some, else along the surface normal (ceilings, nodes; walls and façades tilted 35° down)
+    and at the ``aims`` nearest target clusters (within ``max_range_m`` of a ceiling or wall
+    mount, ``open_air_range_m`` of any other) that lie in front of the surface.
 
     Camera names are ``cand_<mount>_<aim>_<lens>``; ``custom`` records the lens name, mount
     surface and aim, which the plan writes back into the document.
@@ -136,24 +232,35 @@ def candidate_cameras(mounts: Sequence[Mount], targets: Sequence[Target], lenses
     for m_index, mount in enumerate(mounts):
         p = np.asarray(mount.position_m)
         normal = np.asarray(mount.normal)
-        # A wall camera along its normal looks at the opposite wall; tilt it down 35°.
-        base = normal if mount.surface == "ceiling" else normal * math.cos(math.radians(35)) + \
-            np.array([0.0, 0.0, -math.sin(math.radians(35))])
-        directions = [base]
-        if len(clusters):
-            d = np.linalg.norm(clusters - p, axis=1)
-            order = [i for i in np.argsort(d, kind="stable") if 0.3 < d[i] <= max_range_m]
-            for i in order[:aims]:
-                v = (clusters[i] - p) / d[i]
-                if float(v @ normal) > 0.05:  # not into the surface the camera hangs on
-                    directions.append(v)
-        for a_index, forward in enumerate(directions):
+        directions: list[tuple[np.ndarray, str]] = []
+        if mount.aims:
+            directions = [(np.asarray(a, dtype=np.float64), "given") for a in mount.aims]
+        else:
+            if mount.surface in ("ceiling", "node"):
+                directions.append((normal, "normal"))
+            elif np.linalg.norm(normal) > 0:
+                # A wall camera along its normal looks at the opposite wall; tilt it down 35°.
+                directions.append((normal * math.cos(math.radians(35)) +
+                                   np.array([0.0, 0.0, -math.sin(math.radians(35))]), "normal"))
+            reach = max_range_m if mount.surface in _ROOM_SURFACES else open_air_range_m
+            if len(clusters):
+                d = np.linalg.norm(clusters - p, axis=1)
+                order = [i for i in np.argsort(d, kind="stable") if 0.3 < d[i] <= reach]
+                for i in order[:aims]:
+                    v = (clusters[i] - p) / d[i]
+                    # Not into the surface the camera hangs on (poles have none).
+                    if not np.linalg.norm(normal) or float(v @ normal) > 0.05:
+                        directions.append((v, "target"))
+        for a_index, (forward, aim) in enumerate(directions):
             rotation = look_rotation(forward)
             for lens in lenses:
+                custom = {"lens": lens.name, "mount": mount.surface, "aim": aim}
+                if mount.name:
+                    custom["mount_name"] = mount.name
                 cameras.append(Camera(
                     name=f"cand_{m_index:04d}_{a_index}_{lens.name}",
                     intrinsics=lens_intrinsics(lens),
                     pose=Pose.from_rotation_translation(rotation, p),
                     model_name=lens.name,
-                    custom={"lens": lens.name, "mount": mount.surface, "aim": "normal" if a_index == 0 else "target"}))
+                    custom=custom))
     return cameras

@@ -101,20 +101,38 @@ class Occluders:
         Returns:
             (N,) float64 metres.
         """
+        return self.first_hit_triangle(origins_m, directions, max_m)[0]
+
+    def first_hit_triangle(self, origins_m: np.ndarray, directions: np.ndarray,
+                           max_m: float = 1e3) -> tuple[np.ndarray, np.ndarray]:
+        """Distance along each ray to the first triangle, and that triangle's index.
+
+        Args:
+            origins_m: (N, 3) ray origins, metres.
+            directions: (N, 3) unit directions.
+
+        Returns:
+            (N,) float64 metres (``inf`` where no triangle within ``max_m``) and (N,) int64
+            triangle indices into the constructor's array (-1 where none).
+        """
         origins = np.asarray(origins_m, dtype=np.float64).reshape(-1, 3)
         dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
         out = np.full(len(origins), np.inf)
+        index = np.full(len(origins), -1, dtype=np.int64)
         if self._embree is not None:
             result = self._embree.run((origins - self._offset).astype(np.float32), dirs.astype(np.float32),
                                       dists=np.full(len(origins), max_m, np.float32), output=1)
             hit = np.asarray(result["geomID"]) != -1
             out[hit] = np.asarray(result["tfar"], dtype=np.float64)[hit]
-            return out
+            index[hit] = np.asarray(result["primID"], dtype=np.int64)[hit]
+            return out, index
         if self._trimesh is None:
-            return out
-        _, index_ray, locations = self._trimesh.intersects_id(origins, dirs, multiple_hits=False,
-                                                              return_locations=True)
+            return out, index
+        index_tri, index_ray, locations = self._trimesh.intersects_id(origins, dirs, multiple_hits=False,
+                                                                      return_locations=True)
         if len(index_ray):
             d = np.linalg.norm(locations - origins[index_ray], axis=1)
-            out[index_ray] = np.where(d <= max_m, d, np.inf)
-        return out
+            near = d <= max_m
+            out[index_ray[near]] = d[near]
+            index[index_ray[near]] = np.asarray(index_tri)[near]
+        return out, index

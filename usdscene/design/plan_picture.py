@@ -127,7 +127,9 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
         label = np.full((22, width, 3), 255, np.uint8)
         cv2.putText(label, f"targets: {region}", (8, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
         panels += [label, image]
-    legend = np.full((56, width, 3), 255, np.uint8)
+    # A long class table pushes the camera key to a third row.
+    key_width = 26 * len(dori_table) + 9 * sum(len(c.name) for c in dori_table) + 360 + 300
+    legend = np.full((56 if key_width <= width else 76, width, 3), 255, np.uint8)
     y, x = 20, 8
     for i, text in enumerate(("0 cameras", "1", "2", ">=3")):
         cv2.rectangle(legend, (x, y - 12), (x + 16, y + 2), _COUNT_COLOURS[i], -1)
@@ -140,7 +142,8 @@ def plan_picture(triangles_m: np.ndarray, targets: Sequence[Target], cameras: Se
         cv2.circle(legend, (x + 6, y - 5), 6, (0, 0, 0), 1, cv2.LINE_AA)
         cv2.putText(legend, dori.name, (x + 16, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
         x += 26 + 9 * len(dori.name)
-    cv2.putText(legend, "camera (dot, aim) and view outline", (x + 10, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+    key_at = (x + 10, y) if key_width <= width else (8, y + 44)
+    cv2.putText(legend, "camera (dot, aim) and view outline", key_at, cv2.FONT_HERSHEY_SIMPLEX, 0.45,
                 _WEDGE_COLOUR, 1, cv2.LINE_AA)
     if title:
         cv2.putText(legend, title, (8, y + 24), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)

@@ -95,3 +95,54 @@ def coverage_matrix(visibility: Visibility, *, min_visible: float, min_dori: int
     """(C, T) bool: camera c covers target t (visible fraction ≥ ``min_visible`` and DORI
     index ≥ ``min_dori``)."""
     return (visibility.visible >= min_visible - 1e-12) & (visibility.dori >= min_dori) & (visibility.visible > 0)
+
+
+# Reasons a target has no covering candidate, in the order they are tested.
+UNCOVERED_REASONS = ("no mount", "out of range", "occluded", "too few pixels")
+
+
+@dataclass(frozen=True)
+class Uncovered:
+    """Why no candidate covers one target.
+
+    Attributes:
+        target: target index.
+        reason: one of :data:`UNCOVERED_REASONS`: no candidate camera at all; no candidate has
+            any of its points in its image within range; none sees the required fraction of
+            them unoccluded; or those that do see it below the required class.
+        best_dori: index of the best class any candidate reaches on it (-1: none or below the
+            lowest class).
+    """
+
+    target: int
+    reason: str
+    best_dori: int
+
+
+def why_uncovered(visibility: Visibility, targets: Sequence[int], *, min_visible: float,
+                  candidates: int) -> list[Uncovered]:
+    """The reason each of ``targets`` (indices of targets no candidate covers) is uncovered.
+
+    Args:
+        visibility: of every candidate.
+        targets: target indices.
+        min_visible: the fraction a camera must see.
+        candidates: number of candidate cameras.
+
+    Returns:
+        One :class:`Uncovered` per target, in the given order.
+    """
+    out = []
+    for t in targets:
+        seen = visibility.visible[:, t] if candidates else np.zeros(0)
+        best = int(visibility.dori[:, t].max(initial=-1)) if candidates else -1
+        if not candidates:
+            reason = "no mount"
+        elif float(visibility.in_image[:, t].max(initial=0.0)) == 0.0:
+            reason = "out of range"
+        elif float(seen.max(initial=0.0)) < min_visible - 1e-12:
+            reason = "occluded"
+        else:
+            reason = "too few pixels"
+        out.append(Uncovered(int(t), reason, best))
+    return out

@@ -11,7 +11,10 @@ same whether the labels were computed while rendering or afterwards:
   at that frame, its intrinsics scaled to the image's size), at the object's centre: the centre
   of the axis-aligned bounds of the object's world triangles at that frame;
 * ``dori`` is :func:`usdscene.labels.pixel_density.dori_class` of ``px_per_m`` in the DORI table
-  (IEC 62676-4:2015 by default, :func:`usdscene.labels.pixel_density.load_dori`); ``""`` below its lowest class.
+  (:data:`ANNOTATION_DORI_FILE`, IEC 62676-4:2015 by default); ``""`` below its lowest class.
+  The annotations keep the 2015 classes while the camera planner defaults to the 2025 levels:
+  switching them would change every annotated output of existing documents, and the 2015 names
+  are what those outputs and their readers already use.
 
 Objects present at a frame that no camera sees get a row with no cameras, so that "seen by 0
 cameras" can be counted.
@@ -27,6 +30,10 @@ import numpy as np
 
 from usdscene.labels.image_labels import Annotations
 from usdscene.document.model import Camera, SceneSpec
+from usdscene.labels.pixel_density import DORI_FILE
+
+# The detail table of the cross-camera table in annotated outputs (IEC 62676-4:2015).
+ANNOTATION_DORI_FILE = DORI_FILE
 
 # (frame, camera, uid) → pixels per metre at the object's centre.
 Densities = Mapping[tuple[int, str, str], float]
@@ -165,7 +172,7 @@ def cross_camera_table(annotations: Annotations, scene: SceneSpec, *, densities:
     """
     from usdscene.labels.pixel_density import dori_index, load_dori
 
-    table = tuple(load_dori() if dori_table is None else dori_table)
+    table = tuple(load_dori(ANNOTATION_DORI_FILE) if dori_table is None else dori_table)
     names = [c.name for c in table] + [""]  # index -1 (below the lowest class) → ""
     densities = densities or {}
     # Rounded once, classified in one vectorised pass (thousands of labels per frame).

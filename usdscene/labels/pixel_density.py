@@ -5,10 +5,13 @@ point perpendicular to the viewing ray, taken in the worse of the two perpendicu
 (the local Jacobian of the exact lens model from :mod:`usdscene.labels.projection`), so a
 fisheye's squeezed radial direction at the edge of its image is what counts.
 
-The detail classes are a table of minimum densities (IEC 62676-4:2015 by default, shipped as
-``usdscene/data/dori.json``; a user file replaces it). Both the camera planner
-(:mod:`usdscene.design`) and the labels of a rendered image (:mod:`usdscene.labels.cross_camera`)
-use them. Pure (numpy).
+The detail classes are a table of minimum densities, shipped for two editions of IEC 62676-4
+(:data:`STANDARD_FILES`): the 2015 DORI classes (``usdscene/data/dori.json``: monitor ... inspect)
+and the 2025 levels (``usdscene/data/dori_2025.json``: overview ... scrutinize, in the object-size
+groups LPDO and HPDO); a user file replaces either. The camera planner (:mod:`usdscene.design`)
+uses the 2025 table unless told otherwise; the cross-camera table of annotated runs
+(:mod:`usdscene.labels.cross_camera`) keeps the 2015 table, so that annotated outputs stay as
+they were. Pure (numpy).
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ log = logging.getLogger(__name__)
 
 
 DORI_FILE = shipped_data_file("dori.json")
+# Shipped detail tables by edition of IEC 62676-4 (``plan-cameras --standard``).
+STANDARD_FILES = {"2015": DORI_FILE, "2025": shipped_data_file("dori_2025.json")}
 
 
 def read_json_object(path: Path, problems: ProblemCollector) -> dict | None:
@@ -49,10 +54,12 @@ def read_json_object(path: Path, problems: ProblemCollector) -> dict | None:
 
 @dataclass(frozen=True)
 class DoriClass:
-    """An image-detail class: name and the pixel density it needs at the target (px/m)."""
+    """An image-detail class: name, the pixel density it needs at the target (px/m), and its
+    object-size group (``LPDO`` / ``HPDO`` in IEC 62676-4:2025; "" where the table has none)."""
 
     name: str
     px_per_m: float
+    group: str = ""
 
 
 def load_dori(path: str | os.PathLike | None = None) -> tuple[DoriClass, ...]:
@@ -83,12 +90,35 @@ def load_dori(path: str | os.PathLike | None = None) -> tuple[DoriClass, ...]:
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0:
                 problems.add(f"{where}.px_per_m", f"expected a positive number, got {value!r}")
                 continue
-            classes.append(DoriClass(item["name"], float(value)))
+            classes.append(DoriClass(item["name"], float(value), str(item.get("group", ""))))
         names = [c.name for c in classes]
         for name in sorted({n for n in names if names.count(n) > 1}):
             problems.add(f"{file}:classes", f"class name {name!r} appears more than once")
     problems.raise_if_any(DocumentError)
     return tuple(sorted(classes, key=lambda c: c.px_per_m))
+
+
+def standard_file(standard: str) -> Path:
+    """The shipped detail table of an edition of IEC 62676-4 (``2015`` or ``2025``).
+
+    Raises:
+        DocumentError: an edition that is not shipped.
+    """
+    if standard not in STANDARD_FILES:
+        raise DocumentError(f"unknown standard {standard!r}; shipped: {', '.join(STANDARD_FILES)}",
+                            where="--standard")
+    return STANDARD_FILES[standard]
+
+
+def table_standard(path: str | os.PathLike | None = None) -> str:
+    """The name of the standard a detail table follows: its ``standard`` field
+    (``IEC 62676-4:2025``), or ``custom table <file name>`` when it names none."""
+    file = Path(path) if path is not None else DORI_FILE
+    problems = ProblemCollector()
+    data = read_json_object(file, problems)
+    problems.raise_if_any(DocumentError)
+    name = data.get("standard") if data is not None else None
+    return name if isinstance(name, str) and name else f"custom table {file.name}"
 
 
 def dori_index(px_per_m: np.ndarray, table: Sequence[DoriClass]) -> np.ndarray:

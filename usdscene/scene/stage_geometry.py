@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Collection
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Sdf, Usd, UsdGeom
 
 from usdscene.document import stage_schema
 from usdscene.errors import CompositionError
@@ -186,24 +186,59 @@ def object_triangles(stage: Usd.Stage | str | os.PathLike, frame: int) -> dict[s
     return StageGeometry(stage).triangles(frame)
 
 
-def environment_triangles(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> np.ndarray:
-    """World triangles of everything under ``/World/Environment`` (the environment asset) at
-    ``frame``; ``guide``/``proxy`` purposes (place regions) and invisible meshes are skipped.
+# Custom attribute an environment author sets on a mesh (or an ancestor) to say whether a
+# camera may be fixed to it (see docs/camera-design.md, "What a camera may be fixed to").
+ATTR_MOUNTABLE = "usdscene:mountable"
+# Prefixes of the environment nodes that mark a camera mount (``mount.pole_3`` in a DCC tool;
+# USD prim names cannot hold a dot, so exporters write ``mount_pole_3``).
+MOUNT_NODE_PREFIXES = ("mount.", "mount_")
 
-    Returns:
-        (T, 3, 3) float64 triangle vertices in world metres.
+
+@dataclass(frozen=True)
+class EnvironmentMesh:
+    """One mesh of the environment asset in world space.
+
+    Attributes:
+        path: its prim path.
+        triangles_m: (T, 3, 3) float64 world triangle vertices, metres.
+        mountable: the ``usdscene:mountable`` attribute of the mesh or its nearest ancestor
+            that has one; None when none says.
     """
-    if not isinstance(stage, Usd.Stage):
-        opened = Usd.Stage.Open(str(stage))
-        if opened is None:
-            raise CompositionError(f"cannot open USD stage {str(stage)!r}", where=str(stage))
-        stage = opened
+
+    path: str
+    triangles_m: np.ndarray
+    mountable: bool | None = None
+
+
+def _open(stage: Usd.Stage | str | os.PathLike) -> Usd.Stage:
+    if isinstance(stage, Usd.Stage):
+        return stage
+    opened = Usd.Stage.Open(str(stage))
+    if opened is None:
+        raise CompositionError(f"cannot open USD stage {str(stage)!r}", where=str(stage))
+    return opened
+
+
+def _mountable_flag(prim: Usd.Prim) -> bool | None:
+    while prim and prim.GetPath() != Sdf.Path.absoluteRootPath:
+        attr = prim.GetAttribute(ATTR_MOUNTABLE)
+        if attr and attr.HasAuthoredValue():
+            return bool(attr.Get())
+        prim = prim.GetParent()
+    return None
+
+
+def environment_meshes(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> list[EnvironmentMesh]:
+    """The meshes under ``/World/Environment`` (the environment asset) at ``frame``, in
+    traversal order; ``guide``/``proxy`` purposes (place regions) and invisible meshes are skipped.
+    """
+    stage = _open(stage)
     root = stage.GetPrimAtPath(stage_schema.ENVIRONMENT)
     if not root:
-        return np.zeros((0, 3, 3))
+        return []
     time = Usd.TimeCode(frame)
     xforms = UsdGeom.XformCache(time)
-    parts = []
+    meshes = []
     for info in StageGeometry._meshes(root):
         prim = stage.GetPrimAtPath(info.path)
         imageable = UsdGeom.Imageable(prim)
@@ -216,5 +251,41 @@ def environment_triangles(stage: Usd.Stage | str | os.PathLike, frame: int = 0) 
             pts = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(time), dtype=np.float64).reshape(-1, 3)
             local = pts[info.indices]
         matrix = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
-        parts.append(local @ matrix[:3, :3] + matrix[3, :3])
+        meshes.append(EnvironmentMesh(info.path, local @ matrix[:3, :3] + matrix[3, :3], _mountable_flag(prim)))
+    return meshes
+
+
+def environment_triangles(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> np.ndarray:
+    """World triangles of everything under ``/World/Environment`` (the environment asset) at
+    ``frame``; ``guide``/``proxy`` purposes (place regions) and invisible meshes are skipped.
+
+    Returns:
+        (T, 3, 3) float64 triangle vertices in world metres.
+    """
+    parts = [m.triangles_m for m in environment_meshes(stage, frame)]
     return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+
+
+def mount_nodes(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Camera mounts the environment marks: prims under ``/World/Environment`` whose name
+    starts with ``mount.`` or ``mount_``.
+
+    Returns:
+        (name, (3,) world position in metres, (3,) unit direction of the node's -Z axis, the
+        way a USD camera looks), in traversal order.
+    """
+    stage = _open(stage)
+    root = stage.GetPrimAtPath(stage_schema.ENVIRONMENT)
+    if not root:
+        return []
+    xforms = UsdGeom.XformCache(Usd.TimeCode(frame))
+    nodes = []
+    for prim in Usd.PrimRange(root, Usd.TraverseInstanceProxies()):
+        name = prim.GetName()
+        if not name.lower().startswith(MOUNT_NODE_PREFIXES) or not prim.IsA(UsdGeom.Xformable):
+            continue
+        matrix = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
+        forward = -matrix[2, :3]
+        norm = float(np.linalg.norm(forward))
+        nodes.append((name, matrix[3, :3].copy(), forward / norm if norm > 0 else np.array([0.0, 0.0, -1.0])))
+    return nodes
