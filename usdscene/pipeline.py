@@ -44,6 +44,7 @@ class RunSummary:
         images_labelled_while_rendering: images whose labels were computed while the next ones
             rendered (the rest are labelled in the annotate step).
         labelling_s_while_rendering: wall seconds those labels took (inside the render step).
+        report_page: the browsable report's page (``OUT/report/index.html``); None when not written.
     """
 
     out_dir: Path
@@ -59,6 +60,7 @@ class RunSummary:
     render: RenderReport | None = None
     images_labelled_while_rendering: int = 0
     labelling_s_while_rendering: float = 0.0
+    report_page: Path | None = None
 
 
 def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int | None = None):
@@ -276,5 +278,7 @@ def summary_text(summary: RunSummary) -> str:
         lines.extend("  " + line for line in node_summary_lines(report))
     for fmt, folder in summary.exports.items():
         lines.append(f"  {fmt}:    {folder}")
+    if summary.report_page is not None:
+        lines.append(f"  report:  {summary.report_page}    (open it in a web browser)")
     lines.append(f"  next:    usdscene stats {out}    (counts, visibility histogram and a chart)")
     return "\n".join(lines)

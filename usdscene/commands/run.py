@@ -32,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "most N tasks in flight, default what the cluster holds)")
     add_split_arguments(parser)
     add_executor_arguments(parser)
+    parser.add_argument("--no-report", action="store_true",
+                        help="do not write the browsable report OUT/report/index.html (usdscene report OUT "
+                             "writes it later)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
