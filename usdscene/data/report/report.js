@@ -351,12 +351,14 @@
       }
       const anchor = o.b || o.a;
       if (anchor) {
-        const left = anchor[0] - anchor[2] / 2, top = anchor[1] - anchor[3] / 2, bottom = anchor[1] + anchor[3] / 2;
-        const text = svgElement("text", { class: "ov-text", x: left, y: Math.max(top - fontSize * 0.25, fontSize * 0.8),
-          "font-size": fontSize, "stroke-width": fontSize / 5 }, g);
+        const top = anchor[1] - anchor[3] / 2, bottom = anchor[1] + anchor[3] / 2;
+        // Text runs from the box edge towards the image centre, so that it stays on the image.
+        const rightHalf = anchor[0] > w / 2;
+        const x = rightHalf ? anchor[0] + anchor[2] / 2 : anchor[0] - anchor[2] / 2;
+        const along = { x, "text-anchor": rightHalf ? "end" : "start", "font-size": fontSize, "stroke-width": fontSize / 5 };
+        const text = svgElement("text", { class: "ov-text", y: Math.max(top - fontSize * 0.25, fontSize * 0.8), ...along }, g);
         text.textContent = labelText(o, ix);
-        const track = svgElement("text", { class: "ov-track", x: left, y: bottom + fontSize * 0.9, "font-size": fontSize,
-          "stroke-width": fontSize / 5 }, g);
+        const track = svgElement("text", { class: "ov-track", y: Math.min(bottom + fontSize * 0.9, h - 0.5), ...along }, g);
         track.textContent = `#${o.u}`;
       }
       const li = document.createElement("li");
@@ -375,7 +377,8 @@
   }
 
   function labelText(o, ix) {
-    const vis = o.v === null ? "visibility ?" : o.b ? `${Math.round(o.v * 100)}% visible` : "fully occluded";
+    const percent = o.v === null ? "" : o.v > 0 && o.v < 0.01 ? "<1%" : `${Math.round(o.v * 100)}%`;
+    const vis = o.v === null ? "visibility ?" : o.b ? `${percent} visible` : "fully occluded";
     return `${ix.classes[o.k]} · ${vis}${o.r ? " · " + o.r : ""}`;
   }
 
