@@ -11,12 +11,12 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene.amodal import AmodalProjection
+from usdscene.labels.amodal import AmodalProjection
 from usdscene.cli import main
 from usdscene.converters.openlabel_annotations import add_annotations, labels_in
-from usdscene.labels import image_labels_to_json, label_image, label_images
-from usdscene.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
-from usdscene.report import THUMB_WIDTH_PX, build_report, picture_paths
+from usdscene.labels.image_labels import image_labels_to_json, label_image, label_images
+from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
+from usdscene.dataset.report import THUMB_WIDTH_PX, build_report, picture_paths
 
 W, H = 320, 240
 CAMERAS = ("cam_a", "cam_b")

@@ -29,9 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from usdscene.camera_design import plan_picture_for
+    from usdscene.design.camera_design import plan_picture_for
     from usdscene.errors import DocumentError
-    from usdscene.report import build_report, run_document
+    from usdscene.dataset.report import build_report, run_document
 
     if args.document is not None and not Path(args.document).is_file():
         raise DocumentError(f"scene document {args.document!r} does not exist", where="--document")

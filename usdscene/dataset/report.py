@@ -4,7 +4,7 @@ A static page that opens from ``file://`` with no server and no network. Chromiu
 ``fetch()`` of ``file://`` URLs, so the data travel as JavaScript files that the page loads with
 ``<script>`` elements::
 
-    report/index.html, report.js, report.css   the page (shipped in usdscene/data/report/)
+    report/index.html, report.js, report.css   the page (package data usdscene/data/report/)
     report/data/index.js        every image's frame, camera, thumbnail kind and label codes
                                 (class, visibility bin, visible or hidden): enough to filter,
                                 count and draw the grid; loaded at once
@@ -25,7 +25,7 @@ lost one is only redrawn.
 
 Labels come from ``OUT/annotations.openlabel.json``. In a half-finished run (no annotations
 document yet) they come from the labels kept per image in ``OUT/labels/`` (see
-:class:`usdscene.annotation.ImageLabeller`), and images rendered but not yet labelled are shown
+:class:`usdscene.dataset.annotation.ImageLabeller`), and images rendered but not yet labelled are shown
 without labels.
 
 Keypoints are read from ``point2d`` object data named ``<camera>_keypoint_<joint>`` with an
@@ -41,7 +41,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from usdscene import layout
+from usdscene.dataset.statistics import HISTOGRAM_BINS
+from usdscene.document import output_layout as layout
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +53,6 @@ THUMBS_DIR = "thumbs"
 TINTS_DIR = "tints"
 PAGE_IMAGES = 250
 THUMB_WIDTH_PX = 160
-HISTOGRAM_BINS = 10  # as usdscene.statistics
 UNKNOWN_BIN = HISTOGRAM_BINS
 _STATIC_FILES = ("index.html", "report.js", "report.css")
 KEYPOINT_INFIX = "_keypoint_"
@@ -100,7 +100,7 @@ def build_report(out_dir: str | os.PathLike, report_dir: str | os.PathLike | Non
         document: the scene document of the run, for the balance chart of its
             ``DOC.report.json`` when it was generated (see :func:`run_document`).
         coverage_map: the plan picture of the camera plan the document comes from
-            (``usdscene.camera_design.plan_picture_for``), shown beside the labels.
+            (``usdscene.design.camera_design.plan_picture_for``), shown beside the labels.
         workers: threads drawing thumbnails and tints (default: the CPU count).
 
     Returns:
@@ -167,7 +167,9 @@ def build_report(out_dir: str | os.PathLike, report_dir: str | os.PathLike | Non
 
 
 def _static_folder() -> Path:
-    return Path(__file__).resolve().parent / "data" / "report"
+    from usdscene.shipped import shipped_data_file
+
+    return shipped_data_file("report")
 
 
 def _js_json(value) -> str:
@@ -263,7 +265,7 @@ def _images_from_kept_labels(out: Path) -> list[dict]:
     in ``OUT/labels/`` when they are there."""
     import json
 
-    from usdscene.labels import image_labels_from_json
+    from usdscene.labels.image_labels import image_labels_from_json
 
     images = []
     for image_file in sorted((out / layout.IMAGES_DIR).glob("*/*.png")):
@@ -427,8 +429,8 @@ def _extra_pictures(target: Path, document, coverage_map) -> dict[str, str]:
     import json
 
     from usdscene.files import write_bytes_atomic, write_png_atomic
-    from usdscene.sequences import report_path
-    from usdscene.statistics import draw_balance_chart
+    from usdscene.dataset.sequences import report_path
+    from usdscene.dataset.statistics import draw_balance_chart
 
     found: dict[str, str] = {}
     balance = report_path(document) if document is not None else None
