@@ -130,11 +130,15 @@ def test_report_holds_every_image_and_label(output):
     assert page[2]["o"][0]["kp"] == [["nose", 55.0, 50.0, 1]]  # frame 1, cam_a
     thumb, tint = picture_paths(report, "cam_b", 2)
     assert cv2.imread(str(thumb)).shape == (H * THUMB_WIDTH_PX // W, THUMB_WIDTH_PX, 3)
-    colours = cv2.imread(str(tint), cv2.IMREAD_UNCHANGED)
-    mask = _mask(2, "cam_b")
-    assert colours.shape == (H, W, 4)
-    assert (colours[..., 3] > 0).tolist() == (mask > 0).tolist()
-    assert (colours[mask == 1][0] != colours[mask == 2][0]).any()  # one colour per instance
+    indices = cv2.imread(str(tint), cv2.IMREAD_UNCHANGED)
+    assert indices.dtype == np.uint8 and indices.tolist() == _mask(2, "cam_b").tolist()  # ids 1, 2 → 1, 2
+
+
+def test_tint_indices_wrap_past_255():
+    from usdscene.dataset.report import tint_indices
+
+    ids = np.array([[0, 1, 255, 256, 511, 65535]], np.uint16)
+    assert tint_indices(ids).tolist() == [[0, 1, 255, 1, 1, 255]]
 
 
 def test_rebuild_redraws_only_changed_pictures(output):

@@ -13,13 +13,13 @@ A static page that opens from ``file://`` with no server and no network. Chromiu
                                 (frame, camera) order; loaded when an image of the page is opened
     report/thumbs/<camera>/<frame:06d>.jpg   THUMB_WIDTH_PX wide (none for images that are
                                 already that small: the page shows the image itself)
-    report/tints/<camera>/<frame:06d>.png    the instance mask as colours (RGBA, 0 = clear),
-                                shown under the label overlay
+    report/tints/<camera>/<frame:06d>.png    the instance mask as 8-bit colour indices
+                                (:func:`tint_indices`), coloured by the page
     report/balance.png          the balance chart of a generated document (``DOC.report.json``)
     report/coverage.png         the plan picture when the document sits in a camera-plan folder
 
-A page cannot read the pixels of a ``file://`` image (the canvas is tainted), hence the mask
-tints are drawn here. Thumbnails and tints are kept between builds: one is redrawn only when
+A page cannot read the pixels of a ``file://`` image (the canvas is tainted) and browsers show
+16-bit PNGs as 8 bits, hence the tints: an SVG filter of the page maps their indices to colours. Thumbnails and tints are kept between builds: one is redrawn only when
 its image or mask is newer. They are written by replacing a temporary file, without fsync: a
 lost one is only redrawn.
 
@@ -56,7 +56,6 @@ THUMB_WIDTH_PX = 160
 UNKNOWN_BIN = HISTOGRAM_BINS
 _STATIC_FILES = ("index.html", "report.js", "report.css")
 KEYPOINT_INFIX = "_keypoint_"
-_TINT_ALPHA = 150  # of 255: the image stays readable under the tint
 
 
 @dataclass(frozen=True)
@@ -372,24 +371,26 @@ def _draw_one(out: Path, target: Path, image: dict) -> tuple[int, int, tuple[int
     if mask is not None and mask.is_file() and _newer(mask, tint):
         ids = cv2.imread(str(mask), cv2.IMREAD_UNCHANGED)
         if ids is not None and ids.ndim == 2:
-            _write_picture(tint, ".png", tint_colours(ids), [cv2.IMWRITE_PNG_COMPRESSION, 1])
+            _write_picture(tint, ".png", tint_indices(ids), [cv2.IMWRITE_PNG_COMPRESSION, 1])
             drawn += 1
     return drawn, 1 if width > THUMB_WIDTH_PX else 2, size
 
 
-def tint_colours(ids):
-    """(H, W, 4) uint8 BGRA picture of an (H, W) instance-id mask: each id its own colour
-    (hues a golden angle apart, so neighbouring ids differ), background transparent."""
-    import cv2
+def tint_indices(ids):
+    """(H, W) uint8 colour indices of an (H, W) uint16 instance-id mask: 0 background, else
+    ``(id - 1) % 255 + 1``. The page colours index k with the k-th hue of its palette (an SVG
+    colour table), so neighbouring ids differ and the file is a small grey PNG."""
+    global _TINT_TABLE
     import numpy as np
 
-    present = np.unique(ids)
-    lut = np.zeros((int(present.max()) + 1, 4), np.uint8)
-    for value in present[present > 0]:
-        hue = int(value * 137.508) % 360
-        bgr = cv2.cvtColor(np.uint8([[[hue // 2, 200, 255]]]), cv2.COLOR_HSV2BGR)[0, 0]
-        lut[value] = (*bgr, _TINT_ALPHA)
-    return lut[ids]
+    if _TINT_TABLE is None:
+        table = (np.arange(65536) - 1) % 255 + 1
+        table[0] = 0
+        _TINT_TABLE = table.astype(np.uint8)
+    return _TINT_TABLE[ids]
+
+
+_TINT_TABLE = None
 
 
 def _write_picture(path: Path, ext: str, pixels, params: list[int]) -> None:

@@ -319,8 +319,9 @@
     svg.setAttribute("viewBox", `-0.5 -0.5 ${w} ${h}`);
     svgElement("image", { class: "photo", href: `${ix.imageRoot}/${entry.uri}`, x: -0.5, y: -0.5, width: w, height: h,
       preserveAspectRatio: "none" }, svg);
+    svg.appendChild(tintFilter());
     svgElement("image", { class: "ov-tint", href: `tints/${cam}/${pad6(frame)}.png`, x: -0.5, y: -0.5, width: w,
-      height: h, preserveAspectRatio: "none" }, svg);
+      height: h, preserveAspectRatio: "none", filter: "url(#tint-colours)" }, svg);
     const fontSize = Math.max(h / 34, 1);
     const list = $("label-list");
     list.innerHTML = "";
@@ -374,6 +375,28 @@
     $("viewer-title").textContent = `${cam} · frame ${frame} · ${w}×${h} px · image ${S.images.indexOf(i) + 1} of ${S.images.length}`;
     $("viewer").hidden = false;
     applyOverlays();
+  }
+
+  // The tints are grey PNGs of colour indices (0 background, 1..255 instances): this filter
+  // makes index k the k-th hue, a golden angle from the previous one, and index 0 transparent.
+  let tintDefs = null;
+  function tintFilter() {
+    if (tintDefs) return tintDefs.cloneNode(true);
+    const channels = [[], [], []];
+    for (let k = 0; k < 256; k++) {
+      const hue = (k * 137.508) % 360, f = (n) => { const a = (n + hue / 30) % 12; return 0.5 - 0.5 * Math.max(-1, Math.min(a - 3, 9 - a, 1)); };
+      channels[0].push(f(0).toFixed(3)); channels[1].push(f(8).toFixed(3)); channels[2].push(f(4).toFixed(3));
+    }
+    tintDefs = svgElement("defs", {});
+    const filter = svgElement("filter", { id: "tint-colours", "color-interpolation-filters": "sRGB", x: 0, y: 0,
+      width: 1, height: 1 }, tintDefs);
+    // alpha := 255 · index, i.e. 0 for the background and 1 for any instance
+    svgElement("feColorMatrix", { type: "matrix", values: "1 0 0 0 0  0 1 0 0 0  0 0 1 0 0  255 0 0 0 0" }, filter);
+    const transfer = svgElement("feComponentTransfer", {}, filter);
+    ["feFuncR", "feFuncG", "feFuncB"].forEach((name, c) =>
+      svgElement(name, { type: "discrete", tableValues: channels[c].join(" ") }, transfer));
+    svgElement("feFuncA", { type: "linear", slope: 0.55 }, transfer);
+    return tintDefs.cloneNode(true);
   }
 
   function labelText(o, ix) {
