@@ -18,7 +18,7 @@ from usdscene.labels.image_labels import image_labels_to_json, label_image, labe
 from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
 from usdscene.dataset.report import THUMB_WIDTH_PX, build_report, picture_paths
 
-W, H = 320, 240
+W, H = 400, 240  # wider than THUMB_ABOVE_PX: thumbnails are drawn
 CAMERAS = ("cam_a", "cam_b")
 FRAMES = (0, 1, 2)
 OBJECTS = {"0": ("bag_0", "backpack"), "1": ("case_1", "suitcase")}
@@ -112,7 +112,7 @@ def test_report_holds_every_image_and_label(output):
     assert index["title"] == "synthetic_report"
     assert index["cameras"] == list(CAMERAS) and index["classes"] == ["backpack", "suitcase"]
     assert index["frames"] == list(FRAMES) and index["imageRoot"] == ".."
-    assert index["thumb"] == [1] * 6  # 320 px wide: every image gets a thumbnail
+    assert index["thumb"] == [1] * 6
     # (frame, camera) order; codes: (class · 11 + visibility bin) · 2 + visible
     assert index["camera"] == [0, 1, 0, 1, 0, 1]
     assert index["codes"][1] == [(0 * 11 + 5) * 2 + 1, (1 * 11 + 9) * 2 + 1]
@@ -164,6 +164,25 @@ def test_half_finished_run_reports_what_is_there(output, capsys):
     _, page = _script_data(output / "report" / "data" / "labels_00000.js", "usdsceneReportPage")
     assert page[3]["o"] == [] and (page[3]["w"], page[3]["h"]) == (W, H)
     assert [o["b"] for o in page[1]["o"]] == [[54.5, 64.5, 50.0, 50.0], [204.5, 159.5, 110.0, 80.0]]
+
+
+def test_small_images_are_their_own_thumbnails_and_sizes_come_from_the_png(output):
+    (output / "annotations.openlabel.json").unlink()
+    cv2.imwrite(str(output / "images" / "cam_a" / "000000.png"), np.zeros((48, 64, 3), np.uint8))
+    (output / "labels" / "cam_a" / "000000.json").unlink()
+    build_report(output)
+    index = _script_data(output / "report" / "data" / "index.js", "usdsceneReportIndex")
+    assert index["thumb"] == [2, 1, 1, 1, 1, 1]
+    assert not picture_paths(output / "report", "cam_a", 0)[0].exists()
+    _, page = _script_data(output / "report" / "data" / "labels_00000.js", "usdsceneReportPage")
+    assert (page[0]["w"], page[0]["h"]) == (64, 48)  # unlabelled: read from the PNG header
+
+
+def test_unreadable_annotations_is_a_one_line_error(output, capsys):
+    (output / "annotations.openlabel.json").write_text('{"openlabel": {"frames": ')
+    assert main(["report", str(output)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unreadable annotations document" in err[0]
 
 
 def test_folder_without_annotations_is_a_one_line_error(tmp_path, capsys):
