@@ -85,10 +85,14 @@ class ReportSummary:
 
     def note(self) -> str:
         """One line for people: what the report holds, and what is missing from a half-finished run."""
-        if self.complete:
-            return f"{self.images} images, {self.labels} labels"
-        return (f"half-finished run: no {layout.ANNOTATIONS_FILE} yet; the report shows the "
-                f"{self.images} images rendered so far, {self.labelled_images} of them labelled")
+        return _note(self.complete, self.images, self.labels, self.labelled_images)
+
+
+def _note(complete: bool, images: int, labels: int, labelled_images: int) -> str:
+    if complete:
+        return f"{images} images, {labels} labels"
+    return (f"half-finished run: no {layout.ANNOTATIONS_FILE} yet; the report shows the "
+            f"{images} images rendered so far, {labelled_images} of them labelled")
 
 
 def build_report(out_dir: str | os.PathLike, report_dir: str | os.PathLike | None = None, *,
@@ -144,8 +148,7 @@ def build_report(out_dir: str | os.PathLike, report_dir: str | os.PathLike | Non
     extras = _extra_pictures(target, document, coverage_map)
     index = {
         "title": title, "complete": complete,
-        "note": None if complete else ReportSummary(Path(), len(images), 0, sum(im["labelled"] for im in images),
-                                                    False, 0, 0.0).note(),
+        "note": None if complete else _note(False, len(images), 0, sum(1 for im in images if im["labelled"])),
         "cameras": cameras, "classes": classes, "frames": frames,
         "pageImages": PAGE_IMAGES, "pages": len(pages), "histogramBins": HISTOGRAM_BINS,
         "imageRoot": _relative(out, target),
