@@ -150,6 +150,18 @@ def test_rebuild_redraws_only_changed_pictures(output):
     assert build_report(output).pictures_drawn == 1
 
 
+def test_pictures_drawn_while_rendering_are_kept_by_the_report(output):
+    from usdscene.dataset.report import PicturesWhileRendering
+
+    pictures = PicturesWhileRendering(output)
+    for frame in FRAMES:
+        for camera in CAMERAS:
+            pictures({"event": "done", "frame": frame, "camera": camera})
+    pictures({"event": "started", "frame": 0, "camera": "cam_a"})  # other events: nothing
+    assert pictures.pictures == 12
+    assert build_report(output).pictures_drawn == 0
+
+
 def test_half_finished_run_reports_what_is_there(output, capsys):
     (output / "annotations.openlabel.json").unlink()
     for frame in (1, 2):
