@@ -96,9 +96,12 @@ def test_report_in_chromium(report, browser, tmp_path):
             for r in rows} == visible_per_camera
     browser.save_screenshot(str(shots / "grid.png"))
 
+    # Keyboard in the grid: ↓ from frame 0 of cam_01 to frame 1, Enter opens it.
+    browser.find_element(By.CSS_SELECTOR, '#grid .cell[title="cam_01 · frame 0"]').send_keys(Keys.ARROW_DOWN)
+    focused = browser.switch_to.active_element
+    assert focused.get_attribute("title") == "cam_01 · frame 1"
     # The image view of frame 1, cam_01: one tight box per visible label, the rest toggled on.
-    cell = browser.find_element(By.CSS_SELECTOR, '#grid .cell[title="cam_01 · frame 1"]')
-    cell.click()
+    focused.send_keys(Keys.ENTER)
     WebDriverWait(browser, 10).until(lambda b: b.find_element(By.ID, "viewer").is_displayed())
     expected = labels[(1, "cam_01")]
     assert browser.find_element(By.ID, "viewer-title").text.startswith("cam_01 · frame 1")

@@ -445,6 +445,17 @@
       }
       return;
     }
+    const arrows = { ArrowLeft: [0, -1], ArrowRight: [0, 1], ArrowUp: [-1, 0], ArrowDown: [1, 0] };
+    if (arrows[event.key] && event.target.classList.contains("cell")) {
+      // Move the focus through the grid: rows are frames, columns cameras.
+      const td = event.target.closest("td"), tr = td.parentElement;
+      const rows = [...tr.parentElement.rows];
+      const r = rows.indexOf(tr) + arrows[event.key][0], c = td.cellIndex + arrows[event.key][1];
+      const next = rows[r] && rows[r].cells[c] && rows[r].cells[c].querySelector(".cell");
+      if (next) next.focus();
+      event.preventDefault();
+      return;
+    }
     if (event.key === "[") { turnPage(-1); event.preventDefault(); }
     else if (event.key === "]") { turnPage(1); event.preventDefault(); }
     else if (event.key === "Enter" && event.target.classList.contains("cell")) {
