@@ -174,7 +174,7 @@ def main() -> None:
         first = build_report(out)
         cpu, first_cpu = cpu_seconds(), cpu_seconds() - cpu
         print(f"first build:  {first.seconds:6.1f} s wall, {first_cpu:.1f} s CPU ({first.pictures_drawn} thumbnails "
-              f"and tints drawn; {1000 * first.seconds / first.images:.2f} ms per image)  / target "
+              f"and mask tints drawn; {1000 * first.seconds / first.images:.2f} ms per image)  / target "
               f"{BUILD_TARGET_S:.0f} s = {first.seconds / BUILD_TARGET_S:.2f}")
         second = build_report(out)
         print(f"second build: {second.seconds:6.1f} s wall, {cpu_seconds() - cpu:.1f} s CPU (pictures kept: the "
