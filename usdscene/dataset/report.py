@@ -123,7 +123,7 @@ def build_report(out_dir: str | os.PathLike, report_dir: str | os.PathLike | Non
     out = Path(out_dir)
     target = Path(report_dir) if report_dir is not None else out / REPORT_DIR
     if not out.is_dir():
-        raise OutputError("no such output folder", where=str(out))
+        raise OutputError("not a folder" if out.exists() else "no such output folder", where=str(out))
     annotations = out / layout.ANNOTATIONS_FILE
     if annotations.is_file():
         images, title = _images_from_document(out, annotations), _document_title(annotations)
