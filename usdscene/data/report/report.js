@@ -268,7 +268,11 @@
       img.src = pictures[key];
       img.alt = titles[key];
       img.id = `picture-${key}`;
-      box.append(h, img);
+      const link = document.createElement("a");  // full size in a tab of its own
+      link.href = pictures[key];
+      link.target = "_blank";
+      link.appendChild(img);
+      box.append(h, link);
     }
   }
 
