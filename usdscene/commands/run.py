@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
     options = RunOptions(frames=frames, cameras=args.cameras, exports=args.export, samples=args.samples,
                          workers=args.workers, retries=args.retries, split=args.split,
-                         split_seed=args.split_seed)
+                         split_seed=args.split_seed, report=not args.no_report)
     summary = run_pipeline(args.document, args.output, options, executor=executor, progress=progress,
                            on_step=show_step)
     print(summary_text(summary))
