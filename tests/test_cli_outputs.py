@@ -137,6 +137,8 @@ def _cases(tmp: Path, blocker: Path) -> list[tuple[list[str], str]]:
         (["annotate", str(blocker)], str(blocker)),
         (["export", "coco", str(blocker)], str(blocker)),
         (["stats", str(blocker)], str(blocker)),
+        (["report", str(blocker)], str(blocker)),
+        (["report", str(folder), "-o", str(blocker / "report")], str(folder)),  # nothing to report
     ]
 
 

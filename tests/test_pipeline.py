@@ -31,6 +31,7 @@ def test_run_writes_every_product(run_output, capsys):
     assert (out / "stage" / "scene.usda").is_file()
     assert (out / "exports" / "coco" / "annotations.json").is_file()
     assert (out / "exports" / "yolo" / "detect" / "data.yaml").is_file()
+    assert (out / "report" / "index.html").is_file() and (out / "report" / "data" / "index.js").is_file()
 
 
 def test_annotations_validate_and_read_back(run_output, openlabel_schema_path):

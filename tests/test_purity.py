@@ -39,6 +39,7 @@ PURE_MODULES = [
     "usdscene.dataset.export",
     "usdscene.dataset.statistics",
     "usdscene.dataset.contact_sheet",
+    "usdscene.dataset.report",
     "usdscene.shipped",
     "usdscene.converters.openlabel",
     "usdscene.converters.openlabel_annotations",

@@ -50,6 +50,7 @@ _LAZY = {
     "export_dataset": ("usdscene.dataset.export", "export_dataset"),
     "carried_split": ("usdscene.dataset.export", "carried_split"),
     "parse_split": ("usdscene.document.splits", "parse_split"),
+    "build_report": ("usdscene.dataset.report", "build_report"),
     # the whole job
     "run_pipeline": ("usdscene.pipeline", "run_pipeline"),
     "RunSummary": ("usdscene.pipeline", "RunSummary"),

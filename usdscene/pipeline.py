@@ -1,4 +1,4 @@
-"""``usdscene run``: validate → compose → render → annotate → export, resumable.
+"""``usdscene run``: validate → compose → render → annotate → export → report, resumable.
 
 Each step is the public function of its module; this one only chains them and measures. A
 re-run of the same command on the same output folder recomposes byte-identical layers, skips
@@ -44,6 +44,7 @@ class RunSummary:
         images_labelled_while_rendering: images whose labels were computed while the next ones
             rendered (the rest are labelled in the annotate step).
         labelling_s_while_rendering: wall seconds those labels took (inside the render step).
+        report_page: the browsable report's page (``OUT/report/index.html``); None when not written.
     """
 
     out_dir: Path
@@ -59,6 +60,7 @@ class RunSummary:
     render: RenderReport | None = None
     images_labelled_while_rendering: int = 0
     labelling_s_while_rendering: float = 0.0
+    report_page: Path | None = None
 
 
 def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int | None = None):
@@ -113,6 +115,8 @@ class RunOptions:
         split: training split rule of the COCO/YOLO export (:mod:`usdscene.document.splits`);
             None = the document's own rule (``metadata.usdscene.split``), or none.
         split_seed: seed of a fraction split.
+        report: write the browsable report (``OUT/report/``, :mod:`usdscene.dataset.report`);
+            its thumbnails and mask tints are drawn while rendering.
     """
 
     frames: Sequence[int] | None = None
@@ -123,13 +127,14 @@ class RunOptions:
     retries: int | None = None
     split: Any = None
     split_seed: int = 0
+    report: bool = True
 
 
 def run_pipeline(document: str | Path, out_dir: str | Path, options: RunOptions = RunOptions(), *,
                  executor="local", progress: bool = True,
                  on_step: Callable[[str], None] | None = None) -> RunSummary:
     """Run the whole job for one scene document: validate → compose → render (each image
-    labelled as it arrives) → annotate → export.
+    labelled as it arrives) → annotate → export → report.
 
     Args:
         document: OpenLABEL/VCD scene document.
@@ -154,7 +159,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, options: RunOptions 
         labelling, report = run.render(composed.root_layer)
         annotations = run.annotate(checked, labelling)
         exports = run.export(checked.scene)
-    return run.summary(report, annotations, labelling, exports)
+        page = run.report()
+    return run.summary(report, annotations, labelling, exports, page)
 
 
 class _Run:
@@ -204,9 +210,19 @@ class _Run:
         with self._step("render"):
             override = {"samples": options.samples} if options.samples is not None else None
             labelling = LabelsWhileRendering(self.out)
+            on_event = labelling
+            if options.report:
+                from usdscene.dataset.report import PicturesWhileRendering
+
+                # the report's thumbnails and mask tints too: its step at the end only writes data
+                pictures = PicturesWhileRendering(self.out)
+
+                def on_event(event: dict) -> None:
+                    labelling(event)
+                    pictures(event)
             report = render(stage_path, self.out, frames=options.frames, cameras=options.cameras,
                             settings_override=override, progress=self.progress, workers=options.workers,
-                            executor=self.executor, on_event=labelling,
+                            executor=self.executor, on_event=on_event,
                             **({} if options.retries is None else {"retries": options.retries}))
         return labelling, report
 
@@ -236,7 +252,19 @@ class _Run:
                 split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
             return export_formats(self.out, formats, split=split, split_seed=split_seed)
 
-    def summary(self, report, annotations, labelling, exports) -> RunSummary:
+    def report(self) -> Path | None:
+        """The browsable report, with the balance chart of a generated document and the
+        coverage map of a camera plan when the document has them."""
+        if not self.options.report:
+            return None
+        from usdscene.dataset.report import build_report
+        from usdscene.design.camera_design import plan_picture_for
+
+        with self._step("report"):
+            return build_report(self.out, document=self.document,
+                                coverage_map=plan_picture_for(self.document)).index
+
+    def summary(self, report, annotations, labelling, exports, page) -> RunSummary:
         per_class = Counter(obj.class_name for image in annotations for obj in image.objects if obj.visible)
         hidden = sum(1 for image in annotations for obj in image.objects if not obj.visible)
         seconds = self.seconds
@@ -248,7 +276,7 @@ class _Run:
             seconds=dict(seconds),
             render_seconds_per_image=seconds["render"] / report.pairs_rendered if report.pairs_rendered else 0.0,
             exports=exports, render=report, images_labelled_while_rendering=labelling.images,
-            labelling_s_while_rendering=labelling.seconds)
+            labelling_s_while_rendering=labelling.seconds, report_page=page)
 
 
 def summary_text(summary: RunSummary) -> str:
@@ -276,5 +304,7 @@ def summary_text(summary: RunSummary) -> str:
         lines.extend("  " + line for line in node_summary_lines(report))
     for fmt, folder in summary.exports.items():
         lines.append(f"  {fmt}:    {folder}")
+    if summary.report_page is not None:
+        lines.append(f"  report:  {summary.report_page}    (open it in a web browser)")
     lines.append(f"  next:    usdscene stats {out}    (counts, visibility histogram and a chart)")
     return "\n".join(lines)

@@ -32,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "most N tasks in flight, default what the cluster holds)")
     add_split_arguments(parser)
     add_executor_arguments(parser)
+    parser.add_argument("--no-report", action="store_true",
+                        help="do not write the browsable report OUT/report/index.html (usdscene report OUT "
+                             "writes it later)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -58,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
     options = RunOptions(frames=frames, cameras=args.cameras, exports=args.export, samples=args.samples,
                          workers=args.workers, retries=args.retries, split=args.split,
-                         split_seed=args.split_seed)
+                         split_seed=args.split_seed, report=not args.no_report)
     summary = run_pipeline(args.document, args.output, options, executor=executor, progress=progress,
                            on_step=show_step)
     print(summary_text(summary))

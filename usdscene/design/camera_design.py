@@ -61,6 +61,14 @@ VERIFY_DIR = "verify"
 VERIFY_FILE = "verification.json"
 
 
+def plan_picture_for(document: str | os.PathLike) -> Path | None:
+    """The coverage map of the camera plan a scene document comes from: the plan picture of the
+    folder it sits in when that folder is a plan folder (``coverage.json`` beside it), else None."""
+    folder = Path(document).resolve().parent
+    picture = folder / PLAN_PICTURE
+    return picture if picture.is_file() and (folder / COVERAGE_FILE).is_file() else None
+
+
 @dataclass(frozen=True)
 class PlanResult:
     """What :func:`plan_cameras` computed and wrote.
