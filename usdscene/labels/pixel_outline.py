@@ -56,40 +56,42 @@ def outline_rings(region: np.ndarray, offset_px: tuple[int, int] = (0, 0)
         return []
     padded = np.zeros((inside.shape[0] + 2, inside.shape[1] + 2), dtype=np.uint8)
     padded[1:-1, 1:-1] = inside
-    corners, starts, seeds = _trace_kernel()(padded)
-    count, parts = cv2.connectedComponents(padded, connectivity=8)
-    rings = []
-    for k in range(len(starts) - 1):
-        # the walk emits its start corner last: put it first (an outer ring then starts at
-        # the top-left corner of its part's top-left pixel)
-        ring = np.roll(corners[starts[k]:starts[k + 1]], 1, axis=0)
-        # padded corner (row r, column c) is the top-left corner of padded pixel (r, c), i.e.
-        # of region pixel (r - 1, c - 1), at image coordinates (c - 1.5, r - 1.5) + offset
-        points = np.stack([ring[:, 1] - 1.5 + offset_px[0], ring[:, 0] - 1.5 + offset_px[1]], axis=1)
-        rings.append((points, _signed_area(points) < 0, int(parts[seeds[k, 0], seeds[k, 1]])))
-    outer_of_part = {part: k for k, (_, hole, part) in enumerate(rings) if not hole}
-    order = []
-    for k, (_, hole, part) in enumerate(rings):
-        if not hole:
-            order.append(k)
-            order += [j for j, (_, h, p) in enumerate(rings) if h and p == part]
-    position = {k: i for i, k in enumerate(order)}
-    return [(rings[k][0], rings[k][1], position[outer_of_part[rings[k][2]]] if rings[k][1] else -1)
-            for k in order]
+    corners, starts, seeds, holes = _trace_kernel()(padded)
+    # padded corner (row r, column c) is the top-left corner of padded pixel (r, c), i.e. of
+    # region pixel (r - 1, c - 1), at image coordinates (c - 1.5, r - 1.5) + offset
+    points = np.empty(corners.shape, dtype=np.float64)
+    points[:, 0] = corners[:, 1] - 1.5 + offset_px[0]
+    points[:, 1] = corners[:, 0] - 1.5 + offset_px[1]
+    rings = [points[starts[k]:starts[k + 1]] for k in range(len(starts) - 1)]
+    if not holes.any():
+        return [(ring, False, -1) for ring in rings]
+    # a hole belongs to the 8-connected part of the region pixel on its right
+    _, parts = cv2.connectedComponents(padded, connectivity=8)
+    part_of = parts[seeds[:, 0], seeds[:, 1]]
+    holes_of: dict[int, list[int]] = {}
+    for k in np.flatnonzero(holes).tolist():
+        holes_of.setdefault(int(part_of[k]), []).append(k)
+    result = []
+    for k in np.flatnonzero(~holes).tolist():
+        parent = len(result)
+        result.append((rings[k], False, -1))
+        result += [(rings[j], True, parent) for j in holes_of.get(int(part_of[k]), ())]
+    return result
 
 
 def _signed_area(points: np.ndarray) -> float:
     """Shoelace area of a closed ring (positive when clockwise on an image, y down)."""
     x, y = points[:, 0], points[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    return 0.5 * float(np.dot(x[:-1], y[1:]) - np.dot(x[1:], y[:-1]) + x[-1] * y[0] - x[0] * y[-1])
 
 
 @functools.cache
 def _trace_kernel():
     """Compiled (numba, cached on disk): the rings of a zero-padded (H, W) uint8 region along
-    pixel edges. Returns ``(corners, starts, seeds)``: (M, 2) int64 corner (row, column) of
-    every direction change, ring ``k`` being ``corners[starts[k]:starts[k + 1]]``, and (K, 2)
-    the (row, column) of a region pixel on each ring's right (to find its 8-connected part)."""
+    pixel edges. Returns ``(corners, starts, seeds, holes)``: (M, 2) int64 corner (row, column)
+    of every direction change, ring ``k`` being ``corners[starts[k]:starts[k + 1]]`` from its
+    top-left corner; (K, 2) the (row, column) of a region pixel on each ring's right (to find
+    its 8-connected part); (K,) bool, True for holes."""
     from usdscene.compiled import njit
 
     @njit(nogil=True)
@@ -118,8 +120,11 @@ def _trace_kernel():
         corners = []
         starts = [0]
         seeds = []
+        holes = []
         dr = (0, 1, 0, -1)
         dc = (1, 0, -1, 0)
+        # Rings are started in scan order, so each at its top-left corner, which is a turn and
+        # never a pinch: an outer ring leaves it east, a hole south.
         for r0 in range(1, height):
             for c0 in range(1, width):
                 while out[r0, c0] & ~used[r0, c0]:
@@ -127,17 +132,14 @@ def _trace_kernel():
                     h0 = 0
                     while not (free >> h0) & 1:
                         h0 += 1
+                    holes.append(h0 == 1)
                     # the region pixel on the right of the first edge
                     if h0 == 0:
                         seeds.append((r0, c0))
-                    elif h0 == 1:
-                        seeds.append((r0, c0 - 1))
-                    elif h0 == 2:
-                        seeds.append((r0 - 1, c0 - 1))
                     else:
-                        seeds.append((r0 - 1, c0))
+                        seeds.append((r0, c0 - 1))
+                    corners.append((r0, c0))
                     r, c, h = r0, c0, h0
-                    first = len(corners)
                     while True:
                         used[r, c] |= 1 << h
                         r += dr[h]
@@ -148,26 +150,26 @@ def _trace_kernel():
                             while not (bits >> nh) & 1:
                                 nh += 1
                         else:
-                            # a corner where two parts touch diagonally: turning left keeps the
-                            # two diagonal pixels on one ring (8-connected region)
+                            # a corner where two pixels touch diagonally: turning left keeps them
+                            # on one ring (8-connected region, 4-connected holes)
                             nh = (h + 3) % 4
-                        if nh != h:
-                            corners.append((r, c))
                         if r == r0 and c == c0 and nh == h0:
                             break
+                        if nh != h:
+                            corners.append((r, c))
                         h = nh
-                    if len(corners) == first:  # cannot happen for a closed ring; be safe
-                        corners.append((r0, c0))
                     starts.append(len(corners))
         corners_out = np.empty((len(corners), 2), dtype=np.int64)
         for i in range(len(corners)):
             corners_out[i, 0] = corners[i][0]
             corners_out[i, 1] = corners[i][1]
         seeds_out = np.empty((len(seeds), 2), dtype=np.int64)
+        holes_out = np.empty(len(holes), dtype=np.bool_)
         for i in range(len(seeds)):
             seeds_out[i, 0] = seeds[i][0]
             seeds_out[i, 1] = seeds[i][1]
-        return corners_out, np.array(starts, dtype=np.int64), seeds_out
+            holes_out[i] = holes[i]
+        return corners_out, np.array(starts, dtype=np.int64), seeds_out, holes_out
 
     return trace
 
