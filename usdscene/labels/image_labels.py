@@ -219,6 +219,21 @@ def _box_and_count(mask: np.ndarray) -> tuple[PixelBox | None, int]:
             int(np.count_nonzero(band)))
 
 
+def _pixels_inside(mask: np.ndarray, mask_id: int, visible_box: PixelBox | None, crop: np.ndarray,
+                   origin_px: tuple[int, int]) -> int:
+    """Pixels of ``mask_id`` in ``mask`` that ``crop`` (a bool region whose ``[0, 0]`` lies at
+    image position ``origin_px``) covers, counted over the overlap of the two boxes only."""
+    if visible_box is None:
+        return 0
+    ox, oy = origin_px
+    x0, y0 = max(visible_box.x_min, ox), max(visible_box.y_min, oy)
+    x1 = min(visible_box.x_max + 1, ox + crop.shape[1])
+    y1 = min(visible_box.y_max + 1, oy + crop.shape[0])
+    if x1 <= x0 or y1 <= y0:
+        return 0
+    return int(np.count_nonzero((mask[y0:y1, x0:x1] == mask_id) & crop[y0 - oy:y1 - oy, x0 - ox:x1 - ox]))
+
+
 def contours_of(region: np.ndarray, *, epsilon_px: float = DEFAULT_EPSILON_PX,
                 offset_px: tuple[int, int] = (0, 0)) -> tuple[Contour, ...]:
     """Outer contours and holes of a binary region, on its pixel outline.
@@ -308,16 +323,14 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
                                      f"image, the instance mask is {(width, height)}")
                 is_truncated = is_truncated or amodal.truncated
                 amodal_box, amodal_count = amodal.box, amodal.pixel_count
-                x, y = amodal.origin_px
-                h, w = amodal.crop.shape
-                seen = (np.count_nonzero((mask[y:y + h, x:x + w] == mask_id) & amodal.crop)
-                        if pixel_count and amodal_count else 0)
+                crop, origin = amodal.crop, amodal.origin_px
             else:
                 if amodal.shape != mask.shape:
                     raise ValueError(f"amodal mask of {uid!r} has shape {amodal.shape}, "
                                      f"the instance mask {mask.shape}")
                 amodal_box, amodal_count = _box_and_count(amodal)
-                seen = np.count_nonzero((mask == mask_id) & amodal) if pixel_count and amodal_count else 0
+                crop, origin = amodal, (0, 0)
+            seen = _pixels_inside(mask, mask_id, visible_box, crop, origin) if amodal_count else 0
             if amodal_count:
                 # visible ∩ amodal: mask pixels just outside the exact projection (the render's
                 # boundary differs by a fraction of a pixel) must not cancel real occlusion

@@ -191,7 +191,8 @@ def simplify_ring(points: np.ndarray, epsilon_px: float) -> np.ndarray:
         return points
     kept = cv2.approxPolyDP(points.astype(np.float32).reshape(-1, 1, 2), float(epsilon_px), True)
     result = kept.reshape(-1, 2).astype(np.float64)
-    if len(result) < 3 or abs(_signed_area(result)) < 0.5:
+    # below half a pixel the ring keeps every pixel centre it encloses, so it keeps its area
+    if epsilon_px >= 0.5 and (len(result) < 3 or abs(_signed_area(result)) < 0.5):
         return points
     return result
 
