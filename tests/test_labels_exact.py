@@ -156,3 +156,21 @@ def test_visible_fraction_counts_only_pixels_inside_the_projection():
     crop = AmodalProjection(amodal[5:35, 5:35].copy(), (5, 5), (60, 40))
     van = label_image(mask, {1: "van"}, {"van": crop}).objects[0]
     assert van.visible_fraction == pytest.approx((400 - 26) / 400)
+
+
+def test_export_command_filters_labels(shapes, tmp_path, capsys):
+    from usdscene.cli import main
+
+    _, document = shapes
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "annotations.openlabel.json").write_text(json.dumps(document), encoding="utf-8")
+    every = coco_dataset(document)["annotations"]
+    assert main(["export", "coco", str(out), "--document-classes", "--min-pixels", "10",
+                 "--coco-rle-below", "20"]) == 0
+    written = json.loads((out / "exports" / "coco" / "annotations.json").read_text(encoding="utf-8"))
+    assert len(written["annotations"]) == sum(a["area"] >= 10 for a in every)
+    assert {isinstance(a["segmentation"], dict) for a in written["annotations"]} == {True, False}
+    assert all(isinstance(a["segmentation"], dict) == (a["area"] < 20) for a in written["annotations"])
+    assert main(["export", "coco", str(out), "--document-classes", "--min-visible", "1.5"]) == 2
+    assert "between 0 and 1" in capsys.readouterr().err
