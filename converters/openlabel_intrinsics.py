@@ -258,7 +258,8 @@ def _fisheye(block: Mapping, where: str, problems: ProblemCollector):
         focal = names[0].startswith("focal")
         # VCD's polynomial lenses may leave out the focal lengths: their coefficients are then
         # in pixels, r_px = c1·θ + c2·θ² + ..., which is f = 1 exactly.
-        optional = focal and model in ("kannala", "radial_poly")
+        optional = focal and model in ("kannala", "radial_poly") and not any(
+            k in block for k in ("focal_length_x", "focal_length_x_px", "focal_length_y", "focal_length_y_px"))
         raw, key = _dialect(block, where, names, problems, required=not optional)
         if raw is INVALID:
             return None

@@ -113,3 +113,13 @@ def test_opencv_fisheye_still_needs_its_focal_lengths(openlabel_conformance):
     with pytest.raises(DocumentError) as error:
         read_openlabel(document)
     assert any("focal_length_x" in p.where for p in error.value.problems)
+
+
+def test_a_polynomial_lens_with_one_focal_length_is_refused(openlabel_conformance):
+    from usdscene.errors import DocumentError
+
+    document, _ = _pixel_polynomial_document(openlabel_conformance)
+    document["openlabel"]["streams"]["CAM_FISHEYE"]["stream_properties"]["intrinsics_fisheye"]["focal_length_x"] = 2.0
+    with pytest.raises(DocumentError) as error:
+        read_openlabel(document)
+    assert any("focal_length_y" in p.where for p in error.value.problems)
