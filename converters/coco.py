@@ -13,13 +13,19 @@ Reads only the document written by :func:`usdscene.converters.openlabel_annotati
   ``cx`` becomes ``x = cx - w / 2 + 0.5``), ``area`` = visible pixel count, ``iscrowd`` 0,
   ``segmentation`` = one polygon per outer contour, its holes joined in by zero-width bridges
   (COCO polygons cannot express holes otherwise), vertices shifted by +0.5 px into COCO's
-  convention. Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``.
-  Fully occluded objects (amodal box only) are not exported.
+  convention. The document's polygons lie on the pixel outline (pixel corners), so COCO gets
+  integer corners, and pycocotools fills them back to the mask's pixels
+  (:mod:`usdscene.labels.pixel_outline`). Objects of fewer than ``rle_below_px`` pixels get
+  an uncompressed RLE of those pixels instead (``{"size": [h, w], "counts": [...]}``).
+  Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``.
+  Fully occluded objects (amodal box only) are not exported, nor are labels that
+  :class:`LabelFilter` drops (fewer pixels or a smaller visible fraction than asked).
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Mapping
 
@@ -29,6 +35,7 @@ from usdscene.converters.openlabel_annotations import LabelIndex, image_records,
 from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
 from usdscene.labels.image_labels import bridge_rings
+from usdscene.labels.pixel_outline import fill_rings
 
 COCO_DIR = "coco"
 COCO_FILE = "annotations.json"
@@ -38,6 +45,32 @@ def corner_box(center_size: list[float]) -> list[float]:
     """OpenLABEL ``[cx, cy, w, h]`` (pixel centres at integers) → COCO ``[x, y, w, h]``."""
     cx, cy, w, h = (float(v) for v in center_size)
     return [cx - w / 2.0 + 0.5, cy - h / 2.0 + 0.5, w, h]
+
+
+@dataclass(frozen=True)
+class LabelFilter:
+    """Which visible labels a dataset export keeps (COCO, YOLO).
+
+    Attributes:
+        min_pixels: smallest visible pixel count kept (0 keeps every label).
+        min_visible_fraction: smallest visible fraction kept (0 keeps every label; labels
+            without a fraction, computed without geometry, are kept).
+    """
+
+    min_pixels: int = 0
+    min_visible_fraction: float = 0.0
+
+    def keeps(self, label: dict) -> bool:
+        """Whether to export one label of :class:`LabelIndex` (a visible one)."""
+        attrs = label["attributes"]
+        pixels = attrs.get("pixel_count")
+        if pixels is not None and pixels < self.min_pixels:
+            return False
+        fraction = attrs.get("visible_fraction")
+        return fraction is None or fraction >= self.min_visible_fraction
+
+
+KEEP_ALL = LabelFilter()
 
 
 def object_rings(polygons: list[dict]) -> list[np.ndarray]:
@@ -61,9 +94,22 @@ def _coco_polygon(ring: np.ndarray) -> list[float]:
     return [round(float(v), 3) for v in pts.reshape(-1)]
 
 
+def _rle(rings: list[np.ndarray], width_px: int, height_px: int) -> dict:
+    """Uncompressed COCO RLE (column-major runs, starting with background) of the pixels
+    whose centres the rings enclose (document convention)."""
+    filled = fill_rings(rings, (height_px, width_px)).T.reshape(-1)
+    edges = np.flatnonzero(np.diff(filled.astype(np.int8))) + 1
+    bounds = np.concatenate([[0], edges, [filled.size]])
+    counts = np.diff(bounds).tolist()
+    if filled[0]:
+        counts = [0] + counts
+    return {"size": [int(height_px), int(width_px)], "counts": [int(c) for c in counts]}
+
+
 def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[str, int],
                  image_ids: Iterable[int], first_annotation_id: int = 1,
-                 uri_prefix: str = "", index: LabelIndex | None = None) -> tuple[list[dict], list[dict]]:
+                 uri_prefix: str = "", index: LabelIndex | None = None,
+                 label_filter: LabelFilter = KEEP_ALL, rle_below_px: int = 0) -> tuple[list[dict], list[dict]]:
     """COCO image and annotation records of some images of one document.
 
     Args:
@@ -75,6 +121,8 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
         uri_prefix: prepended (``prefix/uri``) to each image uri for ``file_name``, so images
             of several output folders can share one ``image_root``.
         index: the document's :class:`LabelIndex` when the caller exports many images of it.
+        label_filter: which visible labels to keep.
+        rle_below_px: objects with fewer visible pixels get an RLE segmentation (0: never).
 
     Returns:
         ``(images, annotations)`` lists of COCO dicts.
@@ -87,11 +135,13 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
                        "height": record["height_px"], "camera": record["camera"],
                        "frame": record["frame"]})
         for label in index.labels(record["frame"], record["camera"]):
-            if label["bbox"] is None or label["type"] not in category_ids:
+            if label["bbox"] is None or label["type"] not in category_ids or not label_filter.keeps(label):
                 continue
             attrs = label["attributes"]
             rings = object_rings(label["polygons"])
-            if rings:
+            if rings and attrs.get("pixel_count", rle_below_px) < rle_below_px:
+                segmentation = _rle(rings, record["width_px"], record["height_px"])
+            elif rings:
                 segmentation = [_coco_polygon(r) for r in rings]
             else:  # no polygon stored: the box outline
                 x, y, w, h = corner_box(label["bbox"])
@@ -127,21 +177,26 @@ def coco_document(images: list[dict], annotations: list[dict], names: list[str],
     }
 
 
-def coco_dataset(document: dict, classes: Iterable[str] | None = None) -> dict:
-    """The COCO dict (``info``, ``images``, ``annotations``, ``categories``) of a document."""
+def coco_dataset(document: dict, classes: Iterable[str] | None = None, *,
+                 label_filter: LabelFilter = KEEP_ALL, rle_below_px: int = 0) -> dict:
+    """The COCO dict (``info``, ``images``, ``annotations``, ``categories``) of a document
+    (``label_filter``, ``rle_below_px``: as in :func:`coco_entries`)."""
     names = label_classes(document, classes)
     category_ids = {name: k + 1 for k, name in enumerate(names)}
     records = image_records(document)
-    images, annotations = coco_entries(document, records, category_ids, range(1, len(records) + 1))
+    images, annotations = coco_entries(document, records, category_ids, range(1, len(records) + 1),
+                                       label_filter=label_filter, rle_below_px=rle_below_px)
     return coco_document(images, annotations, names)
 
 
 def export_coco(document: dict, out_dir: str | os.PathLike,
-                classes: Iterable[str] | None = None) -> Path:
+                classes: Iterable[str] | None = None, *, label_filter: LabelFilter = KEEP_ALL,
+                rle_below_px: int = 0) -> Path:
     """Write ``<out_dir>/exports/coco/annotations.json`` atomically; returns its path.
 
     ``file_name`` of each image is relative to ``out_dir`` (``info.image_root`` = ``"../.."``
     relative to the COCO file).
     """
     target = Path(out_dir) / layout.EXPORTS_DIR / COCO_DIR / COCO_FILE
-    return write_json_atomic(target, coco_dataset(document, classes))
+    return write_json_atomic(target, coco_dataset(document, classes, label_filter=label_filter,
+                                                  rle_below_px=rle_below_px))

@@ -5,7 +5,8 @@ A camera stream's ``stream_properties`` hold one calibration, in either key dial
 the schema's ``camera_matrix`` / ``distortion_coeffs`` / ``lens_coeffs`` / ``center_x``):
 
 * ``intrinsics_pinhole``: 3x4 camera matrix and OpenCV (Brown-Conrady) distortion;
-* ``intrinsics_fisheye``: ``opencv_fisheye``, ``kannala`` or ``radial_poly`` lenses;
+* ``intrinsics_fisheye``: ``opencv_fisheye``, ``kannala`` or ``radial_poly`` lenses (the two
+  polynomial lenses without ``focal_length_x``/``_y``: coefficients in pixels, f = 1);
 * ``intrinsics_custom`` with ``model: "orthographic"``: pixels per metre.
 
 Instead of a calibration, the friendly block ``stream_properties.usdscene`` describes a camera
@@ -250,19 +251,23 @@ def opencv_distortion(raw: Any, where: str, problems: ProblemCollector) -> tuple
 def _fisheye(block: Mapping, where: str, problems: ProblemCollector):
     """``intrinsics_fisheye`` → (lens, width, height, fx, fy, cx, cy, coefficients) or None."""
     size = _size(block, where, problems)
+    model = block.get("model", "opencv_fisheye")
     out = {}
     for names in (("focal_length_x", "focal_length_x_px"), ("focal_length_y", "focal_length_y_px"),
                   ("center_x", "center_x_px"), ("center_y", "center_y_px")):
-        raw, key = _dialect(block, where, names, problems)
+        focal = names[0].startswith("focal")
+        # VCD's polynomial lenses may leave out the focal lengths: their coefficients are then
+        # in pixels, r_px = c1·θ + c2·θ² + ..., which is f = 1 exactly.
+        optional = focal and model in ("kannala", "radial_poly") and not any(
+            k in block for k in ("focal_length_x", "focal_length_x_px", "focal_length_y", "focal_length_y_px"))
+        raw, key = _dialect(block, where, names, problems, required=not optional)
         if raw is INVALID:
             return None
-        out[names[0]] = read_number(raw, f"{where}.{key}", problems,
-                                    positive=names[0].startswith("focal"))
+        out[names[0]] = 1.0 if raw is None else read_number(raw, f"{where}.{key}", problems, positive=focal)
     raw_c, ckey = _dialect(block, where, ("lens_coeffs_1xN", "lens_coeffs"), problems)
     if raw_c is INVALID:
         return None
     coeffs = read_numbers(raw_c, f"{where}.{ckey}", problems, lengths=(4, 5))
-    model = block.get("model", "opencv_fisheye")
     if model not in ("opencv_fisheye", "kannala", "radial_poly"):
         problems.add(f"{where}.model", f"unknown fisheye model {describe(model)}; expected 'opencv_fisheye', "
                                        f"'kannala' or 'radial_poly'")

@@ -202,7 +202,9 @@ def _find_objects(value: Any, where: str, targets: dict):
 
 
 def vcd_to_openlabel(vcd: Mapping) -> dict:
-    """VCD 4.3 → OpenLABEL 1.0.0 (copies what it changes; the input is not modified)."""
+    """VCD 4.3 → OpenLABEL 1.0.0 (copies what it changes; the input is not modified): schema
+    version, poses as ``matrix4x4`` objects, ``transform_src_to_dst``, and ``poly2d`` values
+    given as ``[x, y]`` pairs flattened."""
     out = dict(vcd)
     metadata = dict(out.get("metadata") or {}) if isinstance(out.get("metadata"), dict) else out.get("metadata")
     if isinstance(metadata, dict):
@@ -219,10 +221,14 @@ def vcd_to_openlabel(vcd: Mapping) -> dict:
                 cs["pose_wrt_parent"] = {"matrix4x4": cs["pose_wrt_parent"]}
             converted[name] = cs
         out["coordinate_systems"] = converted
+    if isinstance(out.get("objects"), dict):
+        out["objects"] = _objects_with_flat_poly2d(out["objects"])
     frames = out.get("frames")
     if isinstance(frames, dict):
         new_frames = {}
         for key, frame in frames.items():
+            if isinstance(frame, dict) and isinstance(frame.get("objects"), dict):
+                frame = dict(frame, objects=_objects_with_flat_poly2d(frame["objects"]))
             props = frame.get("frame_properties") if isinstance(frame, dict) else None
             transforms = props.get("transforms") if isinstance(props, dict) else None
             if isinstance(transforms, dict):
@@ -236,6 +242,26 @@ def vcd_to_openlabel(vcd: Mapping) -> dict:
                 frame["frame_properties"] = dict(props, transforms=new_transforms)
             new_frames[key] = frame
         out["frames"] = new_frames
+    return out
+
+
+def _objects_with_flat_poly2d(objects: Mapping) -> dict:
+    """Objects whose ``poly2d`` values given as ``[x, y]`` pairs (as VCD 4.3 writers do) are
+    flattened to ``[x0, y0, x1, y1, ...]``, OpenLABEL's form (copies what it changes)."""
+    def is_pairs(val) -> bool:
+        return (isinstance(val, list) and len(val) > 0 and all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                        for v in p) for p in val))
+
+    out = {}
+    for uid, obj in objects.items():
+        data = obj.get("object_data") if isinstance(obj, dict) else None
+        polys = data.get("poly2d") if isinstance(data, dict) else None
+        if isinstance(polys, list) and any(isinstance(p, dict) and is_pairs(p.get("val")) for p in polys):
+            flat = [dict(p, val=[v for pair in p["val"] for v in pair]) if isinstance(p, dict) and is_pairs(p.get("val"))
+                    else p for p in polys]
+            obj = dict(obj, object_data=dict(data, poly2d=flat))
+        out[uid] = obj
     return out
 
 

@@ -23,15 +23,18 @@ from __future__ import annotations
 
 import logging
 import os
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import (
     FISHEYE_LENSES,
     FrameInterval,
     LensModel,
+    Light,
+    PlaceRef,
     Pose,
     RenderSettings,
+    SceneObject,
     SceneSpec,
     union_intervals,
 )
@@ -73,119 +76,158 @@ def write_openlabel(scene: SceneSpec) -> dict:
     """
     problems = ProblemCollector()
     body: dict[str, Any] = {"metadata": _metadata(scene)}
-    frames: dict[int, dict] = {}
-
+    frames: dict[int, dict] = {}  # frame → its per-frame content, filled by every step
     if scene.cameras:
-        names = {c.name for c in scene.cameras}
-        root = "world"
-        index = 1
-        while root in names:
-            root = f"world_{index}"
-            index += 1
-        systems: dict[str, Any] = {root: {"type": "scene_cs", "parent": "", "children": [c.name for c in scene.cameras]}}
-        streams: dict[str, Any] = {}
-        for cam in scene.cameras:
-            systems[cam.name] = {"type": "sensor_cs", "parent": root, "children": [],
-                                 "pose_wrt_parent": {"matrix4x4": _matrix(cam.pose)}}
-            streams[cam.name] = {"type": "camera", "description": cam.description, "uri": "",
-                                 "stream_properties": _calibration(cam, problems)}
-            if cam.extra:
-                merge_stream(streams[cam.name], cam.extra)
-            for frame, pose in cam.frame_poses:
-                if frame < 0:
-                    problems.add(f"cameras.{cam.name}.frame_poses", f"frame {frame} is negative")
-                    continue
-                transforms = frames.setdefault(frame, {}).setdefault("frame_properties", {}).setdefault("transforms", {})
-                transforms[f"{cam.name}_to_{root}"] = {"src": cam.name, "dst": root,
-                                                       "transform_src_to_dst": {"matrix4x4": _matrix(pose)}}
-        body["coordinate_systems"] = systems
-        body["streams"] = streams
-
-    objects: dict[str, Any] = {}
-    seen: dict[str, str] = {}
+        body["coordinate_systems"], body["streams"] = _cameras(scene, frames, problems)
     uid_map = openlabel_uids([*(e.uid for e in scene.lights), *(e.uid for e in scene.places),
                               *(e.uid for e in scene.objects)])
-    relation_uids = openlabel_uids([r.uid for r in scene.relations])
-
-    def claim(uid: str, what: str) -> bool:
-        if uid in seen:
-            problems.add(f"{what}.uid", f"uid {uid!r} is also used by {seen[uid]}")
-            return False
-        seen[uid] = what
-        return True
-
-    for light in scene.lights:
-        if not claim(light.uid, f"lights.{light.name}"):
-            continue
-        data = _Data()
-        data.add("text", "kind", light.kind.value)
-        for key in ("power_w", "radius_m", "spot_angle_deg", "spot_blend", "sun_angle_deg"):
-            data.add("num", key, float(getattr(light, key)))
-        data.add("vec", "color_rgb", [float(v) for v in light.color_rgb])
-        data.add("vec", "size_m", [float(v) for v in light.size_m])
-        data.add("vec", "pose_matrix4x4", _matrix(light.pose))
-        objects[uid_map[light.uid]] = _element(light.name, LIGHT_TYPE, light.frame_intervals, data)
-
-    for place in scene.places:
-        if claim(place.uid, f"places.{place.name}"):
-            objects[uid_map[place.uid]] = {"name": place.name, "type": PLACE_TYPE}
-            if place.regions:  # declared in the document: cuboids named by their relation
-                objects[uid_map[place.uid]]["object_data"] = {"cuboid": [
-                    {"name": r.relation, "val": r.to_cuboid()} for r in place.regions]}
-            merge_element(objects[uid_map[place.uid]], place.extra)
-
-    for obj in scene.objects:
-        if not claim(obj.uid, f"objects.{obj.uid}"):
-            continue
-        data = _Data()
-        if obj.appearance is not None:
-            data.add("text", "appearance", obj.appearance)
-        if obj.pose_variant is not None:
-            data.add("text", "pose_variant", obj.pose_variant)
-        if obj.color_rgb is not None:
-            data.add("vec", "color_rgb", [float(v) for v in obj.color_rgb])
-        knobs = obj.randomization
-        if knobs.position_noise_m:
-            data.add("num", "position_noise_m", float(knobs.position_noise_m))
-        if knobs.rotation_noise_deg:
-            data.add("num", "rotation_noise_deg", float(knobs.rotation_noise_deg))
-        if knobs.random_color:
-            data.add("boolean", "random_color", True)
-        if knobs.random_appearance:
-            data.add("boolean", "random_appearance", True)
-        if obj.pose is not None:
-            data.add("vec", "pose_matrix4x4", _matrix(obj.pose))
-        element = _element(obj.name, obj.class_name, obj.frame_intervals, data)
-        if obj.frame_poses:
-            for frame, pose in obj.frame_poses:
-                if frame < 0:
-                    problems.add(f"objects.{obj.uid}.frame_poses", f"frame {frame} is negative")
-                    continue
-                entry = frames.setdefault(frame, {}).setdefault("objects", {})
-                entry[uid_map[obj.uid]] = {"object_data": {"vec": [{"name": "pose_matrix4x4", "val": _matrix(pose)}]}}
-            pointers = element.setdefault("object_data_pointers", {})
-            pointers["pose_matrix4x4"] = {
-                "type": "vec",
-                "frame_intervals": _intervals(_frames_to_intervals(f for f, _ in obj.frame_poses if f >= 0))}
-        if obj.extra:
-            merge_element(element, obj.extra)
-        for frame, text in obj.frame_extra:
-            if frame < 0:
-                problems.add(f"objects.{obj.uid}.frame_extra", f"frame {frame} is negative")
-                continue
-            merge_element(frames.setdefault(frame, {}).setdefault("objects", {}).setdefault(uid_map[obj.uid], {}),
-                          text)
-        objects[uid_map[obj.uid]] = element
+    owners: dict[str, str] = {}  # uid → what it names, for duplicates and relations
+    objects = _elements(scene, uid_map, owners, frames, problems)
     if objects:
         body["objects"] = objects
+    relations = _relations(scene, uid_map, owners, problems)
+    if relations:
+        body["relations"] = relations
+    if scene.extra:
+        merge_scene(body, frames, scene.extra, problems)
+    if frames:
+        body["frames"] = {str(f): frames[f] for f in sorted(frames)}
+    body["frame_intervals"] = _intervals(_document_intervals(scene, frames))
+    problems.raise_if_any(DocumentError)
+    return {"openlabel": body}
 
+
+def _cameras(scene: SceneSpec, frames: dict[int, dict], problems: ProblemCollector) -> tuple[dict, dict]:
+    """``(coordinate_systems, streams)`` of the cameras: a world root (named apart from every
+    camera) with one sensor system per camera, one stream each; per-frame camera poses go into
+    ``frames`` as transforms."""
+    names = {c.name for c in scene.cameras}
+    root = "world"
+    index = 1
+    while root in names:
+        root = f"world_{index}"
+        index += 1
+    systems: dict[str, Any] = {root: {"type": "scene_cs", "parent": "", "children": [c.name for c in scene.cameras]}}
+    streams: dict[str, Any] = {}
+    for cam in scene.cameras:
+        systems[cam.name] = {"type": "sensor_cs", "parent": root, "children": [],
+                             "pose_wrt_parent": {"matrix4x4": _matrix(cam.pose)}}
+        streams[cam.name] = {"type": "camera", "description": cam.description, "uri": "",
+                             "stream_properties": _calibration(cam, problems)}
+        if cam.extra:
+            merge_stream(streams[cam.name], cam.extra)
+        for frame, pose in cam.frame_poses:
+            if frame < 0:
+                problems.add(f"cameras.{cam.name}.frame_poses", f"frame {frame} is negative")
+                continue
+            transforms = frames.setdefault(frame, {}).setdefault("frame_properties", {}).setdefault("transforms", {})
+            transforms[f"{cam.name}_to_{root}"] = {"src": cam.name, "dst": root,
+                                                   "transform_src_to_dst": {"matrix4x4": _matrix(pose)}}
+    return systems, streams
+
+
+def _elements(scene: SceneSpec, uid_map: dict[str, str], owners: dict[str, str], frames: dict[int, dict],
+              problems: ProblemCollector) -> dict[str, Any]:
+    """The ``objects`` section: lights, places, then dynamic objects, each uid once (a uid
+    used twice is a problem; ``owners`` records who holds each)."""
+    def claim(uid: str, what: str) -> bool:
+        if uid in owners:
+            problems.add(f"{what}.uid", f"uid {uid!r} is also used by {owners[uid]}")
+            return False
+        owners[uid] = what
+        return True
+
+    objects: dict[str, Any] = {}
+    for light in scene.lights:
+        if claim(light.uid, f"lights.{light.name}"):
+            objects[uid_map[light.uid]] = _light_element(light)
+    for place in scene.places:
+        if claim(place.uid, f"places.{place.name}"):
+            objects[uid_map[place.uid]] = _place_element(place)
+    for obj in scene.objects:
+        if claim(obj.uid, f"objects.{obj.uid}"):
+            objects[uid_map[obj.uid]] = _object_element(obj, uid_map[obj.uid], frames, problems)
+    return objects
+
+
+def _light_element(light: Light) -> dict:
+    """A light as an object of type ``light`` with its kind, power, size, colour and pose."""
+    data = _Data()
+    data.add("text", "kind", light.kind.value)
+    for key in ("power_w", "radius_m", "spot_angle_deg", "spot_blend", "sun_angle_deg"):
+        data.add("num", key, float(getattr(light, key)))
+    data.add("vec", "color_rgb", [float(v) for v in light.color_rgb])
+    data.add("vec", "size_m", [float(v) for v in light.size_m])
+    data.add("vec", "pose_matrix4x4", _matrix(light.pose))
+    return _element(light.name, LIGHT_TYPE, light.frame_intervals, data)
+
+
+def _place_element(place: PlaceRef) -> dict:
+    """A place as an object of type ``place``; regions it declares itself as cuboids named by
+    their relation."""
+    element: dict[str, Any] = {"name": place.name, "type": PLACE_TYPE}
+    if place.regions:
+        element["object_data"] = {"cuboid": [{"name": r.relation, "val": r.to_cuboid()} for r in place.regions]}
+    merge_element(element, place.extra)
+    return element
+
+
+def _object_element(obj: SceneObject, key: str, frames: dict[int, dict], problems: ProblemCollector) -> dict:
+    """A dynamic object: appearance, colour, randomization knobs and pose as static data;
+    per-frame poses and carried per-frame content into ``frames`` under ``key`` (its uid in
+    the document)."""
+    data = _Data()
+    if obj.appearance is not None:
+        data.add("text", "appearance", obj.appearance)
+    if obj.pose_variant is not None:
+        data.add("text", "pose_variant", obj.pose_variant)
+    if obj.color_rgb is not None:
+        data.add("vec", "color_rgb", [float(v) for v in obj.color_rgb])
+    knobs = obj.randomization
+    if knobs.position_noise_m:
+        data.add("num", "position_noise_m", float(knobs.position_noise_m))
+    if knobs.rotation_noise_deg:
+        data.add("num", "rotation_noise_deg", float(knobs.rotation_noise_deg))
+    if knobs.random_color:
+        data.add("boolean", "random_color", True)
+    if knobs.random_appearance:
+        data.add("boolean", "random_appearance", True)
+    if obj.pose is not None:
+        data.add("vec", "pose_matrix4x4", _matrix(obj.pose))
+    element = _element(obj.name, obj.class_name, obj.frame_intervals, data)
+    if obj.frame_poses:
+        for frame, pose in obj.frame_poses:
+            if frame < 0:
+                problems.add(f"objects.{obj.uid}.frame_poses", f"frame {frame} is negative")
+                continue
+            entry = frames.setdefault(frame, {}).setdefault("objects", {})
+            entry[key] = {"object_data": {"vec": [{"name": "pose_matrix4x4", "val": _matrix(pose)}]}}
+        pointers = element.setdefault("object_data_pointers", {})
+        pointers["pose_matrix4x4"] = {
+            "type": "vec",
+            "frame_intervals": _intervals(_frames_to_intervals(f for f, _ in obj.frame_poses if f >= 0))}
+    if obj.extra:
+        merge_element(element, obj.extra)
+    for frame, text in obj.frame_extra:
+        if frame < 0:
+            problems.add(f"objects.{obj.uid}.frame_extra", f"frame {frame} is negative")
+            continue
+        merge_element(frames.setdefault(frame, {}).setdefault("objects", {}).setdefault(key, {}), text)
+    return element
+
+
+def _relations(scene: SceneSpec, uid_map: dict[str, str], owners: Mapping[str, str],
+               problems: ProblemCollector) -> dict[str, Any]:
+    """The ``relations`` section; a relation whose subject or object is no element of the
+    scene (``owners``) is a problem."""
+    relation_uids = openlabel_uids([r.uid for r in scene.relations])
     relations: dict[str, Any] = {}
     for rel in scene.relations:
         if relation_uids[rel.uid] in relations:
             problems.add(f"relations.{rel.uid}.uid", f"duplicate relation uid {rel.uid!r}")
             continue
         dangling = [(side, uid) for side, uid in (("subject_uid", rel.subject_uid), ("object_uid", rel.object_uid))
-                    if uid not in seen]
+                    if uid not in owners]
         for side, uid in dangling:
             problems.add(f"relations.{rel.uid}.{side}", f"relation {rel.uid} refers to {uid!r}, which is "
                                                         f"not a light, place or object of the scene")
@@ -197,20 +239,17 @@ def write_openlabel(scene: SceneSpec) -> dict:
         if rel.frame_intervals:
             entry["frame_intervals"] = _intervals(rel.frame_intervals)
         relations[relation_uids[rel.uid]] = entry
-    if relations:
-        body["relations"] = relations
+    return relations
 
-    if scene.extra:
-        merge_scene(body, frames, scene.extra, problems)
-    if frames:
-        body["frames"] = {str(f): frames[f] for f in sorted(frames)}
+
+def _document_intervals(scene: SceneSpec, frames: Mapping[int, dict]) -> list[FrameInterval]:
+    """The root ``frame_intervals``: the scene's range united with every element's and every
+    frame that holds content."""
     every = [FrameInterval(scene.frame_start, scene.frame_end)]
     for element in (*scene.lights, *scene.objects, *scene.relations):
         every.extend(element.frame_intervals)
     every.extend(FrameInterval(f, f) for f in frames)
-    body["frame_intervals"] = _intervals(union_intervals(every))
-    problems.raise_if_any(DocumentError)
-    return {"openlabel": body}
+    return union_intervals(every)
 
 
 def openlabel_uids(uids: Iterable[str]) -> dict[str, str]:

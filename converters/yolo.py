@@ -26,7 +26,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from usdscene.converters.coco import corner_box, object_rings
+from usdscene.converters.coco import KEEP_ALL, LabelFilter, corner_box, object_rings
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_bytes_atomic, write_text_atomic
@@ -43,13 +43,15 @@ def _fmt(values: Iterable[float]) -> str:
 
 
 def yolo_lines(document: dict, frame: int, camera: str, width_px: int, height_px: int,
-               class_ids: dict[str, int], index: LabelIndex | None = None) -> tuple[list[str], list[str]]:
+               class_ids: dict[str, int], index: LabelIndex | None = None,
+               label_filter: LabelFilter = KEEP_ALL) -> tuple[list[str], list[str]]:
     """Detection and segmentation label lines of one image (``index``: the document's
-    :class:`LabelIndex` when the caller reads many images of it)."""
+    :class:`LabelIndex` when the caller reads many images of it; ``label_filter``: which
+    visible labels to keep)."""
     detect, segment = [], []
     scale = np.array([width_px, height_px], dtype=np.float64)
     for label in (index or LabelIndex(document)).labels(frame, camera):
-        if label["bbox"] is None or label["type"] not in class_ids:
+        if label["bbox"] is None or label["type"] not in class_ids or not label_filter.keeps(label):
             continue
         cls = class_ids[label["type"]]
         x, y, w, h = corner_box(label["bbox"])
@@ -82,7 +84,7 @@ def _link_or_copy(source: Path, target: Path, copy: bool) -> None:
 def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os.PathLike,
                       records: Iterable[dict], class_ids: Mapping[str, int], *, prefix: str = "",
                       link_images: bool = True, copy_images: bool = False,
-                      index: LabelIndex | None = None) -> list[str]:
+                      index: LabelIndex | None = None, label_filter: LabelFilter = KEEP_ALL) -> list[str]:
     """Write the label files (and image links) of some images of one document, both tasks.
 
     Args:
@@ -96,6 +98,8 @@ def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os
         link_images: link (relative symlink, copy where impossible) each image into the
             dataset; False writes labels only.
         copy_images: copy the images instead of linking them.
+        index: the document's :class:`LabelIndex` when the caller exports many images of it.
+        label_filter: which visible labels to keep.
 
     Returns:
         Each record's image path relative to ``<root>/<task>`` (POSIX, same for both tasks).
@@ -105,7 +109,8 @@ def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os
     index = index or LabelIndex(document)
     for record in records:
         detect, segment = yolo_lines(document, record["frame"], record["camera"],
-                                     record["width_px"], record["height_px"], class_ids, index)
+                                     record["width_px"], record["height_px"], class_ids, index,
+                                     label_filter)
         stem = Path(prefix) / record["camera"] / Path(record["uri"]).stem
         image = stem.with_suffix(Path(record["uri"]).suffix)
         for task, lines in zip(TASKS, (detect, segment)):

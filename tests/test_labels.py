@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from usdscene.labels.amodal import AmodalProjection, rasterize_triangles
+from usdscene.labels.pixel_outline import fill_rings
 from usdscene.labels.image_labels import (
     PixelBox,
     box_of,
@@ -52,10 +53,50 @@ def test_ring_has_hole_and_two_outer_contours():
     holes = [c for c in contours if c.is_hole]
     assert len(outers) == 2 and len(holes) == 1
     assert not contours[holes[0].parent].is_hole
-    # The outer square's corners are pixel centres of the outermost pixels.
+    # The outer square runs on the pixel outline: the outer edges of the outermost pixels.
     outer = max(outers, key=lambda c: np.ptp(c.points_px[:, 0]))
-    assert outer.points_px.min(axis=0).tolist() == [5, 5]
-    assert outer.points_px.max(axis=0).tolist() == [34, 34]
+    assert outer.points_px.min(axis=0).tolist() == [4.5, 4.5]
+    assert outer.points_px.max(axis=0).tolist() == [34.5, 34.5]
+    assert len(outer.points_px) == 4
+    hole = holes[0].points_px
+    assert hole.min(axis=0).tolist() == [9.5, 9.5] and hole.max(axis=0).tolist() == [29.5, 29.5]
+
+
+def test_default_simplification_keeps_the_pixels_exactly():
+    """Below half a pixel from the outline, a simplified polygon keeps every pixel centre on
+    its side: the default tolerance fills back to the mask, with fewer vertices."""
+    yy, xx = np.mgrid[0:H, 0:W]
+    for k, radius in enumerate((0.6, 1.5, 4.2, 15.2)):
+        disc = (xx - 30.3 - k * 0.11) ** 2 + (yy - 22.7) ** 2 <= radius ** 2
+        contours = contours_of(disc)
+        assert np.array_equal(rasterize_contours(contours, disc.shape), disc), radius
+    assert sum(len(c.points_px) for c in contours) < sum(
+        len(c.points_px) for c in contours_of(disc, epsilon_px=0))
+    for region in _random_masks(20):
+        assert np.array_equal(rasterize_contours(contours_of(region), region.shape), region)
+
+
+def test_single_pixels_and_thin_lines_are_squares_and_bands():
+    region = np.zeros((6, 8), bool)
+    region[1, 1] = True
+    region[3, 2:7] = True
+    contours = contours_of(region)
+    assert [c.points_px.tolist() for c in contours] == [
+        [[0.5, 0.5], [1.5, 0.5], [1.5, 1.5], [0.5, 1.5]],
+        [[1.5, 2.5], [6.5, 2.5], [6.5, 3.5], [1.5, 3.5]]]
+
+
+def test_diagonal_neighbours_share_one_outer_contour():
+    """8-connected parts: pixels touching at a corner are one part with one outer contour
+    passing through that corner twice; the background inside is a 4-connected hole."""
+    region = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]], bool)
+    contours = contours_of(region, epsilon_px=0)
+    assert len(contours) == 1 and not contours[0].is_hole
+    assert np.array_equal(rasterize_contours(contours, region.shape), region)
+    diamond = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], bool)
+    contours = contours_of(diamond, epsilon_px=0)
+    assert [c.is_hole for c in contours] == [False, True] and contours[1].parent == 0
+    assert np.array_equal(rasterize_contours(contours, diamond.shape), diamond)
 
 
 def test_simplified_polygons_stay_within_documented_tolerance():
@@ -203,10 +244,8 @@ def test_bridge_rings_keeps_area_and_holes():
     contours = contours_of(region, epsilon_px=0)
     ring = bridge_rings([c.points_px for c in contours])
     assert len(ring) == sum(len(c.points_px) for c in contours) + 2 * (len(contours) - 1)
-    canvas = np.zeros(region.shape, np.uint8)
-    cv2.fillPoly(canvas, [np.round(ring).astype(np.int32)], 1)  # even-odd fill
-    # Hole interior stays empty, the thick part of the ring is filled.
-    assert canvas[20, 12] == 0 and canvas[7, 20] == 1 and canvas[19, 19] == 1
+    # Filled by pixel centres (even-odd), the bridged ring is exactly the region.
+    assert np.array_equal(fill_rings([ring], region.shape), region)
 
 
 def test_contours_exact_for_arbitrary_masks_property():

@@ -83,8 +83,10 @@ def test_every_amodal_box_contains_its_visible_box(labels):
             assert (a.x_min <= v.x_min + slack and a.y_min <= v.y_min + slack
                     and a.x_max >= v.x_max - slack and a.y_max >= v.y_max - slack), where
             assert 0.0 < label.visible_fraction <= 1.0, where
-            # nothing occludes these spheres: the visible pixels are (almost) the whole projection
-            assert label.visible_fraction > 0.85, where
+            # nothing occludes these spheres: the visible pixels are (almost) the whole projection;
+            # on a sliver along the border the boundary tolerance is a few pixels of a handful
+            missing = round(label.amodal_pixel_count * (1.0 - label.visible_fraction))
+            assert label.visible_fraction > 0.85 or (slack == 3 and missing <= slack), (where, missing)
             checked += 1
     assert checked >= 40
 

@@ -117,6 +117,13 @@ class RunOptions:
         split_seed: seed of a fraction split.
         report: write the browsable report (``OUT/report/``, :mod:`usdscene.dataset.report`);
             its thumbnails and mask tints are drawn while rendering.
+        document_classes: COCO/YOLO classes are the document's labelled classes (the default:
+            a run's export names only what its scene holds); False lists every object class
+            of the asset catalog, so that class ids agree between scenes of one library.
+        min_pixels, min_visible_fraction: the COCO/YOLO export leaves out labels of fewer
+            visible pixels or a smaller visible fraction (0: keep all).
+        rle_below_px: COCO segmentation as RLE for objects of fewer visible pixels (0: polygons
+            only). See :func:`usdscene.dataset.export.export_formats`.
     """
 
     frames: Sequence[int] | None = None
@@ -128,6 +135,10 @@ class RunOptions:
     split: Any = None
     split_seed: int = 0
     report: bool = True
+    document_classes: bool = True
+    min_pixels: int = 0
+    min_visible_fraction: float = 0.0
+    rle_below_px: int = 0
 
 
 def run_pipeline(document: str | Path, out_dir: str | Path, options: RunOptions = RunOptions(), *,
@@ -250,7 +261,10 @@ class _Run:
                 from usdscene.document.splits import DOCUMENT_FIELD, parse_split
 
                 split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
-            return export_formats(self.out, formats, split=split, split_seed=split_seed)
+            return export_formats(self.out, formats, split=split, split_seed=split_seed,
+                                  document_classes=options.document_classes, min_pixels=options.min_pixels,
+                                  min_visible_fraction=options.min_visible_fraction,
+                                  rle_below_px=options.rle_below_px)
 
     def report(self) -> Path | None:
         """The browsable report, with the balance chart of a generated document and the

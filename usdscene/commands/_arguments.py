@@ -144,3 +144,32 @@ def add_split_arguments(parser: argparse.ArgumentParser) -> None:
              "images a listing rule leaves unnamed go to train unless train is listed")
     parser.add_argument("--split-seed", type=non_negative_int, default=0, metavar="N",
                         help="seed of a fraction split (default 0)")
+
+
+def add_label_filter_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--min-pixels``, ``--min-visible``, ``--coco-rle-below`` (shared by ``export`` and ``run``)."""
+    parser.add_argument("--min-pixels", type=non_negative_int, default=0, metavar="N",
+                        help="COCO/YOLO: leave out labels of fewer than N visible pixels (default 0: keep all)")
+    parser.add_argument("--min-visible", type=_fraction, default=0.0, metavar="F",
+                        help="COCO/YOLO: leave out labels whose visible fraction is below F, 0..1 "
+                             "(default 0: keep all)")
+    parser.add_argument("--coco-rle-below", type=non_negative_int, default=0, metavar="N",
+                        help="COCO: objects of fewer than N visible pixels get an RLE segmentation "
+                             "instead of polygons (default 0: polygons only)")
+
+
+def label_filter_options(args: argparse.Namespace) -> dict:
+    """The keyword arguments of :func:`usdscene.dataset.export.export_formats` for the choices of
+    :func:`add_label_filter_arguments`."""
+    return {"min_pixels": args.min_pixels, "min_visible_fraction": args.min_visible,
+            "rle_below_px": args.coco_rle_below}
+
+
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not between 0 and 1")
+    return value

@@ -17,7 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--document", metavar="DOC",
                         help="scene document to add the labels to (default: the stage's source document)")
     parser.add_argument("--epsilon", type=float, default=None, metavar="PX",
-                        help="polygon simplification tolerance in pixels (default 0.75; 0 = exact)")
+                        help="polygon simplification tolerance in pixels (default 0.49: below half a pixel the polygons fill back to exactly the mask; 0 = every corner of the pixel outline)")
     parser.add_argument("--min-visibility", type=float, default=0.0, metavar="F",
                         help="drop labels whose visible fraction is below F (0..1, default 0)")
     parser.add_argument("--no-amodal", action="store_true",

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from usdscene.commands._arguments import add_split_arguments
+from usdscene.commands._arguments import add_label_filter_arguments, add_split_arguments
 from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "export"
@@ -43,11 +43,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "instead of the catalog")
     parser.add_argument("--copy-images", action="store_true",
                         help="YOLO: copy images instead of linking them")
+    add_label_filter_arguments(parser)
     parser.add_argument("--min-roi-px", type=int, default=8, metavar="PX",
                         help="ROIs: smallest crop side in pixels (default 8)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from usdscene.commands._arguments import label_filter_options
     from usdscene.errors import OutputError, Problem
     from usdscene.dataset.export import carried_split, export_dataset, export_formats
 
@@ -56,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     if split is None:
         split, split_seed = carried_split(args.outputs) or (None, 0)
     options = dict(extra_assets=args.assets, document_classes=args.document_classes,
-                   copy_images=args.copy_images, split=split, split_seed=split_seed)
+                   copy_images=args.copy_images, split=split, split_seed=split_seed,
+                   **label_filter_options(args))
     if args.dataset is None and len(args.outputs) > 1:
         raise OutputError([Problem("--dataset", f"{len(args.outputs)} output folders make one dataset: "
                                                 "name its folder with --dataset DIR")])

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from usdscene.commands._arguments import add_executor_arguments, add_split_arguments, positive_int
+from usdscene.commands._arguments import (add_executor_arguments, add_label_filter_arguments, add_split_arguments,
+                                          positive_int)
 
 from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
 
@@ -31,6 +32,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="render worker processes side by side (default 1; with --executor ray: at "
                              "most N tasks in flight, default what the cluster holds)")
     add_split_arguments(parser)
+    add_label_filter_arguments(parser)
+    parser.add_argument("--catalog-classes", action="store_true",
+                        help="COCO/YOLO classes: every object class of the asset catalog (ids shared by all "
+                             "scenes of one library); default: the document's labelled classes")
     add_executor_arguments(parser)
     parser.add_argument("--no-report", action="store_true",
                         help="do not write the browsable report OUT/report/index.html (usdscene report OUT "
@@ -61,7 +66,9 @@ def run(args: argparse.Namespace) -> int:
 
     options = RunOptions(frames=frames, cameras=args.cameras, exports=args.export, samples=args.samples,
                          workers=args.workers, retries=args.retries, split=args.split,
-                         split_seed=args.split_seed, report=not args.no_report)
+                         split_seed=args.split_seed, report=not args.no_report,
+                         document_classes=not args.catalog_classes, min_pixels=args.min_pixels,
+                         min_visible_fraction=args.min_visible, rle_below_px=args.coco_rle_below)
     summary = run_pipeline(args.document, args.output, options, executor=executor, progress=progress,
                            on_step=show_step)
     print(summary_text(summary))

@@ -91,6 +91,7 @@ class ImageLabeller:
 
         from usdscene.document import output_layout as layout
         from usdscene.labels.amodal import RASTER_REVISION
+        from usdscene.labels.image_labels import LABELS_REVISION
         from usdscene.errors import OutputError
 
         self.out = Path(out_dir)
@@ -119,6 +120,7 @@ class ImageLabeller:
         self._key = {"usdscene": __version__, "epsilon_px": self.epsilon_px,
                      "min_visible_fraction": self.min_visible_fraction, "amodal": bool(amodal),
                      "amodal_raster_revision": RASTER_REVISION if amodal else None,
+                     "labels_revision": LABELS_REVISION,
                      "ids_sha256": hashlib.sha256(id_bytes).hexdigest(),
                      "stage_sha256": stage_digest(stage_path) if amodal else None}
         self._triangles: tuple[int, dict] | None = None  # (frame, uid → triangles) of the last frame

@@ -131,7 +131,8 @@ def carried_split(out_dirs) -> tuple:
 
 def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,
                    copy_images: bool = False, min_roi_px: int = 8, split=None,
-                   split_seed: int = 0) -> dict:
+                   split_seed: int = 0, min_pixels: int = 0, min_visible_fraction: float = 0.0,
+                   rle_below_px: int = 0) -> dict:
     """Export ``OUT/annotations.openlabel.json`` to each of ``formats``.
 
     Args:
@@ -144,6 +145,9 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         split: a split rule (text or :class:`usdscene.document.splits.SplitRule`) for COCO and YOLO;
             None writes one COCO file and a YOLO ``data.yaml`` naming every image.
         split_seed: seed of a ``fractions`` split rule.
+        min_pixels: COCO/YOLO keep visible labels of at least this many pixels (0: all).
+        min_visible_fraction: COCO/YOLO keep labels at least this visible (0: all).
+        rle_below_px: COCO segmentation as RLE for objects of fewer pixels (0: polygons only).
 
     Returns:
         format → folder (or file) written.
@@ -170,7 +174,8 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR,
                                       extra_assets=extra_assets, document_classes=document_classes,
                                       copy_images=copy_images, split=split, split_seed=split_seed,
-                                      loaded=[loaded]))
+                                      loaded=[loaded], min_pixels=min_pixels,
+                                      min_visible_fraction=min_visible_fraction, rle_below_px=rle_below_px))
     if "rois" in ordered:
         from usdscene.converters.rois import export_rois
 
@@ -179,7 +184,8 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
 
 
 def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_classes: bool = False,
-                   copy_images: bool = False, split=None, split_seed: int = 0, loaded=None) -> dict:
+                   copy_images: bool = False, split=None, split_seed: int = 0, loaded=None,
+                   min_pixels: int = 0, min_visible_fraction: float = 0.0, rle_below_px: int = 0) -> dict:
     """Export one COCO/YOLO dataset from one or more annotated output folders.
 
     Images are ordered by output folder (as given), then frame, then camera; image ids are
@@ -198,6 +204,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         split_seed: seed of a ``fractions`` rule.
         loaded: ``(document, catalog or None)`` of each output folder when the caller has read
             them already; None reads them here.
+        min_pixels, min_visible_fraction, rle_below_px: as in :func:`export_formats`.
 
     Returns:
         format → what was written: ``coco/annotations.json`` without a split, else the
@@ -211,7 +218,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
     import os
     from pathlib import Path
 
-    from usdscene.converters.coco import COCO_DIR, COCO_FILE, coco_document, coco_entries
+    from usdscene.converters.coco import COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries
     from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
     from usdscene.converters.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
     from usdscene.errors import OutputError
@@ -230,6 +237,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         if resolved.count(r) > 1:
             raise OutputError(f"output folder {str(o)!r} is given twice", where=str(o))
     dataset = Path(dataset_dir)
+    label_filter = LabelFilter(int(min_pixels), float(min_visible_fraction))
     # file_name and the YOLO image folders are relative to the folder common to every output,
     # so a single output gives exactly the one-folder layout (``images/<camera>/...``).
     base = Path(os.path.commonpath(resolved)) if len(resolved) > 1 else resolved[0]
@@ -279,7 +287,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         for _, image_id, index, record in items:
             entries[image_id] = coco_entries(loaded[index][0], [record], category_ids, [image_id],
                                              first_annotation_id=next_id, uri_prefix=prefixes[index],
-                                             index=label_indexes[index])
+                                             index=label_indexes[index], label_filter=label_filter,
+                                             rle_below_px=int(rle_below_px))
             next_id += len(entries[image_id][1])
         for split_name, members in groups.items():
             images = [e for _, image_id, _, _ in members for e in entries[image_id][0]]
@@ -297,7 +306,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
             for _, _, index, record in members:
                 paths += write_yolo_images(loaded[index][0], outs[index], root, [record], class_ids,
                                            prefix=prefixes[index], copy_images=copy_images,
-                                           index=label_indexes[index])
+                                           index=label_indexes[index], label_filter=label_filter)
             if split_name is not None:
                 # "./" makes Ultralytics resolve each line against the list file's folder
                 text = "".join(f"./{p}\n" for p in paths)

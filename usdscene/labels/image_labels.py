@@ -9,22 +9,26 @@ centres sit at integer coordinates and pixel ``(x, y)`` covers ``[x - 0.5, x + 0
   pixel-centre convention: it spans the covered pixels edge to edge, so ``w = x_max - x_min + 1``
   and ``cx = (x_min + x_max) / 2``. Exporters to formats whose pixel ``i`` covers
   ``[i, i + 1)`` (COCO, YOLO) add 0.5 (:meth:`PixelBox.xywh_corner`).
-* Polygon vertices (:class:`Contour`) are pixel-centre coordinates of boundary pixels, as
-  traced by ``cv2.findContours``; outer contours run around the object's outermost pixels,
-  hole contours around the object's pixels that border a hole. With ``epsilon_px = 0`` they
-  describe the mask exactly: :func:`rasterize_contours` gives back the same pixels.
-* Simplification: ``cv2.approxPolyDP`` with ``epsilon_px`` (maximum distance in pixels of a
-  dropped boundary pixel centre from the simplified polygon). The default
-  :data:`DEFAULT_EPSILON_PX` = 0.75 px keeps every polygon within one pixel of the mask
-  boundary; a re-rasterised polygon differs from the mask only in pixels that touch the boundary.
+* Polygon vertices (:class:`Contour`) lie on the pixel outline of the visible region: on pixel
+  corners, at half-integer coordinates (:mod:`usdscene.labels.pixel_outline`). Filled by pixel
+  centres, the rule of COCO tools (pycocotools) and of :func:`rasterize_contours`, they give
+  back exactly the mask's pixels. Each 8-connected part has one outer contour; holes are
+  4-connected, as ``cv2.findContours`` has them.
+* Simplification: Douglas-Peucker (``cv2.approxPolyDP``) with ``epsilon_px``, the largest
+  distance in pixels of the simplified polygon from the outline. Every pixel centre lies at
+  least half a pixel from the outline, so below half a pixel the simplified polygon still
+  fills to exactly the mask: the default :data:`DEFAULT_EPSILON_PX` = 0.49 px. ``0`` keeps
+  every corner of the outline; larger values trade pixels at the boundary for fewer vertices.
 
 Visibility:
 
 * *visible* = pixels of the object in the instance mask (occluders removed);
 * *amodal* = pixels of the object's whole projection through the camera model, as if nothing
   occluded it, clipped to the image (:mod:`usdscene.labels.amodal`);
-* ``visible_fraction = visible pixels / amodal pixels``, clipped to ``[0, 1]`` (the two
-  rasterisations differ by a few boundary pixels, so the raw ratio can exceed 1 slightly);
+* ``visible_fraction = |visible ∩ amodal| / |amodal|`` in pixels. The render's boundaries
+  differ from the exact projection by a fraction of a pixel (Cycles jitters its one id sample
+  inside the pixel filter; remapped lenses take the nearest rendered pixel), so some visible
+  pixels lie just outside the projection: counting them would cancel real occlusion;
 * ``truncated`` = the unclipped projection leaves the image (or, without an amodal
   projection, the visible box touches the image border).
 """
@@ -36,15 +40,18 @@ import logging
 from dataclasses import dataclass
 from typing import Collection, Iterable, Iterator, Mapping, Sequence
 
-import cv2
 import numpy as np
 
 from usdscene.labels.amodal import AmodalProjection
 from usdscene.labels.pixel_box import PixelBox
+from usdscene.labels.pixel_outline import fill_rings, outline_rings, simplify_ring
 
 log = logging.getLogger(__name__)
 
-DEFAULT_EPSILON_PX = 0.75
+DEFAULT_EPSILON_PX = 0.49
+# Revision of the labels' own rules (polygon form, visible fraction); kept labels computed under
+# another revision are computed anew (:class:`usdscene.dataset.annotation.ImageLabeller`).
+LABELS_REVISION = 2
 
 
 # --------------------------------------------------------------------------------------------
@@ -56,8 +63,9 @@ class Contour:
     """One closed polygon of an object's visible region.
 
     Attributes:
-        points_px: (N, 2) float64 vertices ``(x, y)`` in pixels (pixel centres at integers),
-            N >= 1 (a single pixel gives one vertex, a one-pixel-wide line two).
+        points_px: (N, 2) float64 vertices ``(x, y)`` in pixels (pixel centres at integers):
+            corners of the pixel outline, at half-integers, N >= 4 (a single pixel is its
+            square).
         is_hole: True for the boundary of a hole inside an outer contour.
         parent: index (in the same :class:`ObjectLabel`'s ``contours``) of the outer contour
             enclosing this hole; -1 for outer contours.
@@ -88,7 +96,8 @@ class ObjectLabel:
             geometry given) or when the projection misses the image.
         amodal_pixel_count: pixels of the whole projection inside the image; None = unknown.
         truncated: the unclipped projection leaves the image.
-        visible_fraction: ``pixel_count / amodal_pixel_count`` clipped to [0, 1]; None = unknown.
+        visible_fraction: visible pixels inside the amodal projection / ``amodal_pixel_count``,
+            in [0, 1]; None = unknown.
     """
 
     uid: str
@@ -210,32 +219,41 @@ def _box_and_count(mask: np.ndarray) -> tuple[PixelBox | None, int]:
             int(np.count_nonzero(band)))
 
 
+def _pixels_inside(mask: np.ndarray, mask_id: int, visible_box: PixelBox | None, crop: np.ndarray,
+                   origin_px: tuple[int, int]) -> int:
+    """Pixels of ``mask_id`` in ``mask`` that ``crop`` (a bool region whose ``[0, 0]`` lies at
+    image position ``origin_px``) covers, counted over the overlap of the two boxes only."""
+    if visible_box is None:
+        return 0
+    ox, oy = origin_px
+    x0, y0 = max(visible_box.x_min, ox), max(visible_box.y_min, oy)
+    x1 = min(visible_box.x_max + 1, ox + crop.shape[1])
+    y1 = min(visible_box.y_max + 1, oy + crop.shape[0])
+    if x1 <= x0 or y1 <= y0:
+        return 0
+    return int(np.count_nonzero((mask[y0:y1, x0:x1] == mask_id) & crop[y0 - oy:y1 - oy, x0 - ox:x1 - ox]))
+
+
 def contours_of(region: np.ndarray, *, epsilon_px: float = DEFAULT_EPSILON_PX,
                 offset_px: tuple[int, int] = (0, 0)) -> tuple[Contour, ...]:
-    """Outer contours and holes of a binary region.
+    """Outer contours and holes of a binary region, on its pixel outline.
 
     Args:
         region: (H, W) bool or uint8 (non-zero = inside).
-        epsilon_px: ``cv2.approxPolyDP`` tolerance in pixels; 0 keeps every corner of the
-            pixel boundary (exact).
+        epsilon_px: simplification tolerance in pixels (see the module docstring); 0 keeps
+            every corner of the outline.
         offset_px: ``(dx, dy)`` added to every vertex (position of ``region`` in the image).
 
     Returns:
-        Contours in ``cv2.findContours`` (RETR_CCOMP) order; holes point at their outer
-        contour through ``parent``. 8-connected foreground, 4-connected holes.
+        Each 8-connected part's outer contour followed by its holes (4-connected), parts in
+        the order of their top-left pixel; holes point at their outer contour through
+        ``parent``.
     """
-    padded = cv2.copyMakeBorder(region.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    found, hierarchy = cv2.findContours(padded, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE,
-                                        offset=(offset_px[0] - 1, offset_px[1] - 1))
-    if hierarchy is None:
-        return ()
     result = []
-    for points, (_, _, _, parent) in zip(found, hierarchy[0]):
-        if epsilon_px > 0 and len(points) > 3:
-            points = cv2.approxPolyDP(points, float(epsilon_px), True)
-        pts = points.reshape(-1, 2).astype(np.float64)
+    for points, is_hole, parent in outline_rings(region, offset_px):
+        pts = simplify_ring(points, epsilon_px)
         pts.flags.writeable = False
-        result.append(Contour(pts, is_hole=parent >= 0, parent=int(parent)))
+        result.append(Contour(pts, is_hole=is_hole, parent=parent))
     return tuple(result)
 
 
@@ -305,13 +323,18 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
                                      f"image, the instance mask is {(width, height)}")
                 is_truncated = is_truncated or amodal.truncated
                 amodal_box, amodal_count = amodal.box, amodal.pixel_count
+                crop, origin = amodal.crop, amodal.origin_px
             else:
                 if amodal.shape != mask.shape:
                     raise ValueError(f"amodal mask of {uid!r} has shape {amodal.shape}, "
                                      f"the instance mask {mask.shape}")
                 amodal_box, amodal_count = _box_and_count(amodal)
+                crop, origin = amodal, (0, 0)
+            seen = _pixels_inside(mask, mask_id, visible_box, crop, origin) if amodal_count else 0
             if amodal_count:
-                fraction = min(1.0, pixel_count / amodal_count)
+                # visible ∩ amodal: mask pixels just outside the exact projection (the render's
+                # boundary differs by a fraction of a pixel) must not cancel real occlusion
+                fraction = int(seen) / amodal_count
             else:
                 # The projection misses every pixel centre (sub-pixel object) yet pixels may
                 # be visible: call it fully visible rather than dividing by zero.
@@ -337,37 +360,17 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
 
 
 def rasterize_contours(contours: Sequence[Contour], shape: tuple[int, int]) -> np.ndarray:
-    """Pixels described by outer contours and holes, the inverse of :func:`contours_of`.
-
-    Each outer contour is filled together with its boundary; each of its holes clears the
-    pixels strictly inside the hole boundary (the boundary pixels belong to the object).
-    Outer contours are drawn on separate layers and united, so an island inside a hole of
-    another part survives.
+    """Pixels whose centres lie inside an object's contours (even-odd), the inverse of
+    :func:`contours_of`: exact for ``epsilon_px`` below half a pixel.
 
     Args:
-        contours: as returned by :func:`contours_of` (vertices rounded to whole pixels).
+        contours: as returned by :func:`contours_of`.
         shape: (H, W) of the result.
 
     Returns:
         (H, W) bool.
     """
-    result = np.zeros(shape, dtype=bool)
-    layer = np.zeros(shape, dtype=np.uint8)
-    for index, outer in enumerate(contours):
-        if outer.is_hole:
-            continue
-        layer[:] = 0
-        pts = np.round(outer.points_px).astype(np.int32).reshape(-1, 1, 2)
-        cv2.fillPoly(layer, [pts], 1)
-        cv2.polylines(layer, [pts], True, 1)
-        holes = [np.round(c.points_px).astype(np.int32).reshape(-1, 1, 2)
-                 for c in contours if c.is_hole and c.parent == index]
-        if holes:
-            for hole in holes:
-                cv2.fillPoly(layer, [hole], 0)
-            cv2.polylines(layer, holes, True, 1)
-        result |= layer.astype(bool)
-    return result
+    return fill_rings([c.points_px for c in contours], shape)
 
 
 def bridge_rings(rings: Sequence[np.ndarray]) -> np.ndarray:

@@ -113,7 +113,9 @@ def uv_sphere(radius_m: float, segments: int = 32, rings: int = 16):
     return np.asarray(points), np.asarray(counts), np.asarray(indices)
 
 
-def _box(size_m, inward: bool):
+def box_mesh(size_m, inward: bool):
+    """(points, face_vertex_counts, face_vertex_indices) of an axis-aligned box of ``size_m``
+    centred on the origin; faces point outward (inward: into the box)."""
     sx, sy, sz = (s / 2 for s in size_m)
     pts = [(-sx, -sy, -sz), (sx, -sy, -sz), (sx, sy, -sz), (-sx, sy, -sz),
            (-sx, -sy, sz), (sx, -sy, sz), (sx, sy, sz), (-sx, sy, sz)]
@@ -268,7 +270,7 @@ def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
     for box in scene.boxes:
         prim_path = f"{names.ENVIRONMENT}/{names.prim_name(box.name)}"
         mesh = UsdGeom.Mesh.Define(stage, prim_path)
-        pts, counts, idx = _box(box.size_m, box.inward)
+        pts, counts, idx = box_mesh(box.size_m, box.inward)
         mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
         mesh.CreateFaceVertexCountsAttr(counts)
         mesh.CreateFaceVertexIndicesAttr(idx)

@@ -329,6 +329,10 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
                 have = ", ".join(sorted(env_places[place.name].regions)) or "none"
                 problems.add(where, f"relation {rel.uid!r}: place {place.name!r} has no region for "
                                     f"{rel.type!r} (it has: {have}); cannot place {rel.subject_uid!r}")
+            elif place.name in env_places:
+                region = env_places[place.name].regions[rel.type]
+                _add_fit_problem(problems, objects[rel.subject_uid], catalog, tuple(float(v) for v in region.size_m),
+                                 f"place {place.name!r} ({rel.type})", upright_only=False)
         elif rel.object_uid in objects:
             if rel.type == RelationType.IS_BELOW.value:
                 problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} is_below another object "
@@ -344,6 +348,12 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
                     problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
                                         f"but class {target.class_name!r} with {shown} offers no region for "
                                         f"{rel.type!r} (other variants do)")
+                elif entry.kind != "environment":
+                    # The region's size does not depend on where the support stands.
+                    _, size = object_support_region(rel.type, entry.for_variants(variants), np.eye(4), variants)
+                    _add_fit_problem(problems, objects[rel.subject_uid], catalog, size,
+                                     f"object {rel.object_uid!r} ({rel.type})",
+                                     upright_only=entry.declares_support(rel.type))
         else:
             problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
                                 "which is neither a place nor an object of the document")
@@ -358,6 +368,22 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
         problems.add(f"objects.{cycle[0]}", f"cyclic placement relations: {chain}; object "
                                             f"{cycle[0]!r} would rest on itself")
     problems.raise_if_any(CompositionError)
+
+
+def _add_fit_problem(problems: ProblemCollector, obj: SceneObject, catalog: Catalog,
+                     size: tuple[float, float, float], label: str, *, upright_only: bool) -> None:
+    """The fit test of placement (:func:`_orientations`) before anything is drawn: an object
+    that fits its support region in no orientation can never be placed there. An object whose
+    appearance is drawn at composition (``random_appearance``) is left to composition when
+    its variants differ in extent."""
+    if obj.class_name not in catalog or catalog[obj.class_name].kind == "environment":
+        return  # reported as an unknown class / not placeable
+    base = catalog[obj.class_name]
+    if obj.randomization.random_appearance and base.variant_extents:
+        return
+    entry = base.for_variants(object_variants(obj))
+    if not _orientations(entry, size, upright_only):
+        problems.add(f"objects.{obj.uid}", _no_fit_message(obj.uid, obj.class_name, entry, label, size))
 
 
 def _find_cycles(graph: Mapping[str, list[tuple[str, str]]], order: list[str]) -> list[list[str]]:
@@ -623,7 +649,7 @@ def _place_pending(run: _Run, frame: _Frame, pending: list["_Info"], states: Map
         region_pose, size, label, region_values, exclude, upright_only = support
         orientations = _orientations(info.entry, size, upright_only)
         if not orientations:
-            run.problems.add(f"objects.{uid}", _no_fit_message(uid, info, label, size))
+            run.problems.add(f"objects.{uid}", _no_fit_message(uid, info.obj.class_name, info.entry, label, size))
             continue
         placed = _follow_support(frame, info, states.get(uid), key, region_pose, exclude, label)
         if placed is None:
@@ -683,12 +709,13 @@ def _follow_support(frame: _Frame, info: "_Info", prev: "_State | None", key: tu
     return prev.local, world_m
 
 
-def _no_fit_message(uid: str, info: "_Info", label: str, size: tuple[float, float, float]) -> str:
-    lo, hi = info.entry.extent_min_m, info.entry.extent_max_m
+def _no_fit_message(uid: str, class_name: str, entry: AssetEntry, label: str,
+                    size: tuple[float, float, float]) -> str:
+    lo, hi = entry.extent_min_m, entry.extent_max_m
     dims = " × ".join(f"{h - l:.3f}" for l, h in zip(lo, hi))
     ways = {"upright": "upright", "upright_turned": "upright or turned",
-            "any": "upright, turned or lying on a side"}[info.entry.orientations]
-    return (f"object {uid!r} ({info.obj.class_name}, {dims} m) does not fit {label} ({size[0]:.3f} × "
+            "any": "upright, turned or lying on a side"}[entry.orientations]
+    return (f"object {uid!r} ({class_name}, {dims} m) does not fit {label} ({size[0]:.3f} × "
             f"{size[1]:.3f} m, {size[2]:.3f} m clearance) {ways}")
 
 
