@@ -200,6 +200,11 @@ def write_openlabel(scene: SceneSpec) -> dict:
     if relations:
         body["relations"] = relations
 
+    if scene.fps is not None:
+        for frame in scene.frames:
+            if frame >= 0:
+                props = frames.setdefault(frame, {}).setdefault("frame_properties", {})
+                props["timestamp"] = frame_timestamp(frame, scene.fps)
     if scene.extra:
         merge_scene(body, frames, scene.extra, problems)
     if frames:
@@ -211,6 +216,11 @@ def write_openlabel(scene: SceneSpec) -> dict:
     body["frame_intervals"] = _intervals(union_intervals(every))
     problems.raise_if_any(DocumentError)
     return {"openlabel": body}
+
+
+def frame_timestamp(frame: int, fps: float) -> float:
+    """OpenLABEL ``timestamp`` of a frame: seconds since frame 0, ``frame / fps``."""
+    return float(frame) / float(fps)
 
 
 def openlabel_uids(uids: Iterable[str]) -> dict[str, str]:
@@ -291,6 +301,8 @@ def _metadata(scene: SceneSpec) -> dict:
     if scene.split_rule:
         block["split"] = {"rule": scene.split_rule, "seed": int(scene.split_seed)}
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
+    if scene.fps is not None:
+        block["fps"] = float(scene.fps)
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
     if scene.description:
         meta["comment"] = scene.description

@@ -398,6 +398,9 @@ def _root_layer(scene: SceneSpec) -> str:
     layer = _new_layer()
     layer.startTimeCode = float(scene.frame_start)
     layer.endTimeCode = float(scene.frame_end)
+    if scene.fps is not None:  # without a stated rate the layer keeps USD's default (and its bytes)
+        layer.timeCodesPerSecond = float(scene.fps)
+        layer.framesPerSecond = float(scene.fps)
     layer.defaultPrim = ss.WORLD.strip("/")
     layer.pseudoRoot.SetInfo("renderSettingsPrimPath", ss.RENDER_SETTINGS)
     for name in ss.SUBLAYERS:
