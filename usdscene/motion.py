@@ -33,14 +33,16 @@ one at some frame is drawn again (new times, speed, entrances, offset), up to
 environment's own obstacles (pillars, walls) are not modelled: routes follow the places.
 
 **Walk cycle.** The phase of a walker is the distance walked over its stride,
-``phase = (s / STRIDE_M) mod 1``. A person class whose ``pose`` variant set has ``walk_0`` ..
+``phase = (s / stride) mod 1``. A person class whose ``pose`` variant set has ``walk_0`` ..
 ``walk_<n-1>`` (a cycle of n phases) shows variant ``walk_k``, ``k = floor(phase · n)``, at each
 frame: written per frame as text object data ``walk_pose_variant`` with the num
-``walk_phase``. **Foot sliding** is what the planted foot moves over the ground against the
-pose: per frame ``|Δs - STRIDE_M · Δk / n|`` (distance walked minus what the shown poses
-advance); the report gives it in metres per metre walked. With n = 8 phases it is the
-rounding of the phase to the nearest eighth; a class without a walk cycle slides its whole
-distance (1.0). Composition selects one ``pose`` variant per object: the per-frame variant is in
+``walk_phase``. Held poses make the planted foot slide: **foot sliding** is, per frame,
+``|Δs - stride · Δk / n|`` (distance walked minus what the shown poses advance), summed and
+divided by the distance walked (the report's ``foot_sliding_m_per_m``). The stride is therefore
+chosen per walker (:func:`locked_stride`): within 1.0-1.8 m, the one at which the phase
+advances a whole number of poses per frame, and sliding is zero; at 5 fps with 8 poses every
+speed of 0.8-1.8 m/s locks, at 10 fps only walkers from 1.25 m/s do (the others keep 1.4 m and
+slide about as far as they walk). A class without a walk cycle slides its whole distance (1.0). Composition selects one ``pose`` variant per object: the per-frame variant is in
 the document and the annotations, and a renderer that switches variants per frame follows it.
 
 **Facing.** People assets face -Y (the asset library's convention), vehicles face +X (their
@@ -87,6 +89,8 @@ TOUCH_TOLERANCE_M = 0.35
 """Two place boxes closer than this (metres) connect (a kerb line between two regions)."""
 STRIDE_M = 1.4
 """Length of one walk cycle (two steps) in metres: an adult at 1.3 m/s and 110 steps/min."""
+STRIDE_RANGE_M = (1.0, 1.8)
+"""Strides a walker may take so that its phase advances a whole number of cycle poses per frame."""
 PERSON_MARGIN_M = 0.05
 """Added around a person's footprint against others (swinging arms and legs)."""
 VEHICLE_MARGIN_M = 0.05
@@ -168,6 +172,7 @@ class Track:
     route: tuple[str, ...] = ()
     appearance: str | None = None
     pose_variant: str | None = None
+    stride_m: float = STRIDE_M
     footprint: tuple[np.ndarray, np.ndarray] = field(default=None)  # (offset (2,), half (2,))
 
 
@@ -654,7 +659,8 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
                 continue
             pos, heading = line.at(np.nan_to_num(s, nan=0.0))
             track = Track("walking", cls, present, pos, heading + facing, np.where(present, s, 0.0), speed,
-                          route=tuple(areas[i].place for i in path), footprint=(offset, half))
+                          route=tuple(areas[i].place for i in path), footprint=(offset, half),
+                          stride_m=locked_stride(speed, fps, len(_walk_variants(entry))))
             if not _collides(track, [*accepted, *out]):
                 track.appearance = _draw_look(entry, rng)
                 cycle = _walk_variants(entry)
@@ -788,9 +794,31 @@ def _leaving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | 
 # The document
 
 
+def locked_stride(speed_m_s: float, fps: float, cycle_length: int) -> float:
+    """The stride (m) at which a walker's phase advances a whole number m of the cycle's poses
+    per frame (``speed / fps = m · stride / n``), so the shown poses keep pace with the ground
+    and no foot slides; the one nearest :data:`STRIDE_M` within :data:`STRIDE_RANGE_M`, else
+    :data:`STRIDE_M` (a slow walker filmed fast: its feet slide, see :func:`foot_sliding`)."""
+    if not cycle_length:
+        return STRIDE_M
+    step = speed_m_s / fps * cycle_length  # m · stride
+    best = None
+    for m in range(1, cycle_length):
+        stride = step / m
+        if STRIDE_RANGE_M[0] <= stride <= STRIDE_RANGE_M[1] and (best is None or abs(stride - STRIDE_M) < abs(best - STRIDE_M)):
+            best = stride
+    return STRIDE_M if best is None else best
+
+
 def walk_phases(track: Track) -> np.ndarray:
-    """(F,) walk-cycle phase in [0, 1) of a track (distance walked over the stride)."""
-    return np.mod(track.walked / STRIDE_M, 1.0)
+    """(F,) walk-cycle phase in [0, 1) of a track (distance walked over its stride)."""
+    return np.mod(track.walked / track.stride_m, 1.0)
+
+
+def cycle_poses(track: Track, cycle_length: int) -> np.ndarray:
+    """(F,) index k of the cycle pose shown at each frame, ``floor(phase · n)`` (a millionth of
+    a pose of rounding allowance: a locked walker lands on whole poses)."""
+    return np.mod(np.floor(track.walked / track.stride_m * cycle_length + 1e-6), cycle_length).astype(np.int64)
 
 
 def foot_sliding(track: Track, cycle_length: int) -> float:
@@ -805,9 +833,9 @@ def foot_sliding(track: Track, cycle_length: int) -> float:
         return 0.0
     if not cycle_length:
         return 1.0
-    k = np.floor(walk_phases(track)[idx] * cycle_length).astype(np.int64)
+    k = cycle_poses(track, cycle_length)[idx]
     steps = np.mod(np.diff(k), cycle_length)
-    return float(np.abs(walked - STRIDE_M * steps / cycle_length).sum() / distance)
+    return float(np.abs(walked - track.stride_m * steps / cycle_length).sum() / distance)
 
 
 def _yaw_pose(position: np.ndarray, yaw: float) -> Pose:
@@ -844,14 +872,14 @@ def _scene(setup: SceneSpec, catalog: Catalog, tracks: Sequence[Track], options:
         idx = np.flatnonzero(track.present)
         poses = tuple((int(f), _yaw_pose(track.position[f], float(track.yaw[f]))) for f in idx)
         phases = walk_phases(track)
+        shown = cycle_poses(track, len(cycle)) if cycle else None
         frame_extra = []
         for f in idx:
             data: dict = {"vec": [{"name": "ground_position_m",
                                    "val": [float(v) for v in track.position[f]]}]}
             if cycle:
                 data["num"] = [{"name": "walk_phase", "val": float(phases[f])}]
-                data["text"] = [{"name": "walk_pose_variant",
-                                 "val": cycle[int(phases[f] * len(cycle)) % len(cycle)]}]
+                data["text"] = [{"name": "walk_pose_variant", "val": cycle[int(shown[f])]}]
             frame_extra.append((int(f), canonical_json({"object_data": data})))
         intervals = [{"frame_start": iv.frame_start, "frame_end": iv.frame_end} for iv in _runs(track.present)]
         pointers = {"ground_position_m": {"type": "vec", "frame_intervals": intervals}}
@@ -861,7 +889,7 @@ def _scene(setup: SceneSpec, catalog: Catalog, tracks: Sequence[Track], options:
         texts = [{"name": "motion", "val": track.kind}, {"name": "route", "val": " ".join(track.route)}]
         nums = [{"name": "speed_m_s", "val": float(track.speed_m_s)}]
         if track.kind == "walking":
-            nums.append({"name": "stride_m", "val": STRIDE_M})
+            nums.append({"name": "stride_m", "val": float(track.stride_m)})
         for item in texts:
             pointers[item["name"]] = {"type": "text", "frame_intervals": []}
         for item in nums:
