@@ -166,6 +166,9 @@ def test_cabin_walker_walks_the_aisle():
     idx = np.flatnonzero(track.present)
     assert np.all(np.abs(track.position[idx, 1]) <= 0.26)  # within the 0.5 m aisle
     assert track.position[idx, 0].min() < -3.0  # walked down the aisle
+    # Nobody passes anybody in a 0.44 m aisle: a second walker fits only where it never meets the first.
+    with pytest.raises(DocumentError, match="--people: only 1 of 8 walkers fit"):
+        generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=8, seed=0, person_classes=("pedestrian",)))
 
 
 def _without_places(scene, words):
@@ -180,7 +183,7 @@ def test_bad_input_is_one_clear_error(setup, tmp_path):
     cases = [
         (_without_places(scene, ("footpath", "entrance")), walkless, options, "no walkable space"),
         (_without_places(scene, ("entrance",)), catalog, options, "no entrance for walkers"),
-        (scene, catalog, dataclasses.replace(options, people=400), "--people: only"),
+        (scene, catalog, dataclasses.replace(options, people=400), "--people: about 400 people would be on"),
         (scene, catalog, dataclasses.replace(options, people=0, vehicles=11), "--vehicles"),
         (_without_places(scene, ("entrance_vehicles",)), catalog, dataclasses.replace(options, vehicles=1),
          "no entrance for vehicles"),

@@ -480,7 +480,34 @@ def overlapping_frames(a: Track, b: Track) -> np.ndarray:
 
 
 def _collides(track: Track, accepted: Sequence[Track]) -> bool:
-    return any(len(overlapping_frames(track, other)) for other in accepted)
+    """Whether ``track`` overlaps any accepted one at some frame. The accepted tracks' centres
+    are compared at once first (a bounding-circle test over every frame); only those that come
+    near get the exact rectangle test."""
+    if not accepted:
+        return False
+    reach_new = float(np.linalg.norm(track.footprint[1]) + np.linalg.norm(track.footprint[0]))
+    positions = np.stack([t.position[:, :2] for t in accepted])  # (K, F, 2)
+    present = np.stack([t.present for t in accepted]) & track.present  # (K, F)
+    reach = np.array([np.linalg.norm(t.footprint[1]) + np.linalg.norm(t.footprint[0]) for t in accepted]) + reach_new
+    gap = np.einsum("kfi,kfi->kf", positions - track.position[None, :, :2], positions - track.position[None, :, :2])
+    near = np.any(present & (gap < (reach * reach)[:, None]), axis=1)
+    return any(len(overlapping_frames(track, accepted[k])) for k in np.flatnonzero(near))
+
+
+def _check_capacity(areas: Sequence[Area], routes_m: Sequence[float], options: TrackOptions,
+                    footprint_m2: float) -> None:
+    """Fail at once when the walkers asked for cannot share the walk places: about ``people ·
+    min(1, route time / sequence time)`` are on them at once (plus the standing people), and
+    the walk places hold at most a third of their area in footprints."""
+    area_m2 = sum(float(4.0 * np.prod(a.half)) for a in areas if a.role == "walk")
+    capacity = int(area_m2 / 3.0 / max(footprint_m2, 1e-6))
+    route_s = float(np.mean(routes_m)) / float(np.mean(options.speed_range_m_s))
+    seconds = options.frames / float(options.fps)
+    at_once = options.people * min(1.0, route_s / seconds) + options.standing
+    if at_once > capacity:
+        raise _problem("--people", f"about {at_once:.0f} people would be on the walk places at once (a route "
+                                   f"takes about {route_s:.0f} s, the sequence {seconds:g} s); their {area_m2:.0f} m² "
+                                   f"hold about {capacity}: ask for fewer people or a longer sequence")
 
 
 # --------------------------------------------------------------------------------------------
@@ -634,6 +661,8 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
                 routes.append(there + there[::-1][1:])
     if not routes:
         raise _problem("setup places", "no route between two entrances over the walk places")
+    sizes = [np.prod(2.0 * _footprint(catalog[c], PERSON_MARGIN_M)[1]) for c in classes]
+    _check_capacity(areas, [_Polyline(_route_points(areas, r)).length for r in routes], options, float(np.mean(sizes)))
     out: list[Track] = []
     low, high = options.speed_range_m_s
     for k in range(options.people):
