@@ -63,8 +63,16 @@ def test_stage_states_the_rate_only_when_the_document_does(tmp_path):
     without = compose_stage(_scene(None), catalog, tmp_path / "b")
     assert "timeCodesPerSecond" not in without.root_layer.read_text()
     assert scene_from_stage(str(without.root_layer)).fps is None
-    # Poses are time samples: one per frame for a moving object.
+    # Poses are time samples: one per frame for a moving object, read back at the document's
+    # frames through the composed stage (every layer states the rate, or USD rescales the samples).
     objects = Sdf.Layer.FindOrOpen(str(with_rate.stage_dir / "objects.usda"))
+    assert objects.timeCodesPerSecond == 25.0
     path = [p for p in objects.rootPrims[0].nameChildren[0].nameChildren][0].path
     samples = objects.ListTimeSamplesForPath(path.AppendProperty("xformOp:transform"))
     assert list(samples) == [0.0, 1.0, 2.0, 3.0]
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(with_rate.root_layer))
+    xform = UsdGeom.Xformable(stage.GetPrimAtPath(path))
+    for frame in range(4):
+        assert xform.ComputeLocalToWorldTransform(frame).ExtractTranslation()[0] == pytest.approx(0.1 * frame)
