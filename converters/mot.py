@@ -35,7 +35,7 @@ import os
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene.converters.yolo import link_or_copy
 from usdscene.errors import OutputError

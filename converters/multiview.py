@@ -44,13 +44,13 @@ from typing import Iterable
 
 import numpy as np
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 from usdscene.converters.mot import require_tracks, track_ids
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records
 from usdscene.converters.yolo import link_or_copy
 from usdscene.errors import DocumentError, OutputError
 from usdscene.files import dumps_json, staged_folder
-from usdscene.model import Camera, LensModel, RenderSettings
+from usdscene.document.model import Camera, LensModel, RenderSettings
 
 log = logging.getLogger(__name__)
 

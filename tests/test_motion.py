@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdscene.catalog import load_catalog
+from usdscene.scene.catalog import load_catalog
 from usdscene.converters.openlabel import read_openlabel, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.model import DeclaredRegion, PlaceRef, Pose
-from usdscene.motion import (STRIDE_M, TrackOptions, foot_sliding, generate_tracks, ground_areas,
+from usdscene.document.model import DeclaredRegion, PlaceRef, Pose
+from usdscene.dataset.motion import (STRIDE_M, TrackOptions, foot_sliding, generate_tracks, ground_areas,
                              overlapping_frames, walk_phases)
 
 CAR_PARK = Path(__file__).resolve().parents[1] / "examples" / "car_park"

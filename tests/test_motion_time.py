@@ -9,7 +9,7 @@ import pytest
 
 from usdscene.converters.openlabel import read_openlabel, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.model import Pose, SceneObject, SceneSpec
+from usdscene.document.model import Pose, SceneObject, SceneSpec
 
 
 def _scene(fps):
@@ -51,8 +51,8 @@ def test_bad_fps_is_one_error_naming_the_field(bad):
 def test_stage_states_the_rate_only_when_the_document_does(tmp_path):
     from pxr import Sdf
 
-    from usdscene.catalog import load_catalog
-    from usdscene.compose import compose_stage
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.scene.compose import compose_stage
     from usdscene.converters.usd_stage import scene_from_stage
 
     catalog = load_catalog()

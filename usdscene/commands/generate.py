@@ -66,7 +66,7 @@ def _fps(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected frames per second, got {text!r}") from None
-    if not 0.0 < value <= 1000.0:  # usdscene.model.MAX_FPS
+    if not 0.0 < value <= 1000.0:  # usdscene.document.model.MAX_FPS
         raise argparse.ArgumentTypeError(f"expected frames per second in (0, 1000], got {text!r}")
     return value
 
@@ -74,7 +74,7 @@ def _fps(text: str) -> float:
 def _run_tracks(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from usdscene.motion import TrackOptions, generate_tracks_document, report_path
+    from usdscene.dataset.motion import TrackOptions, generate_tracks_document, report_path
 
     options = TrackOptions(frames=args.frames or 100, fps=args.fps or 10.0, people=args.people,
                            vehicles=args.vehicles, standing=args.standing, seed=args.seed,

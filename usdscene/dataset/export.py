@@ -9,7 +9,7 @@ regions), never internal state:
 * ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.mot`);
 * ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
   calibrations (see :mod:`usdscene.converters.multiview`); persons are the catalog's person
-  classes (:func:`usdscene.motion.person_classes`).
+  classes (:func:`usdscene.dataset.motion.person_classes`).
 
 ``mot`` and ``multiview`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
@@ -194,7 +194,7 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
                                     copy_images=copy_images)
     if "multiview" in ordered:
         from usdscene.converters.multiview import export_multiview
-        from usdscene.motion import person_classes
+        from usdscene.dataset.motion import person_classes
 
         people = person_classes(loaded[1]) if loaded[1] is not None and not document_classes else None
         written["multiview"] = export_multiview(loaded[0], out, grid=grid, classes=people)

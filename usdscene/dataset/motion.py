@@ -69,9 +69,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.catalog import AssetEntry, Catalog, scene_catalog
+from usdscene.scene.catalog import AssetEntry, Catalog, scene_catalog
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.model import MAX_FPS, FrameInterval, Pose, SceneObject, SceneSpec, canonical_json
+from usdscene.document.model import MAX_FPS, FrameInterval, Pose, SceneObject, SceneSpec, canonical_json
 
 log = logging.getLogger(__name__)
 
@@ -951,7 +951,7 @@ def tracks_report(scene: SceneSpec, tracks: Sequence[Track], catalog: Catalog, o
     inside the image through the camera's lens (occlusion is not considered: the rendered
     labels say what is visible).
     """
-    from usdscene.projection import project_points
+    from usdscene.labels.projection import project_points
 
     F, fps = options.frames, float(options.fps)
     people = np.zeros(F, dtype=np.int64)
@@ -1017,10 +1017,10 @@ def generate_tracks_document(setup_path: str | os.PathLike, out_path: str | os.P
         AssetError: bad asset catalog.
     """
     from usdscene.bulk import paused_collection
-    from usdscene.catalog import load_catalog
+    from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
     from usdscene.files import write_json_atomic
-    from usdscene.sequences import check_composes
+    from usdscene.dataset.sequences import check_composes
 
     setup_path, out_path = Path(setup_path), Path(out_path)
     with paused_collection():
