@@ -89,17 +89,21 @@ def main(argv=None) -> int:
             (shutil.copytree if (CAR_PARK / name).is_dir() else shutil.copy)(CAR_PARK / name, tmp / name)
         doc = tmp / "moving.openlabel.json"
         options = TrackOptions(frames=args.frames, fps=10.0, people=args.people, vehicles=args.vehicles, seed=1)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         result = generate_tracks_document(tmp / "setup_moving.openlabel.json", doc, options)
-        t_generate = time.perf_counter() - t0
-        t0 = time.perf_counter()
+        t_generate, c_generate = time.perf_counter() - t0, time.process_time() - c0
+        t0, c0 = time.perf_counter(), time.process_time()
         compose_document(doc, tmp / "stage")
-        t_compose = time.perf_counter() - t0
+        t_compose, c_compose = time.perf_counter() - t0, time.process_time() - c0
         report = result.report
         print(f"document: {args.frames} frames, {report['tracks']} tracks, {doc.stat().st_size / 1e6:.1f} MB; "
               f"people per frame {report['people_per_frame']['min']}..{report['people_per_frame']['max']}")
-        print(f"generate tracks (incl. composability check): {t_generate:6.2f} s   (target < 10 s)")
-        print(f"compose:                                     {t_compose:6.2f} s   (target < 30 s)")
+        # CPU seconds beside wall seconds: on a shared machine the wall time says more about the
+        # neighbours than about this code.
+        print(f"generate tracks (incl. composability check): {t_generate:6.2f} s wall, {c_generate:6.2f} s CPU"
+              f"   (target < 10 s)")
+        print(f"compose:                                     {t_compose:6.2f} s wall, {c_compose:6.2f} s CPU"
+              f"   (target < 30 s)")
 
         cameras = 4
         frames = -(-args.images // cameras)
@@ -109,12 +113,13 @@ def main(argv=None) -> int:
                                               vehicles=args.vehicles, seed=2))
         out = tmp  # the document's asset folder is relative to it
         images = _labelled_document(long_doc, out)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         export_formats(out, ["mot", "multiview"])
-        t_export = time.perf_counter() - t0
+        t_export, c_export = time.perf_counter() - t0, time.process_time() - c0
         rows = sum(len((p / "gt" / "gt.txt").read_text().splitlines())
                    for p in (out / "exports" / "mot").iterdir() if p.is_dir())
-        print(f"MOT + multiview export of {images} images ({rows} MOT rows): {t_export:6.2f} s   (target < 10 s)")
+        print(f"MOT + multiview export of {images} images ({rows} MOT rows): {t_export:6.2f} s wall, "
+              f"{c_export:6.2f} s CPU   (target < 10 s)")
     return 0
 
 

@@ -99,7 +99,7 @@ def _num(value: float) -> str:
 
 
 def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[str] | None = None,
-               copy_images: bool = False) -> Path:
+               copy_images: bool = False, index: LabelIndex | None = None) -> Path:
     """Write ``<out_dir>/exports/mot/`` (see the module docstring); returns that folder.
 
     The folder is built beside the old one and replaces it at the end: an interrupted export
@@ -110,6 +110,7 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
         out_dir: the output folder holding the document and the images.
         classes: classes to export (sorted for their ids); None = the document's labelled types.
         copy_images: copy the images instead of linking them.
+        index: the document's :class:`LabelIndex` when another export reads it too.
 
     Raises:
         OutputError: the document states no frame rate (no tracks), or has no labelled image.
@@ -124,7 +125,7 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
     ids = track_ids(document)
     first = min(r["frame"] for r in records)
     last = max(r["frame"] for r in records)
-    index = LabelIndex(document)
+    index = index or LabelIndex(document)
     by_camera: dict[str, list[dict]] = {}
     for record in records:
         by_camera.setdefault(record["camera"], []).append(record)

@@ -35,6 +35,7 @@ integers): a projected point (u, v) lies in a box when ``xmin <= u + 0.5 <= xmax
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
@@ -196,7 +197,8 @@ def _edges(box) -> list[int]:
 
 
 def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: GroundGrid | None = None,
-                     classes: Iterable[str] | None = None, link_images: bool = True) -> Path:
+                     classes: Iterable[str] | None = None, link_images: bool = True,
+                     index: LabelIndex | None = None) -> Path:
     """Write ``<out_dir>/exports/multiview/`` (see the module docstring); returns that folder.
 
     Args:
@@ -205,6 +207,7 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
         grid: the ground grid; None = :func:`default_grid` of the positions.
         classes: object types exported as persons; None = every object with ground positions.
         link_images: link the images into ``Image_subsets/``.
+        index: the document's :class:`LabelIndex` when another export reads it too.
 
     Raises:
         OutputError: no frame rate (no tracks), no labelled image, or no camera OpenCV models.
@@ -238,7 +241,7 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
                           "fisheye); nothing to export", where="streams")
     view_num = {name: k for k, name in enumerate(views)}
     frames = sorted({r["frame"] for r in records})
-    index = LabelIndex(document)
+    index = index or LabelIndex(document)
     off_grid = 0
     target = Path(out_dir) / layout.EXPORTS_DIR / MULTIVIEW_DIR
     with staged_folder(target, what="multi-view export folder") as staging:
@@ -278,8 +281,9 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
                     dict(zip(("viewNum", "xmin", "ymin", "xmax", "ymax"),
                              [view_num[name], *boxes.get(uid, {}).get(name, [-1, -1, -1, -1])]))
                     for name in views]})
+            # compact, as WILDTRACK's own files: thousands of frames, read by programs
             (staging / "annotations_positions" / f"{frame:08d}.json").write_text(
-                dumps_json(entries) + "\n", encoding="utf-8")
+                json.dumps(entries, separators=(",", ":")) + "\n", encoding="utf-8")
         (staging / "grid.json").write_text(dumps_json({
             "grid": grid.as_json(), "fps": fps,
             "views": [{"viewNum": view_num[n], "camera": n,

@@ -10,8 +10,9 @@ from usdscene.commands._arguments import add_split_arguments
 from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "export"
-HELP = ("export annotated outputs as COCO, YOLO or ROI crops (from OUT/annotations.openlabel.json), "
-        "with training splits; several outputs as one dataset")
+HELP = ("export annotated outputs as COCO, YOLO, ROI crops, MOTChallenge tracks or WILDTRACK-style "
+        "multi-view positions (from OUT/annotations.openlabel.json), with training splits; several outputs "
+        "as one COCO/YOLO dataset")
 
 
 class _FormatsThenOutputs(argparse.Action):

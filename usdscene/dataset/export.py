@@ -187,17 +187,21 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         from usdscene.converters.rois import export_rois
 
         written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=min_roi_px)
+    if "mot" in ordered or "multiview" in ordered:
+        from usdscene.converters.openlabel_annotations import LabelIndex
+
+        index = LabelIndex(loaded[0])  # each frame's labels read once for both exports
     if "mot" in ordered:
         from usdscene.converters.mot import export_mot
 
         written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], document_classes),
-                                    copy_images=copy_images)
+                                    copy_images=copy_images, index=index)
     if "multiview" in ordered:
         from usdscene.converters.multiview import export_multiview
         from usdscene.dataset.motion import person_classes
 
         people = person_classes(loaded[1]) if loaded[1] is not None and not document_classes else None
-        written["multiview"] = export_multiview(loaded[0], out, grid=grid, classes=people)
+        written["multiview"] = export_multiview(loaded[0], out, grid=grid, classes=people, index=index)
     return {fmt: written[fmt] for fmt in ordered}
 
 
