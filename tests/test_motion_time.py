@@ -76,3 +76,21 @@ def test_stage_states_the_rate_only_when_the_document_does(tmp_path):
     xform = UsdGeom.Xformable(stage.GetPrimAtPath(path))
     for frame in range(4):
         assert xform.ComputeLocalToWorldTransform(frame).ExtractTranslation()[0] == pytest.approx(0.1 * frame)
+
+
+def test_staged_folder_appears_whole_or_not_at_all(tmp_path):
+    from usdscene.files import staged_folder
+
+    target = tmp_path / "exports" / "mot"
+    with staged_folder(target) as staging:
+        (staging / "a.txt").write_text("one")
+    assert (target / "a.txt").read_text() == "one"
+    with pytest.raises(RuntimeError):
+        with staged_folder(target) as staging:
+            (staging / "a.txt").write_text("two")
+            raise RuntimeError("interrupted")
+    assert (target / "a.txt").read_text() == "one"  # the old folder, untouched
+    with staged_folder(target) as staging:
+        (staging / "b.txt").write_text("three")
+    assert sorted(p.name for p in target.iterdir()) == ["b.txt"]
+    assert sorted(p.name for p in target.parent.iterdir()) == ["mot"]  # no staging or old folders left

@@ -75,6 +75,8 @@ from usdscene.document.model import MAX_FPS, FrameInterval, Pose, SceneObject, S
 
 log = logging.getLogger(__name__)
 
+STRATEGY = "tracks"
+"""The ``usdscene generate`` strategy name of this module."""
 WALK_WORDS = ("walkway", "footpath", "sidewalk", "pavement", "aisle", "platform", "corridor",
               "concourse", "crossing")
 ENTRANCE_WORDS = ("entrance", "exit", "door", "gate", "stairs")
