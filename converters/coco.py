@@ -13,7 +13,9 @@ Reads only the document written by :func:`usdscene.converters.openlabel_annotati
   ``cx`` becomes ``x = cx - w / 2 + 0.5``), ``area`` = visible pixel count, ``iscrowd`` 0,
   ``segmentation`` = one polygon per outer contour, its holes joined in by zero-width bridges
   (COCO polygons cannot express holes otherwise), vertices shifted by +0.5 px into COCO's
-  convention. Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``.
+  convention. Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``, and
+  for a moving sequence (a document with ``metadata.usdscene.fps``) ``track_id``, the object's id
+  in every export (:func:`usdscene.converters.mot.track_ids`).
   Fully occluded objects (amodal box only) are not exported.
 """
 
@@ -25,6 +27,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
+from usdscene.converters.mot import document_fps, track_ids
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
@@ -81,6 +84,8 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
     """
     images, annotations = [], []
     index = index or LabelIndex(document)
+    # Only moving sequences carry track ids: the COCO files of other documents keep their bytes.
+    tracks = track_ids(document) if document_fps(document) is not None else None
     for image_id, record in zip(image_ids, records):
         file_name = f"{uri_prefix}/{record['uri']}" if uri_prefix else record["uri"]
         images.append({"id": image_id, "file_name": file_name, "width": record["width_px"],
@@ -107,6 +112,8 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
                 "truncated": bool(attrs.get("truncated", False)),
                 "amodal_bbox": corner_box(label["amodal_bbox"]) if label["amodal_bbox"] else None,
             })
+            if tracks is not None and label["uid"] in tracks:
+                annotations[-1]["track_id"] = tracks[label["uid"]]
     return images, annotations
 
 

@@ -71,6 +71,13 @@ def test_mot_layout_and_one_id_per_uid_in_every_camera(run):
     assert len(seen_ids) >= 5
 
 
+def test_coco_annotations_carry_the_same_track_ids(run):
+    assert main(["export", "coco", str(run), "--document-classes"]) == 0
+    coco = json.loads((run / "exports" / "coco" / "annotations.json").read_text())
+    ids = json.loads((run / "exports" / "mot" / "tracks.json").read_text())["ids"]
+    assert coco["annotations"] and all(a["track_id"] == ids[a["uid"]] for a in coco["annotations"])
+
+
 def _mot_accumulator(gt: np.ndarray, hyp: np.ndarray):
     import motmetrics as mm
 
