@@ -15,7 +15,7 @@ Reads only the document written by :func:`usdscene.converters.openlabel_annotati
   (COCO polygons cannot express holes otherwise), vertices shifted by +0.5 px into COCO's
   convention. Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``, and
   for a moving sequence (a document with ``metadata.usdscene.fps``) ``track_id``, the object's id
-  in every export (:func:`usdscene.converters.mot.track_ids`).
+  in every export (:func:`usdscene.converters.tracks.track_ids`).
   Fully occluded objects (amodal box only) are not exported.
 """
 
@@ -27,7 +27,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from usdscene.converters.mot import document_fps, track_ids
+from usdscene.converters.tracks import document_fps, track_ids
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic

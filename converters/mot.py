@@ -11,7 +11,7 @@ Challenge's multi-camera tracks, whose frame numbers agree across cameras)::
 
 * **Frames**: MOT frame = document frame - first labelled frame + 1 (1-based, the same number in
   every camera; gaps in the rendered frames stay gaps), ``seqLength`` = last - first + 1.
-* **Track ids** (:func:`track_ids`, the rule every export of usdscene uses): the document's
+* **Track ids** (:func:`usdscene.converters.tracks.track_ids`, the rule every export of usdscene uses): the document's
   objects that are neither lights nor places, ordered by uid (integer uids by value, then other
   uids by text), numbered 1, 2, ... in that order. The uid is the object's identity in every
   camera and frame, so the id is too.
@@ -37,40 +37,12 @@ from typing import Iterable, Mapping
 
 from usdscene.document import output_layout as layout
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
+from usdscene.converters.tracks import ID_RULE, require_tracks, track_ids
 from usdscene.converters.yolo import link_or_copy
 from usdscene.errors import OutputError
 from usdscene.files import dumps_json, staged_folder
 
 MOT_DIR = "mot"
-ID_RULE = ("objects that are neither lights nor places, ordered by uid (integer uids by value, then the "
-           "others by text), numbered 1, 2, ... in that order")
-NOT_TRACKED = frozenset({"light", "place"})
-
-
-def document_fps(document: dict) -> float | None:
-    """``metadata.usdscene.fps`` of a document (None when it states none)."""
-    meta = (document.get("openlabel", {}).get("metadata") or {}).get("usdscene") or {}
-    fps = meta.get("fps")
-    return float(fps) if isinstance(fps, (int, float)) and not isinstance(fps, bool) and fps > 0 else None
-
-
-def track_ids(document: dict) -> dict[str, int]:
-    """uid → integer track id of every tracked object of a document (see the module docstring)."""
-    objects = document.get("openlabel", {}).get("objects", {}) or {}
-    uids = [uid for uid, element in objects.items() if (element or {}).get("type") not in NOT_TRACKED]
-    ordered = sorted(uids, key=lambda u: (0, int(u), "") if u.lstrip("-").isdigit() else (1, 0, u))
-    return {uid: k + 1 for k, uid in enumerate(ordered)}
-
-
-def require_tracks(document: dict, what: str) -> float:
-    """The document's frame rate, or an :class:`OutputError` saying it is no moving sequence."""
-    fps = document_fps(document)
-    if fps is None:
-        raise OutputError(f"the {what} export needs tracks: the document states no frame rate "
-                          "(metadata.usdscene.fps), so its frames are independent situations, not a "
-                          "sequence in time; generate one with `usdscene generate tracks`",
-                          where="metadata.usdscene.fps")
-    return fps
 
 
 def mot_rows(document: dict, records: Iterable[dict], ids: Mapping[str, int], class_ids: Mapping[str, int],

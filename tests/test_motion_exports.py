@@ -43,7 +43,7 @@ def _document(out: Path) -> dict:
 
 
 def test_mot_layout_and_one_id_per_uid_in_every_camera(run):
-    from usdscene.converters.mot import track_ids
+    from usdscene.converters.tracks import track_ids
 
     document = _document(run)
     tracks = json.loads((run / "exports" / "mot" / "tracks.json").read_text())

@@ -174,7 +174,7 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     # the document (which can be large) and the catalog are read once for every format
     loaded = _load_annotated(out, extra_assets, need_catalog="rois" in ordered or not document_classes)
     if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
-        from usdscene.converters.mot import require_tracks
+        from usdscene.converters.tracks import require_tracks
 
         require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
