@@ -15,6 +15,7 @@ from usdscene.converters.openlabel import read_openlabel, write_openlabel
 from usdscene.errors import DocumentError
 from usdscene.document.model import DeclaredRegion, PlaceRef, Pose
 from usdscene.dataset.motion import (STRIDE_M, TrackOptions, foot_sliding, generate_tracks, ground_areas,
+                                     locked_stride,
                              overlapping_frames, walk_phases)
 
 CAR_PARK = Path(__file__).resolve().parents[1] / "examples" / "car_park"
@@ -143,8 +144,8 @@ def test_walk_cycle_phase_follows_distance(setup):
             shown = next(t["val"] for t in data["text"] if t["name"] == "walk_pose_variant")
             assert shown == f"walk_{int(phases[f] * 8 + 1e-6) % 8}"
         sliding = foot_sliding(track, 8)
-        if track.speed_m_s >= 1.25:  # locked to 10 fps: the shown poses keep pace with the ground
-            assert 1.0 <= track.stride_m <= 1.8 and sliding < 1e-6
+        if track.speed_m_s >= 1.125:  # locked to 10 fps: the shown poses keep pace with the ground
+            assert 0.9 <= track.stride_m <= 1.8 and sliding < 1e-6
         else:
             assert track.stride_m == STRIDE_M and sliding > 0.3
         unlocked = dataclasses.replace(track, stride_m=STRIDE_M * 1.03)
@@ -169,6 +170,14 @@ def test_cabin_walker_walks_the_aisle():
     # Nobody passes anybody in a 0.44 m aisle: a second walker fits only where it never meets the first.
     with pytest.raises(DocumentError, match="--people: only 1 of 8 walkers fit"):
         generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=8, seed=0, person_classes=("pedestrian",)))
+
+
+def test_every_walking_speed_locks_at_5_fps_with_8_poses():
+    for speed in np.linspace(0.8, 1.8, 201):
+        stride = locked_stride(float(speed), 5.0, 8)
+        steps = speed / 5.0 * 8 / stride
+        assert 0.9 <= stride <= 1.8 and abs(steps - round(steps)) < 1e-9, speed
+    assert locked_stride(0.9, 10.0, 8) == STRIDE_M  # too slow for 10 fps: keeps the nominal stride
 
 
 def _without_places(scene, words):

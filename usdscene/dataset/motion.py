@@ -39,9 +39,9 @@ frame: written per frame as text object data ``walk_pose_variant`` with the num
 ``walk_phase``. Held poses make the planted foot slide: **foot sliding** is, per frame,
 ``|Δs - stride · Δk / n|`` (distance walked minus what the shown poses advance), summed and
 divided by the distance walked (the report's ``foot_sliding_m_per_m``). The stride is therefore
-chosen per walker (:func:`locked_stride`): within 1.0-1.8 m, the one at which the phase
+chosen per walker (:func:`locked_stride`): within 0.9-1.8 m, the one at which the phase
 advances a whole number of poses per frame, and sliding is zero; at 5 fps with 8 poses every
-speed of 0.8-1.8 m/s locks, at 10 fps only walkers from 1.25 m/s do (the others keep 1.4 m and
+speed of 0.8-1.8 m/s locks, at 10 fps only walkers from 1.125 m/s do (the others keep 1.4 m and
 slide about as far as they walk). A class without a walk cycle slides its whole distance (1.0). Composition selects one ``pose`` variant per object: the per-frame variant is in
 the document and the annotations, and a renderer that switches variants per frame follows it.
 
@@ -91,7 +91,7 @@ TOUCH_TOLERANCE_M = 0.35
 """Two place boxes closer than this (metres) connect (a kerb line between two regions)."""
 STRIDE_M = 1.4
 """Length of one walk cycle (two steps) in metres: an adult at 1.3 m/s and 110 steps/min."""
-STRIDE_RANGE_M = (1.0, 1.8)
+STRIDE_RANGE_M = (0.9, 1.8)
 """Strides a walker may take so that its phase advances a whole number of cycle poses per frame."""
 PERSON_MARGIN_M = 0.05
 """Added around a person's footprint against others (swinging arms and legs)."""
