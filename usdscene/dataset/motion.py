@@ -619,7 +619,6 @@ def generate_tracks(setup: SceneSpec, catalog: Catalog, options: TrackOptions, *
     areas = ground_areas(catalog, setup)
     people_classes, car_classes = _check(setup, catalog, options, areas)
     rng = np.random.default_rng(options.seed)
-    F, fps = options.frames, float(options.fps)
     tracks: list[Track] = []
     tracks += _vehicles(areas, catalog, car_classes, options, rng, tracks)
     tracks += _standing(areas, catalog, people_classes, options, rng, tracks)
@@ -736,7 +735,6 @@ def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
 def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track]) -> list[Track]:
     if not options.vehicles:
         return []
-    F, fps = options.frames, float(options.fps)
     edges = _graph(areas, {"lane", "bay", "entrance"})
     bays = [i for i in edges if areas[i].role == "bay" and any(areas[j].role == "lane" for j in edges[i])]
     gates = [i for i in edges if areas[i].role == "entrance" and any(areas[j].role == "lane" for j in edges[i])]
