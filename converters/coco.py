@@ -17,7 +17,9 @@ Reads only the document written by :func:`usdscene.converters.openlabel_annotati
   integer corners, and pycocotools fills them back to the mask's pixels
   (:mod:`usdscene.labels.pixel_outline`). Objects of fewer than ``rle_below_px`` pixels get
   an uncompressed RLE of those pixels instead (``{"size": [h, w], "counts": [...]}``).
-  Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``.
+  Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``, and for a moving
+  sequence (a document with ``metadata.usdscene.fps``) ``track_id``, the object's id in every
+  export (:func:`usdscene.converters.tracks.track_ids`).
   Fully occluded objects (amodal box only) are not exported, nor are labels that
   :class:`LabelFilter` drops (fewer pixels or a smaller visible fraction than asked).
 """
@@ -31,6 +33,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
+from usdscene.converters.tracks import document_fps, track_ids
 from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
@@ -129,6 +132,8 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
     """
     images, annotations = [], []
     index = index or LabelIndex(document)
+    # Only moving sequences carry track ids: the COCO files of other documents keep their bytes.
+    tracks = track_ids(document) if document_fps(document) is not None else None
     for image_id, record in zip(image_ids, records):
         file_name = f"{uri_prefix}/{record['uri']}" if uri_prefix else record["uri"]
         images.append({"id": image_id, "file_name": file_name, "width": record["width_px"],
@@ -157,6 +162,8 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
                 "truncated": bool(attrs.get("truncated", False)),
                 "amodal_bbox": corner_box(label["amodal_bbox"]) if label["amodal_bbox"] else None,
             })
+            if tracks is not None and label["uid"] in tracks:
+                annotations[-1]["track_id"] = tracks[label["uid"]]
     return images, annotations
 
 

@@ -369,6 +369,10 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                 for item in items:
                     pointers.setdefault(item["name"], (kind, set()))[1].add(int(image.frame))
     problems.raise_if_any(DocumentError)
+    if scene.fps is not None:  # a document read with a rate: every labelled frame has its instant
+        for frame_number in annotations.frames():
+            props = frames.setdefault(str(int(frame_number)), {}).setdefault("frame_properties", {})
+            props.setdefault("timestamp", float(frame_number) / float(scene.fps))
 
     place_names = {p.uid: p.name for p in scene.places}
     for frame_number, where in resolve_places_over(scene, annotations.frames()).items():

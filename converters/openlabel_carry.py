@@ -115,13 +115,17 @@ def scene_residue(body: Mapping, frames: Mapping[int, Mapping], cameras: Iterabl
         kept = {uid: r for uid, r in rels.items() if uid not in read_relations}
         if kept:
             out["relations"] = kept
+    # With a stated frame rate the timestamps are f / fps, which the writer derives again.
+    usdscene_meta = meta.get("usdscene") if isinstance(meta, dict) else None
+    owned_props = (FRAME_PROPERTY_KEYS | {"timestamp"}
+                   if isinstance(usdscene_meta, dict) and "fps" in usdscene_meta else FRAME_PROPERTY_KEYS)
     carried_frames = {}
     for number in sorted(frames):
         frame = frames[number]
         kept = {key: value for key, value in frame.items() if key not in FRAME_KEYS and value}
         props = frame.get("frame_properties")
         if isinstance(props, dict):
-            kept_props = {key: value for key, value in props.items() if key not in FRAME_PROPERTY_KEYS}
+            kept_props = {key: value for key, value in props.items() if key not in owned_props}
             if kept_props:
                 kept["frame_properties"] = kept_props
         if kept:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from usdscene.document.model import MAX_BOUNCES, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
+from usdscene.document.model import MAX_BOUNCES, MAX_FPS, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
 
 from usdscene.converters.openlabel_load import SCHEMA_VERSION, DocumentBody
 from usdscene.converters.openlabel_values import (
@@ -25,7 +25,7 @@ from usdscene.converters.openlabel_values import (
 )
 from usdscene.errors import ProblemCollector
 
-METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split")
+METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split", "fps")
 RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
                "path_guiding", "clamp_indirect", "sampling_pattern", "fast_gi", "fast_gi_method",
@@ -53,7 +53,7 @@ def read_metadata(doc: DocumentBody) -> dict:
     Returns:
         ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
         ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``,
-        ``frame_range`` (a :class:`FrameInterval` or None), ``split_rule`` and ``split_seed``
+        ``frame_range`` (a :class:`FrameInterval` or None), ``fps`` (or None), ``split_rule`` and ``split_seed``
         (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.document.splits`), with defaults for what is absent
         or bad (the problem is recorded in ``doc``).
     """
@@ -62,7 +62,7 @@ def read_metadata(doc: DocumentBody) -> dict:
     where = f"{R}.metadata"
     meta = doc.body.get("metadata")
     out: dict = dict(name="scene", description="", render=RenderSettings(), seed=0, environment=None,
-                     asset_paths=(), exports=(), roi_rules={}, frame_range=None, split_rule="", split_seed=0)
+                     asset_paths=(), exports=(), roi_rules={}, frame_range=None, split_rule="", split_seed=0, fps=None)
     if meta is None:
         problems.add(where, f"missing 'metadata' with 'schema_version': '{SCHEMA_VERSION}'")
         return out
@@ -115,11 +115,25 @@ def read_metadata(doc: DocumentBody) -> dict:
         rule, seed = read_document_split(block["split"], f"{where}.split", problems)
         if rule is not None:
             out["split_rule"], out["split_seed"] = rule.text, seed
+    if "fps" in block:
+        out["fps"] = read_fps(block["fps"], f"{where}.fps", problems)
     if "frame_range" in block:
         out["frame_range"] = read_interval(block["frame_range"], f"{where}.frame_range", problems)
     if "render" in block:
         out["render"] = read_render(block["render"], f"{where}.render", problems)
     return out
+
+
+def read_fps(value: Any, where: str, problems: ProblemCollector) -> float | None:
+    """``metadata.usdscene.fps``: a frame rate in (0, MAX_FPS] frames per second (None when bad)."""
+    fps = read_number(value, where, problems)
+    if fps is None:
+        return None
+    if not 0.0 < fps <= MAX_FPS:
+        problems.add(where, f"frame rate {fps:g} fps is not in (0, {MAX_FPS:g}]; give frames per second, "
+                            "e.g. 10 or 29.97")
+        return None
+    return float(fps)
 
 
 def _read_strings(value: Any, where: str, problems: ProblemCollector) -> tuple[str, ...]:

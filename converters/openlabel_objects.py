@@ -14,6 +14,7 @@ with an empty ``type`` is valid OpenLABEL; only a catalog check refuses it.
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 import re
 from typing import Any, Mapping
@@ -301,6 +302,13 @@ def _read_color(item: tuple[str, Any, str], problems: ProblemCollector) -> tuple
     return color  # type: ignore[return-value]
 
 
+@functools.lru_cache(maxsize=4096)
+def _close_names(name: str, known: tuple[str, ...]) -> list[str]:
+    """The known name nearest ``name`` (or none): asked once per name, not per frame, since a
+    moving sequence repeats its per-frame object data names in every frame."""
+    return difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
+
+
 def read_object_data(data: Any, where: str, known: Mapping[str, str], *, strict: bool,
                      problems: ProblemCollector) -> dict | None:
     """``object_data`` → {name: (kind, val, where)} for the names in ``known``.
@@ -330,7 +338,7 @@ def read_object_data(data: Any, where: str, known: Mapping[str, str], *, strict:
                     problems.add(f"{here}.name", f"expected a name, got {describe(name)}")
                 continue
             if name not in known:
-                close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
+                close = _close_names(name, tuple(known))
                 # A near miss of a known name of the same kind, written in usdscene's lower-case
                 # style, is a typo; anything else ("Position") is somebody else's data.
                 typo = close and known[close[0]] == kind and name == name.lower()

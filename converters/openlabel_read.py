@@ -90,7 +90,7 @@ def read_loaded(document: dict, provenance: Provenance, *, catalog: Catalog | No
         relations=tuple(relations), render=settings["render"], seed=settings["seed"],
         environment=settings["environment"], asset_paths=settings["asset_paths"],
         exports=settings["exports"], roi_rules=settings["roi_rules"],
-        split_rule=settings["split_rule"], split_seed=settings["split_seed"],
+        split_rule=settings["split_rule"], split_seed=settings["split_seed"], fps=settings["fps"],
         description=settings["description"],
         extra=scene_residue(doc.body, doc.frames(), cameras, relations))
     if catalog is not None:

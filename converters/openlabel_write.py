@@ -88,6 +88,7 @@ def write_openlabel(scene: SceneSpec) -> dict:
     relations = _relations(scene, uid_map, owners, problems)
     if relations:
         body["relations"] = relations
+    _timestamps(scene, frames)
     if scene.extra:
         merge_scene(body, frames, scene.extra, problems)
     if frames:
@@ -252,6 +253,22 @@ def _document_intervals(scene: SceneSpec, frames: Mapping[int, dict]) -> list[Fr
     return union_intervals(every)
 
 
+def _timestamps(scene: SceneSpec, frames: dict[int, dict]) -> None:
+    """A moving sequence (``fps`` given): every frame of the scene's range carries its OpenLABEL
+    ``frame_properties.timestamp`` in seconds."""
+    if scene.fps is None:
+        return
+    for frame in scene.frames:
+        if frame >= 0:
+            props = frames.setdefault(frame, {}).setdefault("frame_properties", {})
+            props["timestamp"] = frame_timestamp(frame, scene.fps)
+
+
+def frame_timestamp(frame: int, fps: float) -> float:
+    """OpenLABEL ``timestamp`` of a frame: seconds since frame 0, ``frame / fps``."""
+    return float(frame) / float(fps)
+
+
 def openlabel_uids(uids: Iterable[str]) -> dict[str, str]:
     """uid → the uid written to OpenLABEL.
 
@@ -330,6 +347,8 @@ def _metadata(scene: SceneSpec) -> dict:
     if scene.split_rule:
         block["split"] = {"rule": scene.split_rule, "seed": int(scene.split_seed)}
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
+    if scene.fps is not None:
+        block["fps"] = float(scene.fps)
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
     if scene.description:
         meta["comment"] = scene.description

@@ -232,6 +232,9 @@ class _StageReader:
             exports=tuple(str(e) for e in self._json("exportsJson", [])),
             roi_rules={str(k): str(v) for k, v in self._json("roiRulesJson", {}).items()},
             description=str(self.data.get("description", "")),
+            # A stage that states its rate (compose writes one only for documents with fps).
+            fps=(float(self.stage.GetTimeCodesPerSecond())
+                 if self.stage.GetRootLayer().HasTimeCodesPerSecond() else None),
             provenance=Provenance(source=str(self.root_path), source_sha256=sha, source_format="usd",
                                   toolkit_version=__version__))
 

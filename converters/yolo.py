@@ -68,7 +68,9 @@ def yolo_lines(document: dict, frame: int, camera: str, width_px: int, height_px
     return detect, segment
 
 
-def _link_or_copy(source: Path, target: Path, copy: bool) -> None:
+def link_or_copy(source: Path, target: Path, copy: bool) -> None:
+    """``target`` as a relative symbolic link to ``source`` (a copy with ``copy``, or where the
+    file system has no links); its folder is created."""
     target.parent.mkdir(parents=True, exist_ok=True)
     if target.is_symlink() or target.exists():
         target.unlink()
@@ -119,7 +121,7 @@ def write_yolo_images(document: dict, out_dir: str | os.PathLike, root: str | os
             if link_images:
                 source = out / record["uri"]
                 if source.exists():
-                    _link_or_copy(source, root / task / "images" / image, copy_images)
+                    link_or_copy(source, root / task / "images" / image, copy_images)
                 else:
                     log.warning("image %s is missing; labels written without it", source)
         paths.append(("images" / image).as_posix())

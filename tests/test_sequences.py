@@ -327,11 +327,12 @@ def test_the_command_offers_exactly_the_library_strategies():
     import argparse
 
     from usdscene.cli import build_parser
+    from usdscene.dataset.motion import STRATEGY as TRACKS
     from usdscene.dataset.sequences import STRATEGIES
 
     commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     strategy = next(a for a in commands.choices["generate"]._actions if a.dest == "strategy")
-    assert tuple(strategy.choices) == STRATEGIES
+    assert tuple(strategy.choices) == (*STRATEGIES, TRACKS)
 
 
 def test_passengers_laps_hold_objects_of_the_poses_that_have_one(car_park):

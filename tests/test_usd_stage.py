@@ -450,4 +450,8 @@ def test_shipped_example_document_to_stage_to_document(tmp_path, document):
     scene = read_openlabel(document)
     result = compose_stage(scene, load_catalog(scene.asset_paths, base_dir=document.parent), tmp_path / "stage")
     write_document(tmp_path / "back.json", write_openlabel(scene_from_stage(result.root_layer)))
-    assert_scenes_close(result.resolved, read_openlabel(tmp_path / "back.json"))
+    # The stage holds what usdscene models; content carried for others (the moving example's
+    # per-frame ground positions and track notes) stays in the document, not in USD.
+    expected = dataclasses.replace(result.resolved, objects=tuple(
+        dataclasses.replace(o, extra="", frame_extra=()) for o in result.resolved.objects))
+    assert_scenes_close(expected, read_openlabel(tmp_path / "back.json"))

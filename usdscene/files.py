@@ -8,13 +8,15 @@ becomes one :class:`~usdscene.errors.OutputError` naming the path and the cause.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import math
 import os
+import shutil
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from usdscene.errors import OutputError, Problem
 
@@ -89,6 +91,42 @@ def make_folder(path: str | os.PathLike, *, what: str = "output folder") -> Path
     except OSError as exc:
         raise OutputError([os_problem(exc, what=what)]) from None
     return folder
+
+
+@contextlib.contextmanager
+def staged_folder(path: str | os.PathLike, *, what: str = "output folder") -> Iterator[Path]:
+    """A fresh hidden folder beside ``path`` to write a whole folder of outputs into.
+
+    When the block ends normally the staged folder replaces ``path`` (an old one is removed);
+    when it raises, the staged folder is removed and ``path`` is untouched. A reader therefore
+    sees the old folder or the complete new one, never a half-written one, and the files inside
+    need no atomic writes of their own.
+
+    Raises:
+        OutputError: the folder cannot be created or renamed (naming the path and the cause).
+    """
+    target = Path(path)
+    make_folder(target.parent, what=f"folder of the {what}")
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent))
+        os.chmod(staging, _FILE_MODE | 0o111)
+    except OSError as exc:
+        raise OutputError([os_problem(exc, what=what)]) from None
+    try:
+        yield staging
+        old = None
+        if target.exists() or target.is_symlink():
+            old = target.with_name(f".{target.name}.old-{os.getpid()}")
+            os.replace(target, old)
+        os.replace(staging, target)
+        if old is not None:
+            shutil.rmtree(old) if old.is_dir() and not old.is_symlink() else old.unlink()
+    except OSError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise OutputError([os_problem(exc, what=what)]) from None
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
 
 
 def prepare_output_file(path: str | os.PathLike, *, what: str = "output file") -> Path:

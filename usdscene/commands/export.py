@@ -10,8 +10,9 @@ from usdscene.commands._arguments import add_label_filter_arguments, add_split_a
 from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
 
 NAME = "export"
-HELP = ("export annotated outputs as COCO, YOLO or ROI crops (from OUT/annotations.openlabel.json), "
-        "with training splits; several outputs as one dataset")
+HELP = ("export annotated outputs as COCO, YOLO, ROI crops, MOTChallenge tracks or WILDTRACK-style "
+        "multi-view positions (from OUT/annotations.openlabel.json), with training splits; several outputs "
+        "as one COCO/YOLO dataset")
 
 
 class _FormatsThenOutputs(argparse.Action):
@@ -46,6 +47,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_label_filter_arguments(parser)
     parser.add_argument("--min-roi-px", type=int, default=8, metavar="PX",
                         help="ROIs: smallest crop side in pixels (default 8)")
+    grid = parser.add_argument_group("multiview ground grid (default: 2.5 cm cells over the positions + 1 m)")
+    grid.add_argument("--grid-origin", nargs=2, type=float, metavar=("X", "Y"),
+                      help="world metres of position 0")
+    grid.add_argument("--grid-cell", type=float, metavar="M", help="grid spacing in metres")
+    grid.add_argument("--grid-size", nargs=2, type=int, metavar=("NX", "NY"), help="grid points along x and y")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,12 +69,23 @@ def run(args: argparse.Namespace) -> int:
     if args.dataset is None and len(args.outputs) > 1:
         raise OutputError([Problem("--dataset", f"{len(args.outputs)} output folders make one dataset: "
                                                 "name its folder with --dataset DIR")])
+    given = [args.grid_origin is not None, args.grid_cell is not None, args.grid_size is not None]
+    grid = None
+    if any(given):
+        if not all(given):
+            raise OutputError([Problem("--grid-origin/--grid-cell/--grid-size",
+                                       "a ground grid needs all three: --grid-origin X Y --grid-cell M "
+                                       "--grid-size NX NY")])
+        from usdscene.converters.multiview import GroundGrid
+
+        grid = GroundGrid(tuple(args.grid_origin), args.grid_cell, tuple(args.grid_size))
     if args.dataset is None:
-        written = export_formats(args.outputs[0], args.format, min_roi_px=args.min_roi_px, **options)
+        written = export_formats(args.outputs[0], args.format, min_roi_px=args.min_roi_px, grid=grid, **options)
     else:
-        if "rois" in args.format:
-            raise OutputError([Problem("--dataset", "ROI crops are exported per output folder; "
-                                                    "export rois without --dataset")])
+        for per_output in ("rois", "mot", "multiview"):
+            if per_output in args.format:
+                raise OutputError([Problem("--dataset", f"{per_output} is exported per output folder; "
+                                                        f"export {per_output} without --dataset")])
         written = export_dataset(args.outputs, args.format, args.dataset, **options)
     for fmt, target in written.items():
         print(f"{fmt}: {target}")

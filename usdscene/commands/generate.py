@@ -6,10 +6,11 @@ from __future__ import annotations
 import argparse
 
 NAME = "generate"
-HELP = "generate a sequence document (single-class, balanced, appearance) from a setup document"
+HELP = "generate a sequence document (single-class, balanced, appearance, tracks) from a setup document"
 ORDER = 8
 
 _STRATEGIES = ("single-class", "balanced", "appearance")  # usdscene.dataset.sequences.STRATEGIES, without its import
+_TRACKS = "tracks"  # usdscene.dataset.motion: people and vehicles that move
 
 
 def _fraction(text: str) -> float:
@@ -25,10 +26,12 @@ def _fraction(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from usdscene.commands._arguments import add_split_arguments, non_negative_int, output_path, positive_int
 
-    parser.add_argument("strategy", choices=_STRATEGIES,
+    parser.add_argument("strategy", choices=(*_STRATEGIES, _TRACKS),
                         help="single-class: one class in one relation at every place it fits, per frame; "
                              "balanced: equal instance-frames per class, every fitting (class, relation, place) "
-                             "at least once; appearance: balanced with random variants and colours")
+                             "at least once; appearance: balanced with random variants and colours; "
+                             "tracks: people walking between entrances and vehicles driving into and out of "
+                             "bays, one track per object")
     parser.add_argument("--setup", metavar="SETUP_DOC", required=True,
                         help="setup document: environment, cameras, lights, render settings, fixed objects")
     parser.add_argument("-o", "--output", type=output_path, metavar="DOC", required=True,
@@ -46,9 +49,64 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--occupancy", type=_fraction, default=0.0,
                         help="fraction of the seats with a passenger in each frame (default 0)")
     add_split_arguments(parser)  # written into the document; usdscene export uses it
+    moving = parser.add_argument_group("tracks")
+    moving.add_argument("--fps", type=_fps, default=None, help="frame rate of a tracks sequence (default 10)")
+    moving.add_argument("--people", type=non_negative_int, default=0, help="walkers (tracks)")
+    moving.add_argument("--standing", type=non_negative_int, default=0,
+                        help="people standing for the whole sequence (tracks)")
+    moving.add_argument("--vehicles", type=non_negative_int, default=0, help="vehicles (tracks)")
+    moving.add_argument("--person-classes", nargs="+", metavar="NAME", default=(),
+                        help="classes of the people (default: the catalog's person classes)")
+    moving.add_argument("--vehicle-classes", nargs="+", metavar="NAME", default=(),
+                        help="classes of the vehicles (default: the catalog's vehicle classes)")
+
+
+def _fps(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected frames per second, got {text!r}") from None
+    if not 0.0 < value <= 1000.0:  # usdscene.document.model.MAX_FPS
+        raise argparse.ArgumentTypeError(f"expected frames per second in (0, 1000], got {text!r}")
+    return value
+
+
+def _run_tracks(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from usdscene.dataset.motion import TrackOptions, generate_tracks_document, report_path
+
+    options = TrackOptions(frames=args.frames or 100, fps=args.fps or 10.0, people=args.people,
+                           vehicles=args.vehicles, standing=args.standing, seed=args.seed,
+                           person_classes=tuple(args.person_classes), vehicle_classes=tuple(args.vehicle_classes))
+    report = generate_tracks_document(args.setup, args.output, options).report
+    console = Console(highlight=False, soft_wrap=True)
+    console.print(f"wrote {args.output}: {report['frames']} frames at {report['fps']:g} fps "
+                  f"({report['seconds']:g} s), {report['tracks']} tracks")
+    for kind, stats in report["track_frames"].items():
+        console.print(f"  {kind}: {stats['count']} tracks, {stats['min']:g}..{stats['max']:g} frames "
+                      f"(mean {stats['mean']:g})")
+    people = report["people_per_frame"]
+    if people["count"]:
+        console.print(f"  people per frame: {people['min']:g}..{people['max']:g} (mean {people['mean']:g})")
+    for name, cam in report["cameras"].items():
+        seen = cam["frames_in_view"]
+        span = f", {seen['min']:g}..{seen['max']:g} frames each" if seen["count"] else ""
+        console.print(f"  camera {name}: {cam['tracks_in_view']} tracks in view{span}")
+    console.print(f"  report: {report_path(args.output)}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.strategy == _TRACKS:
+        return _run_tracks(args)
+    for flag, value in (("--fps", args.fps), ("--people", args.people), ("--standing", args.standing),
+                        ("--vehicles", args.vehicles)):
+        if value:
+            import sys
+
+            print(f"usdscene generate: error: {flag} belongs to the tracks strategy", file=sys.stderr)
+            return 2
     from rich.console import Console
 
     from usdscene.dataset.sequences import GenerateOptions, generate_document, report_path

@@ -5,7 +5,13 @@ regions), never internal state:
 
 * ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`usdscene.converters.coco`);
 * ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`usdscene.converters.yolo`);
-* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`usdscene.converters.rois`).
+* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`usdscene.converters.rois`);
+* ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.mot`);
+* ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
+  calibrations (see :mod:`usdscene.converters.multiview`); persons are the catalog's person
+  classes (:func:`usdscene.dataset.motion.person_classes`).
+
+``mot`` and ``multiview`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -22,7 +28,7 @@ sub-folder named by its path relative to the folder they share.
 
 from __future__ import annotations
 
-FORMATS = ("coco", "yolo", "rois")
+FORMATS = ("coco", "yolo", "rois", "mot", "multiview")
 """Dataset formats :func:`export_formats` writes."""
 
 
@@ -132,7 +138,7 @@ def carried_split(out_dirs) -> tuple:
 def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,
                    copy_images: bool = False, min_roi_px: int = 8, split=None,
                    split_seed: int = 0, min_pixels: int = 0, min_visible_fraction: float = 0.0,
-                   rle_below_px: int = 0) -> dict:
+                   rle_below_px: int = 0, grid=None) -> dict:
     """Export ``OUT/annotations.openlabel.json`` to each of ``formats``.
 
     Args:
@@ -148,6 +154,8 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         min_pixels: COCO/YOLO keep visible labels of at least this many pixels (0: all).
         min_visible_fraction: COCO/YOLO keep labels at least this visible (0: all).
         rle_below_px: COCO segmentation as RLE for objects of fewer pixels (0: polygons only).
+        grid: the multi-view ground grid (:class:`usdscene.converters.multiview.GroundGrid`);
+            None = the default grid over the annotated positions.
 
     Returns:
         format → folder (or file) written.
@@ -169,6 +177,10 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     written = {}
     # the document (which can be large) and the catalog are read once for every format
     loaded = _load_annotated(out, extra_assets, need_catalog="rois" in ordered or not document_classes)
+    if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
+        from usdscene.converters.tracks import require_tracks
+
+        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR,
@@ -180,6 +192,21 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
         from usdscene.converters.rois import export_rois
 
         written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=min_roi_px)
+    if "mot" in ordered or "multiview" in ordered:
+        from usdscene.converters.openlabel_annotations import LabelIndex
+
+        index = LabelIndex(loaded[0])  # each frame's labels read once for both exports
+    if "mot" in ordered:
+        from usdscene.converters.mot import export_mot
+
+        written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], document_classes),
+                                    copy_images=copy_images, index=index)
+    if "multiview" in ordered:
+        from usdscene.converters.multiview import export_multiview
+        from usdscene.dataset.motion import person_classes
+
+        people = person_classes(loaded[1]) if loaded[1] is not None and not document_classes else None
+        written["multiview"] = export_multiview(loaded[0], out, grid=grid, classes=people, index=index)
     return {fmt: written[fmt] for fmt in ordered}
 
 

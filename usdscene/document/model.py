@@ -391,6 +391,7 @@ MAX_SAMPLES = 16777216  # Cycles samples
 MAX_BOUNCES = 1024  # Cycles max_bounces
 MAX_TILE_SIZE_PX = 8192  # Cycles tile_size
 MAX_RENDER_SEED = 2**31 - 1  # Cycles seed
+MAX_FPS = 1000.0  # frames per second; beyond this a document most likely gives a rate in another unit
 
 
 class RelationType(str, enum.Enum):
@@ -680,6 +681,10 @@ class SceneSpec:
             e.g. ``train=0.8,val=0.2``), used by ``usdscene export`` when no ``--split`` is
             given; "" = none.
         split_seed: seed of a ``fractions`` split rule.
+        fps: frame rate in frames per second (``metadata.usdscene.fps``): frame f is the instant
+            ``f / fps`` s, written as the OpenLABEL frame ``timestamp`` and as the stage's
+            ``timeCodesPerSecond``; labels are defined at that instant (a motion-blurred image's
+            shutter centre). None = the document states no rate.
         description: free text.
         provenance: where it came from.
         extra: the document's content usdscene does not model, as :func:`canonical_json` text
@@ -710,6 +715,7 @@ class SceneSpec:
     extra: str = ""
     split_rule: str = ""
     split_seed: int = 0
+    fps: float | None = None
 
     @property
     def frames(self) -> range:

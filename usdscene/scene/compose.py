@@ -309,12 +309,17 @@ def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
 # Layer authoring (Sdf: fast, and the text output is sorted, hence deterministic)
 
 
-def _new_layer():
+def _new_layer(fps: float | None = None):
     from pxr import Sdf
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
     layer.pseudoRoot.SetInfo("upAxis", "Z")
     layer.pseudoRoot.SetInfo("metersPerUnit", 1.0)
+    if fps is not None:
+        # Every layer states the rate: USD scales the time samples of a sublayer whose
+        # timeCodesPerSecond differs from the root's (24 by default), frame 1 would read 24 / fps.
+        layer.timeCodesPerSecond = float(fps)
+        layer.framesPerSecond = float(fps)
     return layer
 
 
@@ -411,7 +416,7 @@ def _presence(intervals, frames: range) -> list[bool]:
 
 
 def _root_layer(scene: SceneSpec) -> str:
-    layer = _new_layer()
+    layer = _new_layer(scene.fps)
     layer.startTimeCode = float(scene.frame_start)
     layer.endTimeCode = float(scene.frame_end)
     layer.defaultPrim = ss.WORLD.strip("/")
@@ -443,7 +448,7 @@ def _root_layer(scene: SceneSpec) -> str:
 def _render_layer(scene: SceneSpec) -> str:
     from pxr import Gf, Sdf
 
-    layer = _new_layer()
+    layer = _new_layer(scene.fps)
     render = _prim(layer, ss.RENDER_SETTINGS.split("/")[1], "Scope")
     settings = _prim(render, ss.RENDER_SETTINGS.rsplit("/", 1)[1], "RenderSettings")
     products = _prim(render, ss.RENDER_PRODUCTS.rsplit("/", 1)[1], "Scope")
@@ -522,7 +527,7 @@ def _cameras_layer(scene: SceneSpec) -> str:
     from pxr import Gf, Sdf, Vt
 
     T = Sdf.ValueTypeNames
-    layer = _new_layer()
+    layer = _new_layer(scene.fps)
     parent = _world(layer, ss.CAMERAS)
     for cam in scene.cameras:
         prim = _prim(parent, ss.prim_name(cam.name), "Camera")
@@ -575,7 +580,7 @@ def _lights_layer(scene: SceneSpec) -> str:
     from pxr import Gf, Sdf
 
     T = Sdf.ValueTypeNames
-    layer = _new_layer()
+    layer = _new_layer(scene.fps)
     lights = _world(layer, ss.LIGHTS)
     # Lighting rigs: the document's lights live in the variant "document" (selected); "off"
     # has none. Further rigs are further variants (a DCC tool or a layer of layers/ adds them).
@@ -650,7 +655,7 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
     from pxr import Gf, Sdf, Vt
 
     T = Sdf.ValueTypeNames
-    layer = _new_layer()
+    layer = _new_layer(scene.fps)
     parent = _world(layer, ss.OBJECTS)
     frames = scene.frames
     for obj in scene.objects:
@@ -692,7 +697,7 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
 def _environment_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path) -> str:
     from pxr import Sdf
 
-    layer = _new_layer()
+    layer = _new_layer(scene.fps)
     world = _world(layer)
     if scene.environment is not None:
         entry = catalog[scene.environment]

@@ -1,0 +1,127 @@
+"""How long a moving car park sequence takes to generate, compose and export for tracking.
+
+Times, each as one in-process call on ``examples/car_park/setup_moving.openlabel.json``:
+
+* ``generate``: ``usdscene.dataset.motion.generate_tracks_document``, 1,000 frames at 10 fps with
+  50 walkers and 10 vehicles (reading the setup, drawing collision-free tracks, writing the
+  document and its report, and the placement check that the document composes); target < 10 s;
+* ``compose``: ``usdscene.pipeline.compose_document`` of that document (per-frame time samples of
+  every mover); target < 30 s;
+* ``export``: ``usdscene.dataset.export.export_formats(["mot", "multiview"])`` of 10,000 labelled
+  images (2,500 frames x the 4 cameras); target < 10 s. The labels are not rendered: each
+  present object gets a box around the projection of its centre in every camera that sees it,
+  written where ``add_annotations`` writes real ones, so the exporters read a document of the
+  real size and shape. The image links point at files that do not exist.
+
+Usage::
+
+    python benchmarks/motion_speed.py [--frames 1000] [--people 50] [--vehicles 10] [--images 10000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+CAR_PARK = ROOT / "examples" / "car_park"
+
+
+def _labelled_document(doc_path: Path, out: Path) -> int:
+    """Fake labels in the annotated document's layout for every (frame, camera) of the document;
+    returns the image count."""
+    from usdscene.converters.openlabel import read_openlabel
+    from usdscene.labels.projection import project_points
+
+    scene = read_openlabel(doc_path)
+    document = json.loads(doc_path.read_text())
+    frames = document["openlabel"].setdefault("frames", {})
+    images = 0
+    for cam in scene.cameras:
+        w, h = cam.intrinsics.width_px, cam.intrinsics.height_px
+        for obj in scene.objects:
+            poses = dict(obj.frame_poses)
+            if not poses:
+                continue
+            fs = np.array(sorted(poses))
+            centres = np.array([poses[f].translation_m + [0, 0, 0.8] for f in fs])
+            uv, valid = project_points(cam, centres)
+            inside = valid & (uv[:, 0] > 5) & (uv[:, 0] < w - 5) & (uv[:, 1] > 10) & (uv[:, 1] < h - 10)
+            for f, (u, v) in zip(fs[inside], uv[inside]):
+                box = [float(round(u)), float(round(v)), 9.0, 19.0]
+                entry = frames[str(f)]["objects"].setdefault(obj.uid, {}).setdefault("object_data", {})
+                attrs = {"num": [{"name": "visible_fraction", "val": 0.8}, {"name": "pixel_count", "val": 120}]}
+                entry.setdefault("bbox", []).extend([
+                    {"name": f"{cam.name}_bbox", "val": box, "attributes": attrs},
+                    {"name": f"{cam.name}_amodal_bbox", "val": box, "attributes": attrs}])
+        for f in scene.frames:
+            props = frames.setdefault(str(f), {}).setdefault("frame_properties", {})
+            props.setdefault("streams", {})[cam.name] = {"uri": f"images/{cam.name}/{f:06d}.png"}
+            props.setdefault("usdscene", {}).setdefault("streams", {})[cam.name] = {
+                "mask_uri": f"masks/{cam.name}/{f:06d}.png", "width_px": w, "height_px": h}
+            images += 1
+    (out / "annotations.openlabel.json").write_text(json.dumps(document))
+    return images
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=1000)
+    parser.add_argument("--people", type=int, default=50)
+    parser.add_argument("--vehicles", type=int, default=10)
+    parser.add_argument("--images", type=int, default=10000)
+    args = parser.parse_args(argv)
+
+    from usdscene.dataset.export import export_formats
+    from usdscene.dataset.motion import TrackOptions, generate_tracks_document
+    from usdscene.pipeline import compose_document
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        for name in ("assets", "source", "setup_moving.openlabel.json"):
+            (shutil.copytree if (CAR_PARK / name).is_dir() else shutil.copy)(CAR_PARK / name, tmp / name)
+        doc = tmp / "moving.openlabel.json"
+        options = TrackOptions(frames=args.frames, fps=10.0, people=args.people, vehicles=args.vehicles, seed=1)
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = generate_tracks_document(tmp / "setup_moving.openlabel.json", doc, options)
+        t_generate, c_generate = time.perf_counter() - t0, time.process_time() - c0
+        t0, c0 = time.perf_counter(), time.process_time()
+        compose_document(doc, tmp / "stage")
+        t_compose, c_compose = time.perf_counter() - t0, time.process_time() - c0
+        report = result.report
+        print(f"document: {args.frames} frames, {report['tracks']} tracks, {doc.stat().st_size / 1e6:.1f} MB; "
+              f"people per frame {report['people_per_frame']['min']}..{report['people_per_frame']['max']}")
+        # CPU seconds beside wall seconds: on a shared machine the wall time says more about the
+        # neighbours than about this code.
+        print(f"generate tracks (incl. composability check): {t_generate:6.2f} s wall, {c_generate:6.2f} s CPU"
+              f"   (target < 10 s)")
+        print(f"compose:                                     {t_compose:6.2f} s wall, {c_compose:6.2f} s CPU"
+              f"   (target < 30 s)")
+
+        cameras = 4
+        frames = -(-args.images // cameras)
+        long_doc = tmp / "long.openlabel.json"
+        generate_tracks_document(tmp / "setup_moving.openlabel.json", long_doc,
+                                 TrackOptions(frames=frames, fps=10.0, people=args.people,
+                                              vehicles=args.vehicles, seed=2))
+        out = tmp  # the document's asset folder is relative to it
+        images = _labelled_document(long_doc, out)
+        t0, c0 = time.perf_counter(), time.process_time()
+        export_formats(out, ["mot", "multiview"])
+        t_export, c_export = time.perf_counter() - t0, time.process_time() - c0
+        rows = sum(len((p / "gt" / "gt.txt").read_text().splitlines())
+                   for p in (out / "exports" / "mot").iterdir() if p.is_dir())
+        print(f"MOT + multiview export of {images} images ({rows} MOT rows): {t_export:6.2f} s wall, "
+              f"{c_export:6.2f} s CPU   (target < 10 s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,217 @@
+"""usdscene generate tracks: walkers and vehicles of the car park example, without rendering."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from usdscene.scene.catalog import load_catalog
+from usdscene.converters.openlabel import read_openlabel, write_openlabel
+from usdscene.errors import DocumentError
+from usdscene.document.model import DeclaredRegion, PlaceRef, Pose
+from usdscene.dataset.motion import (STRIDE_M, TrackOptions, foot_sliding, generate_tracks, ground_areas,
+                                     locked_stride,
+                             overlapping_frames, walk_phases)
+
+CAR_PARK = Path(__file__).resolve().parents[1] / "examples" / "car_park"
+
+
+@pytest.fixture(scope="module")
+def setup():
+    scene = read_openlabel(CAR_PARK / "setup_moving.openlabel.json")
+    return scene, load_catalog(scene.asset_paths, base_dir=CAR_PARK)
+
+
+@pytest.fixture(scope="module")
+def generated(setup):
+    scene, catalog = setup
+    return generate_tracks(scene, catalog, TrackOptions(frames=120, fps=5, people=12, standing=3, vehicles=4, seed=7))
+
+
+def test_same_seed_same_document_other_seed_other(setup, generated):
+    scene, catalog = setup
+    options = TrackOptions(frames=120, fps=5, people=12, standing=3, vehicles=4, seed=7)
+    again = generate_tracks(scene, catalog, options)
+    assert write_openlabel(again.scene) == write_openlabel(generated.scene)
+    other = generate_tracks(scene, catalog, dataclasses.replace(options, seed=8))
+    assert write_openlabel(other.scene) != write_openlabel(generated.scene)
+
+
+def test_no_two_movers_overlap_at_any_frame(generated):
+    tracks = generated.tracks
+    assert len(tracks) == 19
+    for i, a in enumerate(tracks):
+        for b in tracks[i + 1:]:
+            assert len(overlapping_frames(a, b)) == 0, (a.kind, b.kind)
+
+
+def test_overlap_test_sees_a_collision(generated):
+    walker = next(t for t in generated.tracks if t.kind == "walking")
+    shifted = dataclasses.replace(walker, position=walker.position + [0.2, 0.0, 0.0])
+    assert len(overlapping_frames(walker, shifted)) == int(walker.present.sum())
+
+
+def test_walkers_move_continuously_at_their_speed_between_entrances(setup, generated):
+    scene, catalog = setup
+    areas = {a.place: a for a in ground_areas(catalog, scene)}
+    walkers = [t for t in generated.tracks if t.kind == "walking"]
+    assert len(walkers) == 12
+    for t in walkers:
+        assert 0.8 <= t.speed_m_s <= 1.8
+        idx = np.flatnonzero(t.present)
+        assert np.all(np.diff(idx) == 1)  # one appearance, no gaps
+        steps = np.linalg.norm(np.diff(t.position[idx, :2], axis=0), axis=1)
+        assert steps.max() <= t.speed_m_s / 5.0 + 1e-6  # never faster than the speed (corners: shorter)
+        assert np.median(steps) == pytest.approx(t.speed_m_s / 5.0, rel=0.02)
+        assert t.route[0].startswith("entrance") and t.route[-1].startswith("entrance")
+        assert t.route[0] != t.route[-1]
+        if idx[0] > 0:  # entered during the sequence: at its entrance
+            entrance = areas[t.route[0]]
+            local = np.abs((t.position[idx[0], :2] - entrance.centre[:2]) @ entrance.axes)
+            assert np.all(local <= entrance.half + 0.5)
+        # on the walk places' ground (kerb height 0.15 m or the deck)
+        assert np.all((t.position[idx, 2] >= -1e-9) & (t.position[idx, 2] <= 0.15 + 1e-9))
+
+
+def test_vehicles_stay_upright_on_the_ground_and_park_in_their_bay(setup, generated):
+    scene, catalog = setup
+    areas = {a.place: a for a in ground_areas(catalog, scene)}
+    vehicles = [o for o in generated.scene.objects if o.class_name == "vehicle"]
+    assert len(vehicles) == 4
+    for obj in vehicles:
+        for _, pose in obj.frame_poses:
+            m = pose.as_array()
+            assert m[2, 3] == pytest.approx(0.0)
+            assert np.allclose(m[:3, 2], [0, 0, 1]) and np.allclose(m[2, :3], [0, 0, 1])
+    for track in (t for t in generated.tracks if t.kind == "arriving"):
+        bay = areas[track.route[-1]]
+        assert bay.role == "bay"
+        last = np.flatnonzero(track.present)[-1]
+        if last == len(track.present) - 1 and np.allclose(track.position[-1], track.position[-2]):
+            assert np.allclose(track.position[-1, :2], bay.centre[:2], atol=1e-6)
+            forward = np.array([math.cos(track.yaw[-1]), math.sin(track.yaw[-1])])
+            assert abs(forward @ bay.axes[:, 1]) == pytest.approx(1.0, abs=1e-6)  # along the bay
+    leaving = [t for t in generated.tracks if t.kind == "leaving"]
+    for track in leaving:  # parked in its bay at frame 0
+        assert np.allclose(track.position[0, :2], areas[track.route[0]].centre[:2])
+
+
+def test_document_has_fps_ground_positions_and_round_trips(generated):
+    doc = write_openlabel(generated.scene)
+    body = doc["openlabel"]
+    assert body["metadata"]["usdscene"]["fps"] == 5.0
+    assert body["frames"]["10"]["frame_properties"]["timestamp"] == 2.0
+    walker = next(o for o in generated.scene.objects if o.name == "walking_000")
+    frame = walker.frame_intervals[0].frame_start
+    data = body["frames"][str(frame)]["objects"][walker.uid]["object_data"]
+    ground = next(v["val"] for v in data["vec"] if v["name"] == "ground_position_m")
+    pose = next(v["val"] for v in data["vec"] if v["name"] == "pose_matrix4x4")
+    assert ground == [pose[3], pose[7], pose[11]]
+    assert write_openlabel(read_openlabel(json.loads(json.dumps(doc)))) == doc
+
+
+def test_report(generated):
+    report = generated.report
+    assert report["people_per_frame"]["count"] == 120 and report["people_per_frame"]["min"] >= 3
+    assert report["track_frames"]["walking"]["count"] == 12
+    assert set(report["cameras"]) == {"pole_north", "pole_east", "ceiling_fisheye", "entrance_wide"}
+    assert all(c["tracks_in_view"] >= 1 for c in report["cameras"].values())
+    assert report["foot_sliding_m_per_m"]["max"] == 1.0  # the car park's pedestrian has no walk cycle
+
+
+def test_walk_cycle_phase_follows_distance(setup):
+    scene, catalog = setup
+    entry = catalog["pedestrian"]
+    cycle = tuple(f"walk_{k}" for k in range(8))
+    walking = dataclasses.replace(entry, variants={**entry.variants, "pose": (*cycle, "stand", "idle")},
+                                  default_variants={**entry.default_variants, "pose": "stand"})
+    catalog = dataclasses.replace(catalog, entries={**catalog.entries, "pedestrian": walking})
+    generated = generate_tracks(scene, catalog, TrackOptions(frames=60, fps=10, people=6, standing=2, seed=2))
+    doc = write_openlabel(generated.scene)["openlabel"]
+    for track, obj in zip(generated.tracks, generated.scene.objects[-len(generated.tracks):]):
+        if track.kind == "standing":
+            assert obj.pose_variant in ("stand", "idle")
+            continue
+        phases = walk_phases(track)
+        assert np.allclose(phases, np.mod(track.walked / track.stride_m, 1.0))
+        for f in np.flatnonzero(track.present):
+            data = doc["frames"][str(f)]["objects"][obj.uid]["object_data"]
+            shown = next(t["val"] for t in data["text"] if t["name"] == "walk_pose_variant")
+            assert shown == f"walk_{int(phases[f] * 8 + 1e-6) % 8}"
+        sliding = foot_sliding(track, 8)
+        if track.speed_m_s >= 1.125:  # locked to 10 fps: the shown poses keep pace with the ground
+            assert 0.9 <= track.stride_m <= 1.8 and sliding < 1e-6
+        else:
+            assert track.stride_m == STRIDE_M and sliding > 0.3
+        unlocked = dataclasses.replace(track, stride_m=STRIDE_M * 1.03)
+        assert foot_sliding(unlocked, 8) > 0.1
+        assert foot_sliding(track, 0) == 1.0
+
+
+def test_cabin_walker_walks_the_aisle():
+    """In the cabin a walker comes in at the front door and walks the aisle (to its end and back)."""
+    cabin = read_openlabel(Path(__file__).resolve().parents[1] / "examples" / "aircraft_cabin" / "cabin.openlabel.json")
+    catalog = load_catalog([CAR_PARK / "assets"])
+    door = PlaceRef("9001", "entrance_front", (DeclaredRegion("is_on", Pose.from_rotation_translation(
+        np.eye(3), [-0.05, 0.0, 0.0]), (0.5, 0.8, 2.0)),))
+    setup = dataclasses.replace(cabin, objects=(), relations=(), places=(door,))
+    generated = generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=1, seed=0,
+                                                             person_classes=("pedestrian",)))
+    track = generated.tracks[0]
+    assert track.route[0] == "entrance_front" and any(p.startswith("aisle_") for p in track.route)
+    idx = np.flatnonzero(track.present)
+    assert np.all(np.abs(track.position[idx, 1]) <= 0.26)  # within the 0.5 m aisle
+    assert track.position[idx, 0].min() < -3.0  # walked down the aisle
+    # Nobody passes anybody in a 0.44 m aisle: a second walker fits only where it never meets the first.
+    with pytest.raises(DocumentError, match="--people: only 1 of 8 walkers fit"):
+        generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=8, seed=0, person_classes=("pedestrian",)))
+
+
+def test_every_walking_speed_locks_at_5_fps_with_8_poses():
+    for speed in np.linspace(0.8, 1.8, 201):
+        stride = locked_stride(float(speed), 5.0, 8)
+        steps = speed / 5.0 * 8 / stride
+        assert 0.9 <= stride <= 1.8 and abs(steps - round(steps)) < 1e-9, speed
+    assert locked_stride(0.9, 10.0, 8) == STRIDE_M  # too slow for 10 fps: keeps the nominal stride
+
+
+def _without_places(scene, words):
+    return dataclasses.replace(scene, places=tuple(p for p in scene.places if not p.name.startswith(words)))
+
+
+def test_bad_input_is_one_clear_error(setup, tmp_path):
+    scene, catalog = setup
+    options = TrackOptions(frames=20, fps=5, people=2, seed=0)
+    walkless = dataclasses.replace(catalog, entries={**catalog.entries, "car_park": dataclasses.replace(
+        catalog["car_park"], places={k: v for k, v in catalog["car_park"].places.items() if not k.startswith("walkway")})})
+    cases = [
+        (_without_places(scene, ("footpath", "entrance")), walkless, options, "no walkable space"),
+        (_without_places(scene, ("entrance",)), catalog, options, "no entrance for walkers"),
+        (scene, catalog, dataclasses.replace(options, people=400), "--people: about 400 people would be on"),
+        (scene, catalog, dataclasses.replace(options, people=0, vehicles=11), "--vehicles"),
+        (_without_places(scene, ("entrance_vehicles",)), catalog, dataclasses.replace(options, vehicles=1),
+         "no entrance for vehicles"),
+        (scene, catalog, dataclasses.replace(options, fps=0.0), "--fps"),
+        (scene, catalog, dataclasses.replace(options, fps=5000.0), "--fps"),
+    ]
+    for setup_scene, cat, opts, message in cases:
+        with pytest.raises(DocumentError) as info:
+            generate_tracks(setup_scene, cat, opts)
+        assert message in str(info.value), str(info.value)
+
+
+def test_cli_writes_nothing_on_error(tmp_path, capsys):
+    from usdscene.cli import main
+
+    out = tmp_path / "doc.json"
+    code = main(["generate", "tracks", "--setup", str(CAR_PARK / "setup_moving.openlabel.json"), "-o", str(out),
+                 "--frames", "10", "--fps", "5", "--people", "500"])
+    assert code == 1
+    assert "--people" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    assert main(["generate", "tracks", "--setup", "x.json", "-o", str(out), "--fps", "-1"]) == 2
