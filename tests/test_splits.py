@@ -13,7 +13,7 @@ import pytest
 from usdscene.converters.openlabel import write_openlabel
 from usdscene.converters.openlabel_annotations import add_annotations
 from usdscene.errors import DocumentError
-from usdscene.dataset.export import export_dataset, export_formats
+from usdscene.dataset.export import ExportOptions, export_dataset, export_formats
 from usdscene.files import write_json_atomic
 from usdscene.labels.image_labels import label_image, label_images
 from usdscene.document.model import Camera, FrameInterval, Intrinsics, LensModel, SceneObject, SceneSpec
@@ -125,8 +125,8 @@ def test_campaign_dataset_loads_per_split_in_pycocotools(campaign, tmp_path):
 
     seq_a, seq_b = campaign
     dataset = tmp_path / "dataset"
-    written = export_dataset([seq_a, seq_b], ["coco", "yolo"], dataset, document_classes=True,
-                             split="train=0.6,val=0.2,test=0.2", split_seed=3)
+    written = export_dataset([seq_a, seq_b], ["coco", "yolo"], dataset, ExportOptions(document_classes=True,
+                             split="train=0.6,val=0.2,test=0.2", split_seed=3))
     assert written == {"coco": dataset / "coco", "yolo": dataset / "yolo"}
     seen_ids, seen_ann, frame_split = set(), set(), {}
     for split in ("train", "val", "test"):
@@ -168,19 +168,20 @@ def test_campaign_dataset_loads_per_split_in_pycocotools(campaign, tmp_path):
         assert len(listed) == len(set(listed)) == 32
 
     again = tmp_path / "again"
-    export_dataset([seq_a, seq_b], ["coco", "yolo"], again, document_classes=True,
-                   split="train=0.6,val=0.2,test=0.2", split_seed=3)
+    export_dataset([seq_a, seq_b], ["coco", "yolo"], again, ExportOptions(document_classes=True,
+                   split="train=0.6,val=0.2,test=0.2", split_seed=3))
     assert _tree(again) == _tree(dataset)  # byte-identical
 
 
 def test_single_output_without_split_keeps_the_one_file_layout(campaign, tmp_path):
     seq_a, _ = campaign
-    written = export_formats(seq_a, ["coco", "yolo"], document_classes=True)
+    written = export_formats(seq_a, ["coco", "yolo"], ExportOptions(document_classes=True))
     data = json.loads(written["coco"].read_text())
     assert written["coco"] == seq_a / "exports" / "coco" / "annotations.json"
     assert data["info"]["image_root"] == "../.." and data["images"][0]["file_name"] == "images/cam_a/000000.png"
     assert "train: images" in (written["yolo"] / "detect" / "data.yaml").read_text()
-    split = export_formats(seq_a, ["coco", "yolo"], document_classes=True, split="frames:train=0:6,val=7:9")
+    split = export_formats(seq_a, ["coco", "yolo"],
+                           ExportOptions(document_classes=True, split="frames:train=0:6,val=7:9"))
     val = json.loads((split["coco"] / "annotations_val.json").read_text())
     assert sorted({i["frame"] for i in val["images"]}) == [7, 8, 9]
     assert val["images"][0]["file_name"] == "images/cam_a/000007.png"

@@ -48,6 +48,7 @@ _LAZY = {
     "write_annotations": ("usdscene.dataset.annotation", "write_annotations"),
     "export_formats": ("usdscene.dataset.export", "export_formats"),
     "export_dataset": ("usdscene.dataset.export", "export_dataset"),
+    "ExportOptions": ("usdscene.dataset.export", "ExportOptions"),
     "carried_split": ("usdscene.dataset.export", "carried_split"),
     "parse_split": ("usdscene.document.splits", "parse_split"),
     "build_report": ("usdscene.dataset.report", "build_report"),

@@ -221,16 +221,17 @@ class _Run:
         with self._step("render"):
             override = {"samples": options.samples} if options.samples is not None else None
             labelling = LabelsWhileRendering(self.out)
-            on_event = labelling
+            listeners = [labelling]
             if options.report:
                 from usdscene.dataset.report import PicturesWhileRendering
 
                 # the report's thumbnails and mask tints too: its step at the end only writes data
-                pictures = PicturesWhileRendering(self.out)
+                listeners.append(PicturesWhileRendering(self.out))
 
-                def on_event(event: dict) -> None:
-                    labelling(event)
-                    pictures(event)
+            def on_event(event: dict) -> None:
+                for listener in listeners:
+                    listener(event)
+
             report = render(stage_path, self.out, frames=options.frames, cameras=options.cameras,
                             settings_override=override, progress=self.progress, workers=options.workers,
                             executor=self.executor, on_event=on_event,
@@ -249,7 +250,7 @@ class _Run:
     def export(self, scene) -> dict[str, Path]:
         """The dataset formats asked for (else the document's), with the split rule asked for
         (else the document's own)."""
-        from usdscene.dataset.export import export_formats
+        from usdscene.dataset.export import ExportOptions, export_formats
 
         options = self.options
         formats = tuple(options.exports) if options.exports is not None else scene.exports
@@ -261,10 +262,10 @@ class _Run:
                 from usdscene.document.splits import DOCUMENT_FIELD, parse_split
 
                 split, split_seed = parse_split(scene.split_rule, f"{DOCUMENT_FIELD}.rule"), scene.split_seed
-            return export_formats(self.out, formats, split=split, split_seed=split_seed,
-                                  document_classes=options.document_classes, min_pixels=options.min_pixels,
-                                  min_visible_fraction=options.min_visible_fraction,
-                                  rle_below_px=options.rle_below_px)
+            return export_formats(self.out, formats, ExportOptions(
+                split=split, split_seed=split_seed, document_classes=options.document_classes,
+                min_pixels=options.min_pixels, min_visible_fraction=options.min_visible_fraction,
+                rle_below_px=options.rle_below_px))
 
     def report(self) -> Path | None:
         """The browsable report, with the balance chart of a generated document and the

@@ -57,13 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from usdscene.commands._arguments import label_filter_options
     from usdscene.errors import OutputError, Problem
-    from usdscene.dataset.export import carried_split, export_dataset, export_formats
+    from usdscene.dataset.export import ExportOptions, carried_split, export_dataset, export_formats
 
     # The command line's rule wins over the one the documents carry.
     split, split_seed = args.split, args.split_seed
     if split is None:
         split, split_seed = carried_split(args.outputs) or (None, 0)
-    options = dict(extra_assets=args.assets, document_classes=args.document_classes,
+    options = dict(extra_assets=tuple(args.assets or ()), document_classes=args.document_classes,
                    copy_images=args.copy_images, split=split, split_seed=split_seed,
                    **label_filter_options(args))
     if args.dataset is None and len(args.outputs) > 1:
@@ -80,13 +80,14 @@ def run(args: argparse.Namespace) -> int:
 
         grid = GroundGrid(tuple(args.grid_origin), args.grid_cell, tuple(args.grid_size))
     if args.dataset is None:
-        written = export_formats(args.outputs[0], args.format, min_roi_px=args.min_roi_px, grid=grid, **options)
+        written = export_formats(args.outputs[0], args.format,
+                                 ExportOptions(min_roi_px=args.min_roi_px, grid=grid, **options))
     else:
         for per_output in ("rois", "mot", "multiview"):
             if per_output in args.format:
                 raise OutputError([Problem("--dataset", f"{per_output} is exported per output folder; "
                                                         f"export {per_output} without --dataset")])
-        written = export_dataset(args.outputs, args.format, args.dataset, **options)
+        written = export_dataset(args.outputs, args.format, args.dataset, ExportOptions(**options))
     for fmt, target in written.items():
         print(f"{fmt}: {target}")
     if split is not None:

@@ -28,6 +28,9 @@ sub-folder named by its path relative to the folder they share.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any, Sequence
+
 FORMATS = ("coco", "yolo", "rois", "mot", "multiview")
 """Dataset formats :func:`export_formats` writes."""
 
@@ -135,27 +138,45 @@ def carried_split(out_dirs) -> tuple:
     return None if found is None else (found[1], found[2])
 
 
-def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool = False,
-                   copy_images: bool = False, min_roi_px: int = 8, split=None,
-                   split_seed: int = 0, min_pixels: int = 0, min_visible_fraction: float = 0.0,
-                   rle_below_px: int = 0, grid=None) -> dict:
-    """Export ``OUT/annotations.openlabel.json`` to each of ``formats``.
+@dataclass(frozen=True)
+class ExportOptions:
+    """How the annotated output(s) are exported, whatever the formats.
 
-    Args:
-        out_dir: annotated output folder.
-        formats: names from :data:`FORMATS`, in order (duplicates ignored).
+    Attributes:
         extra_assets: extra asset catalog folders (classes, place regions).
-        document_classes: COCO/YOLO classes from the document's labelled types, not the catalog.
-        copy_images: YOLO copies images instead of linking them.
+        document_classes: COCO/YOLO/MOT classes from the document's labelled types, not the
+            catalog's.
+        copy_images: YOLO and MOT copy images instead of linking them.
         min_roi_px: ROIs: smallest crop side in pixels.
-        split: a split rule (text or :class:`usdscene.document.splits.SplitRule`) for COCO and YOLO;
-            None writes one COCO file and a YOLO ``data.yaml`` naming every image.
+        split: a split rule (text or :class:`usdscene.document.splits.SplitRule`) for COCO and
+            YOLO; None writes one COCO file and a YOLO ``data.yaml`` naming every image.
         split_seed: seed of a ``fractions`` split rule.
         min_pixels: COCO/YOLO keep visible labels of at least this many pixels (0: all).
         min_visible_fraction: COCO/YOLO keep labels at least this visible (0: all).
         rle_below_px: COCO segmentation as RLE for objects of fewer pixels (0: polygons only).
         grid: the multi-view ground grid (:class:`usdscene.converters.multiview.GroundGrid`);
             None = the default grid over the annotated positions.
+    """
+
+    extra_assets: Sequence[str] = ()
+    document_classes: bool = False
+    copy_images: bool = False
+    min_roi_px: int = 8
+    split: Any = None
+    split_seed: int = 0
+    min_pixels: int = 0
+    min_visible_fraction: float = 0.0
+    rle_below_px: int = 0
+    grid: Any = None
+
+
+def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -> dict:
+    """Export ``OUT/annotations.openlabel.json`` to each of ``formats``.
+
+    Args:
+        out_dir: annotated output folder.
+        formats: names from :data:`FORMATS`, in order (duplicates ignored).
+        options: what to export and how (:class:`ExportOptions`).
 
     Returns:
         format → folder (or file) written.
@@ -176,22 +197,19 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     ordered = list(dict.fromkeys(formats))
     written = {}
     # the document (which can be large) and the catalog are read once for every format
-    loaded = _load_annotated(out, extra_assets, need_catalog="rois" in ordered or not document_classes)
+    loaded = _load_annotated(out, options.extra_assets,
+                             need_catalog="rois" in ordered or not options.document_classes)
     if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
         from usdscene.converters.tracks import require_tracks
 
         require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
-        written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR,
-                                      extra_assets=extra_assets, document_classes=document_classes,
-                                      copy_images=copy_images, split=split, split_seed=split_seed,
-                                      loaded=[loaded], min_pixels=min_pixels,
-                                      min_visible_fraction=min_visible_fraction, rle_below_px=rle_below_px))
+        written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
     if "rois" in ordered:
         from usdscene.converters.rois import export_rois
 
-        written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=min_roi_px)
+        written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=options.min_roi_px)
     if "mot" in ordered or "multiview" in ordered:
         from usdscene.converters.openlabel_annotations import LabelIndex
 
@@ -199,20 +217,19 @@ def export_formats(out_dir, formats, *, extra_assets=(), document_classes: bool 
     if "mot" in ordered:
         from usdscene.converters.mot import export_mot
 
-        written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], document_classes),
-                                    copy_images=copy_images, index=index)
+        written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], options.document_classes),
+                                    copy_images=options.copy_images, index=index)
     if "multiview" in ordered:
         from usdscene.converters.multiview import export_multiview
         from usdscene.dataset.motion import person_classes
 
-        people = person_classes(loaded[1]) if loaded[1] is not None and not document_classes else None
-        written["multiview"] = export_multiview(loaded[0], out, grid=grid, classes=people, index=index)
+        people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
+        written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
     return {fmt: written[fmt] for fmt in ordered}
 
 
-def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_classes: bool = False,
-                   copy_images: bool = False, split=None, split_seed: int = 0, loaded=None,
-                   min_pixels: int = 0, min_visible_fraction: float = 0.0, rle_below_px: int = 0) -> dict:
+def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = ExportOptions(), *,
+                   loaded=None) -> dict:
     """Export one COCO/YOLO dataset from one or more annotated output folders.
 
     Images are ordered by output folder (as given), then frame, then camera; image ids are
@@ -224,14 +241,9 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         out_dirs: annotated output folders (each the output of ``usdscene run`` / ``annotate``).
         formats: ``coco`` and/or ``yolo``.
         dataset_dir: the dataset folder; ``coco/`` and ``yolo/`` are written inside it.
-        extra_assets: as in :func:`export_formats`.
-        document_classes: as in :func:`export_formats`.
-        copy_images: as in :func:`export_formats`.
-        split: split rule text or :class:`usdscene.document.splits.SplitRule`; None = no split.
-        split_seed: seed of a ``fractions`` rule.
+        options: as in :func:`export_formats` (ROIs, MOT and the ground grid do not apply).
         loaded: ``(document, catalog or None)`` of each output folder when the caller has read
             them already; None reads them here.
-        min_pixels, min_visible_fraction, rle_below_px: as in :func:`export_formats`.
 
     Returns:
         format → what was written: ``coco/annotations.json`` without a split, else the
@@ -252,6 +264,8 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
     from usdscene.files import write_json_atomic, write_text_atomic
     from usdscene.document.splits import ImageKey, SplitRule, assign_splits, parse_split, split_counts
 
+    extra_assets, document_classes, copy_images = options.extra_assets, options.document_classes, options.copy_images
+    split, split_seed = options.split, options.split_seed
     bad = [f for f in formats if f not in ("coco", "yolo")]
     if bad:
         raise OutputError(f"format {bad[0]!r} cannot be exported as one dataset of several output "
@@ -264,7 +278,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
         if resolved.count(r) > 1:
             raise OutputError(f"output folder {str(o)!r} is given twice", where=str(o))
     dataset = Path(dataset_dir)
-    label_filter = LabelFilter(int(min_pixels), float(min_visible_fraction))
+    label_filter = LabelFilter(int(options.min_pixels), float(options.min_visible_fraction))
     # file_name and the YOLO image folders are relative to the folder common to every output,
     # so a single output gives exactly the one-folder layout (``images/<camera>/...``).
     base = Path(os.path.commonpath(resolved)) if len(resolved) > 1 else resolved[0]
@@ -315,7 +329,7 @@ def export_dataset(out_dirs, formats, dataset_dir, *, extra_assets=(), document_
             entries[image_id] = coco_entries(loaded[index][0], [record], category_ids, [image_id],
                                              first_annotation_id=next_id, uri_prefix=prefixes[index],
                                              index=label_indexes[index], label_filter=label_filter,
-                                             rle_below_px=int(rle_below_px))
+                                             rle_below_px=int(options.rle_below_px))
             next_id += len(entries[image_id][1])
         for split_name, members in groups.items():
             images = [e for _, image_id, _, _ in members for e in entries[image_id][0]]
