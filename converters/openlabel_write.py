@@ -291,6 +291,10 @@ def _metadata(scene: SceneSpec) -> dict:
     if scene.split_rule:
         block["split"] = {"rule": scene.split_rule, "seed": int(scene.split_seed)}
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
+    if scene.world is not None:
+        from usdscene.converters.openlabel_imaging import world_json
+
+        block["world"] = world_json(scene.world)
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
     if scene.description:
         meta["comment"] = scene.description
@@ -351,6 +355,10 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
     friendly["clip_range_m"] = [float(cam.clip_near_m), float(cam.clip_far_m)]
     if cam.custom:
         friendly["custom"] = dict(cam.custom)
+    if cam.sensor is not None:
+        from usdscene.converters.openlabel_imaging import sensor_json
+
+        friendly["sensor"] = sensor_json(cam.sensor)
     props["usdscene"] = friendly
     return props
 

@@ -83,6 +83,13 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
 
     path = Path(document)
     scene = read_openlabel(path)
+    if scene.world is not None:
+        from usdscene.converters.openlabel_imaging import document_hdri_problems
+        from usdscene.errors import DocumentError
+
+        hdri = document_hdri_problems(scene, path)
+        if hdri:
+            raise DocumentError(hdri)
     if seed is not None:
         scene = dataclasses.replace(scene, seed=seed)
     catalog = load_catalog(scene.asset_paths, base_dir=path.resolve().parent)

@@ -183,7 +183,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
            settings_override: RenderSettings | Mapping[str, Any] | None = None,
            progress: bool = True, workers: int | None = None,
            on_event: Callable[[dict], None] | None = None,
-           executor: str | Any = "local", retries: int = DEFAULT_RETRIES) -> RenderReport:
+           executor: str | Any = "local", retries: int = DEFAULT_RETRIES, keep_clean: bool = False) -> RenderReport:
     """Render every requested camera of every requested frame of a composed stage.
 
     Writes ``out/images/<camera>/<frame:06d>.png`` (8-bit sRGB), ``out/masks/<camera>/
@@ -209,6 +209,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
             :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
         retries: how many times a shard whose worker died (a signal such as the OOM killer's
             SIGKILL, a lost node) is run again for its unfinished images, on any slot.
+        keep_clean: for cameras with a sensor, also write the image before the sensor's
+            effects to ``out/images_clean/<camera>/<frame:06d>.png``.
 
     Returns:
         A :class:`RenderReport`.
@@ -250,6 +252,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
     print_settings = {k: v for k, v in settings.items() if k != "device"}
     manifest = Manifest.load(out_dir, fingerprint({
+        **({"keep_clean": True} if keep_clean and plan.sensors else {}),
         "stage": stage_digest(plan.stage_path), "settings": print_settings,
         "cameras": {n: {k: v for k, v in c.items()} for n, c in cam_json.items()},
         "objects": [dataclasses.asdict(o) for o in plan.objects],
@@ -317,6 +320,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                                for o in plan.objects if frame_set.intersection(o.visible_frames)]
                     mask = list(plan.shared_prims) + [o["prim"] for o in objects]
                     return {
+                        **({"world": plan.world} if plan.world is not None else {}),
+                        **({"keep_clean": True} if keep_clean else {}),
                         "stage": str(plan.stage_path),
                         # An empty mask would import everything: name a path that cannot exist.
                         "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",
@@ -411,6 +416,10 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
             "poses": {str(f): list(p.matrix) for f, p in cam.frame_poses if f in wanted},
             "clip_m": [cam.clip_near_m, cam.clip_far_m],
         }
+        # Only cameras with a sensor carry the key: the manifest fingerprint of the others
+        # stays what it was before sensors existed.
+        if name in getattr(plan, "sensors", {}):
+            out[name]["sensor"] = plan.sensors[name]
     return out
 
 
