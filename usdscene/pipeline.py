@@ -110,7 +110,7 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
                  samples: int | None = None, workers: int | None = None, executor="local",
                  retries: int | None = None, progress: bool = True,
                  on_step: Callable[[str], None] | None = None, split=None,
-                 split_seed: int = 0) -> RunSummary:
+                 split_seed: int = 0, keep_clean: bool = False) -> RunSummary:
     """Run the whole job for one scene document.
 
     Args:
@@ -128,6 +128,8 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
         split: training split rule of the COCO/YOLO export (:mod:`usdscene.document.splits`); None = the
             document's own rule (``metadata.usdscene.split``), or none.
         split_seed: seed of a fraction split.
+        keep_clean: also write each sensor camera's image before its sensor effects
+            (``OUT/images_clean/``).
 
     Raises:
         UsdSceneError: bad document (official schema or usdscene's checks), assets,
@@ -140,11 +142,11 @@ def run_pipeline(document: str | Path, out_dir: str | Path, *, frames: Sequence[
     with workers_started_early(executor, workers):
         return _run_steps(document, out_dir, frames=frames, cameras=cameras, exports=exports, samples=samples,
                           workers=workers, executor=executor, retries=retries, progress=progress,
-                          on_step=on_step, split=split, split_seed=split_seed)
+                          on_step=on_step, split=split, split_seed=split_seed, keep_clean=keep_clean)
 
 
 def _run_steps(document, out_dir, *, frames, cameras, exports, samples, workers, executor, retries, progress,
-               on_step, split, split_seed) -> RunSummary:
+               on_step, split, split_seed, keep_clean=False) -> RunSummary:
     """The steps of :func:`run_pipeline` (same arguments)."""
     from usdscene.dataset.annotation import LabelsWhileRendering, write_annotations
     from usdscene.scene.catalog import load_catalog
@@ -180,7 +182,7 @@ def _run_steps(document, out_dir, *, frames, cameras, exports, samples, workers,
     labelling = LabelsWhileRendering(out)
     report = render(composed.root_layer, out, frames=frames, cameras=cameras, settings_override=override,
                     progress=progress, workers=workers, executor=executor, on_event=labelling,
-                    **({} if retries is None else {"retries": retries}))
+                    keep_clean=keep_clean, **({} if retries is None else {"retries": retries}))
     seconds["render"] = time.perf_counter() - t
 
     t = step("annotate")

@@ -33,6 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_split_arguments(parser)
     add_executor_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--keep-clean", action="store_true",
+                        help="also keep the image before the camera's sensor effects (OUT/images_clean/)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     def show_step(name: str) -> None:
         print(f"usdscene: {name} ...", file=sys.stderr, flush=True)
 
-    summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras,
+    summary = run_pipeline(args.document, args.output, frames=frames, cameras=args.cameras, keep_clean=args.keep_clean,
                            exports=args.export, samples=args.samples, executor=executor,
                            retries=args.retries, progress=progress, on_step=show_step,
                            split=args.split, split_seed=args.split_seed)
