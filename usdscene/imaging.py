@@ -280,3 +280,36 @@ def world_stage_json(scene) -> str:
             break
     return json.dumps({"world": spec_to_json(world), "hdri_path": str(hdri_path(world, folder)) if world.hdri else "",
                        "sun": sun}, sort_keys=True)
+
+
+def randomize_scene(scene, rng: np.random.Generator):
+    """Draw the ``randomize`` ranges of a scene's world (per frame) and of each camera's sensor
+    (per camera and frame) into ``per_frame`` overrides, for ``usdscene generate``.
+
+    Args:
+        scene: a SceneSpec.
+        rng: the generator; draws go world first, then cameras in document order, frames
+            ascending within each.
+
+    Returns:
+        ``(scene, drawn)``: the scene without ``randomize`` ranges and with the drawn
+        overrides; ``drawn`` is ``{"world": {"<frame>": {field: value}}, "sensors": {camera:
+        {"<frame>": {field: value}}}}`` holding only what was drawn (empty dicts when nothing).
+    """
+    frames = list(scene.frames)
+    drawn: dict[str, Any] = {"world": {}, "sensors": {}}
+    world = scene.world
+    if world is not None and world.randomize:
+        names = [name for name, _ in world.randomize]
+        world = draw_per_frame(world, frames, rng)
+        drawn["world"] = {str(f): {k: v for k, v in o if k in names} for f, o in world.per_frame}
+    cameras = []
+    for cam in scene.cameras:
+        sensor = cam.sensor
+        if sensor is not None and sensor.randomize:
+            names = [name for name, _ in sensor.randomize]
+            sensor = draw_per_frame(sensor, frames, rng)
+            drawn["sensors"][cam.name] = {str(f): {k: v for k, v in o if k in names} for f, o in sensor.per_frame}
+            cam = replace(cam, sensor=sensor)
+        cameras.append(cam)
+    return replace(scene, world=world, cameras=tuple(cameras)), drawn
