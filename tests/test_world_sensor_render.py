@@ -1,0 +1,149 @@
+"""World and sensor through the real renderer (Blender Cycles at 64x48, 2 samples) on the
+shipped car park example: a document without them renders the bytes it rendered before they
+existed; noise, compression and IR change the image and not the mask; IR images are one
+channel; a physical sky is not black; an HDRI lights the background; what validate accepts
+renders."""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from usdscene import layout
+
+pytestmark = [pytest.mark.usd, pytest.mark.blender]
+
+REPO = Path(__file__).resolve().parents[1]
+CAR_PARK = REPO / "examples" / "car_park"
+GOLDEN = Path(__file__).resolve().parent / "golden" / "render_car_park_plain"
+
+
+def car_park_document(*, world=None, sensors=None, cameras=("pole_north",), sun_power=True) -> dict:
+    """The shipped car park document at 64x48, 2 samples, frame 0; ``sensors``: camera name → sensor block
+    (a camera of that name that is not in the setup is a copy of pole_north)."""
+    doc = json.loads((CAR_PARK / "car_park.openlabel.json").read_text())
+    body = doc["openlabel"]
+    # the setup's friendly cameras (the generated document holds them calibrated at 640x480)
+    body["streams"] = json.loads((CAR_PARK / "setup.openlabel.json").read_text())["openlabel"]["streams"]
+    del body["coordinate_systems"]
+    block = body["metadata"]["usdscene"]
+    block["asset_paths"] = [str(CAR_PARK / "assets")]
+    block["render"] = {"samples": 2, "denoise": False, "max_bounces": 2, "resolution_px": [64, 48]}
+    block["frame_range"] = {"frame_start": 0, "frame_end": 0}
+    block.pop("exports", None)
+    if world is not None:
+        block["world"] = world
+    streams = {}
+    for name in cameras:
+        stream = copy.deepcopy(body["streams"].get(name, body["streams"]["pole_north"]))
+        stream["stream_properties"]["usdscene"]["resolution_px"] = [64, 48]
+        if sensors and name in sensors:
+            stream["stream_properties"]["usdscene"]["sensor"] = sensors[name]
+        streams[name] = stream
+    body["streams"] = streams
+    if not sun_power:
+        data = body["objects"]["0"]["object_data"]
+        data["num"] = [n for n in data["num"] if n["name"] != "power_w"]
+    return doc
+
+
+def run_document(tmp_path: Path, doc: dict, monkeypatch, **kwargs) -> Path:
+    from usdscene.pipeline import run_pipeline
+
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(CAR_PARK))  # its assets and their DCC sources
+    path = tmp_path / "scene.openlabel.json"
+    path.write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    run_pipeline(path, out, progress=False, exports=[], **kwargs)
+    return out
+
+
+def image(out: Path, camera: str) -> np.ndarray:
+    return cv2.imread(str(layout.image_path(out, camera, 0)), cv2.IMREAD_UNCHANGED)
+
+
+def mask(out: Path, camera: str) -> np.ndarray:
+    return cv2.imread(str(layout.mask_path(out, camera, 0)), cv2.IMREAD_UNCHANGED)
+
+
+@pytest.fixture(scope="module")
+def sensor_run(tmp_path_factory):
+    monkeypatch = pytest.MonkeyPatch()
+    try:
+        doc = car_park_document(cameras=("pole_north", "noisy", "jpeg", "ir"), sensors={
+            "noisy": {"iso": 6400, "vignetting": 0.4},
+            "jpeg": {"compression": "jpeg", "quality": 20},
+            "ir": {"ir_night": True, "iso": 800, "ir_range_m": 30}})
+        yield run_document(tmp_path_factory.mktemp("sensor"), doc, monkeypatch, keep_clean=True)
+    finally:
+        monkeypatch.undo()
+
+
+def test_without_world_and_sensor_the_image_is_the_one_rendered_before(sensor_run):
+    # The golden image was rendered from the same document by usdscene before world and sensor
+    # existed (main at b6baf99, bpy 5.0.1, x86-64 CPU).
+    golden = cv2.imread(str(GOLDEN / "pole_north_000000.png"), cv2.IMREAD_UNCHANGED)
+    assert layout.image_path(sensor_run, "pole_north", 0).read_bytes() == (GOLDEN / "pole_north_000000.png").read_bytes()
+    assert np.array_equal(image(sensor_run, "pole_north"), golden)
+    assert not layout.clean_image_path(sensor_run, "pole_north", 0).exists()  # no sensor, nothing to keep
+
+
+@pytest.mark.parametrize("camera", ["noisy", "jpeg", "ir"])
+def test_sensor_changes_the_image_not_the_mask(sensor_run, camera):
+    assert np.array_equal(mask(sensor_run, camera), mask(sensor_run, "pole_north"))
+    assert np.count_nonzero(mask(sensor_run, camera)) > 0
+    assert not np.array_equal(image(sensor_run, camera), image(sensor_run, "pole_north"))
+    # --keep-clean: the image before the sensor
+    clean = cv2.imread(str(layout.clean_image_path(sensor_run, camera, 0)), cv2.IMREAD_UNCHANGED)
+    assert clean.shape == image(sensor_run, camera).shape
+    if camera != "ir":  # the IR camera's clean image holds its illuminator's light
+        assert np.array_equal(clean, image(sensor_run, "pole_north"))
+
+
+def test_ir_image_is_single_channel_in_content(sensor_run):
+    ir = image(sensor_run, "ir")
+    assert ir.shape == (48, 64, 3)
+    assert np.array_equal(ir[..., 0], ir[..., 1]) and np.array_equal(ir[..., 1], ir[..., 2])
+    assert ir.std() > 5  # an image, not a flat field
+    colour = image(sensor_run, "pole_north")
+    assert np.abs(colour[..., 0].astype(int) - colour[..., 2]).max() > 10  # the colour one is not grey
+
+
+def test_sensor_provenance_in_the_annotations(sensor_run):
+    doc = json.loads((sensor_run / "annotations.openlabel.json").read_text())
+    streams = doc["openlabel"]["frames"]["0"]["frame_properties"]["usdscene"]["streams"]
+    assert "sensor" not in streams["pole_north"]
+    assert streams["noisy"]["sensor"]["iso"] == 6400 and streams["noisy"]["sensor"]["vignetting"] == 0.4
+    assert streams["jpeg"]["sensor"]["quality"] == 20 and streams["jpeg"]["sensor"]["compression"] == "jpeg"
+    assert streams["ir"]["sensor"]["ir_night"] is True
+    assert len(streams["noisy"]["sensor"]["seed"]) == 3
+    assert streams["noisy"]["clean_uri"] == "images_clean/noisy/000000.png"
+
+
+def test_physical_sky_lights_the_background_and_agx_renders(tmp_path, monkeypatch):
+    doc = car_park_document(world={"sky": "nishita", "view_transform": "agx", "exposure_ev": -0.5},
+                            cameras=("pole_north", "blurred"),
+                            sensors={"blurred": {"shutter_frames": 0.5, "compression": "h264_like", "quality": 30}})
+    out = run_document(tmp_path, doc, monkeypatch)
+    for camera in ("pole_north", "blurred"):
+        top = image(out, camera)[:4].astype(float)  # above the horizon: sky, no geometry
+        assert np.all(mask(out, camera)[:4] == 0)
+        assert top.mean() > 60, f"{camera}: the sky is dark ({top.mean():.1f})"
+        # cv2 reads BGR: a clear sky is bluer than it is red
+        assert top[..., 0].mean() > top[..., 2].mean()
+
+
+def test_hdri_from_the_document_folder_lights_the_background(tmp_path, monkeypatch):
+    hdri = np.zeros((16, 32, 3), np.float32)
+    hdri[:8] = (0.1, 0.8, 0.2)  # BGR: a green upper hemisphere
+    hdri[8:] = (0.2, 0.2, 0.2)
+    assert cv2.imwrite(str(tmp_path / "green.hdr"), hdri)
+    doc = car_park_document(world={"hdri": "green.hdr", "strength": 1.0})
+    out = run_document(tmp_path, doc, monkeypatch)
+    blue, green, red = image(out, "pole_north")[:4].astype(float).mean(axis=(0, 1))  # cv2 reads BGR
+    assert green > 200 and green > red + 60 and green > blue + 60
