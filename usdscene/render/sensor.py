@@ -14,16 +14,17 @@ operations run in a camera's order:
    ``(1 - v · ρ²)^(1/2.2)`` (the sRGB curve as a 2.2 power: within 2 levels of the exact curve);
 4. noise in electrons: a linear value x holds ``n = x · full_well_e · 100 / iso`` electrons;
    shot noise (variance n) and read noise (``read_noise_e``) are Gaussian, scaled back by the
-   gain and carried through the sRGB curve to first order (its slope at each level, a
-   256-entry table), then rounded to 8 bits;
+   gain and carried through the sRGB curve to first order (its slope at each level); each
+   pixel draws one of 256 equally likely standard normal values (the quantiles of the normal
+   distribution, rescaled to unit variance: a Gaussian truncated at 2.7 sigma) and one table
+   of 256 x 256 entries gives the rounded 8-bit result for every (level, draw);
 5. compression: a JPEG or H.264-like round trip at ``quality``.
 
-Working on the 8-bit image with tables keeps a 640x480 image within about 10 ms of CPU
+Working on the 8-bit image with small tables keeps a 640x480 image within about 10 ms of CPU
 (``benchmarks/sensor_postprocess.py``). The shutter and the IR illuminator act while rendering
-(the worker). Gaussian numbers come from 16-bit uniform integers through a table of the normal
-quantiles (a Gaussian truncated at 4.4 sigma), drawn from the ``numpy.random.Generator`` the
-caller passes, seeded per image by :func:`usdscene.imaging.image_seed`: the same document gives
-the same bytes whatever the order, worker or executor.
+(the worker). The draws are random bytes of the ``numpy.random.Generator`` the caller passes,
+seeded per image by :func:`usdscene.imaging.image_seed`: the same document gives the same bytes
+whatever the order, worker or executor.
 """
 
 from __future__ import annotations
@@ -39,7 +40,6 @@ from usdscene.imaging import IR_RGB_WEIGHTS, Sensor
 # Linear values are encoded through a table of this many steps: the darkest step (1/16383 linear)
 # is 0.2 of an sRGB level, so rounding matches the exact curve to within one level.
 _ENCODE_STEPS = 16384
-_GAUSS_STEPS = 65536
 
 
 def _decode_curve(x: np.ndarray) -> np.ndarray:
@@ -55,7 +55,8 @@ _ENCODE = np.floor(_encode_curve(np.arange(_ENCODE_STEPS, dtype=np.float64) / (_
                    + 0.5).astype(np.uint8)
 # Slope of the sRGB curve at each level, in levels per unit of linear light (central differences).
 _SLOPE = np.gradient(np.arange(256, dtype=np.float64), _DECODE)
-_GAUSS = np.array([NormalDist().inv_cdf((i + 0.5) / _GAUSS_STEPS) for i in range(_GAUSS_STEPS)], dtype=np.float32)
+_GAUSS = np.array([NormalDist().inv_cdf((i + 0.5) / 256) for i in range(256)])
+_GAUSS /= _GAUSS.std()
 
 
 def has_effect(sensor: Sensor | None) -> bool:
@@ -77,12 +78,21 @@ def vignetting_map(height_px: int, width_px: int, vignetting: float) -> np.ndarr
     return out
 
 
-@functools.lru_cache(maxsize=64)
-def _noise_table(iso: float, full_well_e: float, read_noise_e: float) -> np.ndarray:
-    """(256,) float32: standard deviation of the noise in sRGB levels at each level."""
+def noise_sigma_levels(iso: float, full_well_e: float, read_noise_e: float) -> np.ndarray:
+    """(256,) float64: standard deviation of the noise in sRGB levels at each sRGB level."""
     electrons_per_unit = full_well_e * 100.0 / iso
     sigma_linear = np.sqrt(_DECODE * electrons_per_unit + read_noise_e ** 2) / electrons_per_unit
-    return (sigma_linear * _SLOPE).astype(np.float32)
+    return sigma_linear * _SLOPE
+
+
+@functools.lru_cache(maxsize=64)
+def _noise_table(iso: float, full_well_e: float, read_noise_e: float) -> np.ndarray:
+    """(65536,) uint8: the noisy level of (level << 8 | draw), rounded and clipped."""
+    sigma = noise_sigma_levels(iso, full_well_e, read_noise_e)
+    levels = np.arange(256, dtype=np.float64)[:, None] + sigma[:, None] * _GAUSS[None, :]
+    table = np.clip(np.floor(levels + 0.5), 0, 255).astype(np.uint8).reshape(-1)
+    table.setflags(write=False)
+    return table
 
 
 @functools.lru_cache(maxsize=64)
@@ -110,18 +120,19 @@ def apply_sensor(image: np.ndarray, sensor: Sensor, rng: np.random.Generator) ->
         decode = _DECODE.astype(np.float32)
         linear = cv2.transform(cv2.LUT(out, decode), np.asarray([IR_RGB_WEIGHTS], dtype=np.float32))
         out = _ENCODE[(np.clip(linear, 0.0, 1.0) * np.float32(_ENCODE_STEPS - 1) + np.float32(0.5)).astype(np.uint16)]
-    if sensor.vignetting > 0.0 or sensor.iso is not None:
-        values = out.astype(np.float32)
-        if sensor.vignetting > 0.0:
-            falloff = vignetting_map(height, width, float(sensor.vignetting))
-            values *= falloff if values.ndim == 2 else falloff[..., None]
-        if sensor.iso is not None:
-            table = _noise_table(float(sensor.iso), float(sensor.full_well_e), float(sensor.read_noise_e))
-            sigma = cv2.LUT(np.rint(values).astype(np.uint8), table)
-            normal = _GAUSS[rng.integers(0, _GAUSS_STEPS, values.shape, dtype=np.uint16)]
-            values += sigma * normal
-        out = np.clip(values + np.float32(0.5), 0.0, 255.0).astype(np.uint8)
-    elif out is image:
+    if sensor.vignetting > 0.0:
+        falloff = vignetting_map(height, width, float(sensor.vignetting))
+        # falloff <= 1: no overflow; convertScaleAbs rounds to nearest (values are >= 0)
+        out = cv2.convertScaleAbs(cv2.multiply(out.astype(np.float32), falloff if out.ndim == 2 else
+                                               cv2.merge([falloff, falloff, falloff])))
+    if sensor.iso is not None:
+        table = _noise_table(float(sensor.iso), float(sensor.full_well_e), float(sensor.read_noise_e))
+        draws = np.frombuffer(rng.bytes(out.size), dtype=np.uint8).reshape(out.shape)
+        index = out.astype(np.uint16)
+        index <<= 8
+        index |= draws
+        out = table[index]
+    if out is image:
         out = image.copy()
     if sensor.compression == "jpeg":
         out = _jpeg(out, sensor.quality)
@@ -163,14 +174,25 @@ def _quantise_blocks(plane: np.ndarray, block: int, step: float) -> np.ndarray:
     ph, pw = -h % block, -w % block
     padded = np.pad(plane, ((0, ph), (0, pw)), mode="edge") if ph or pw else plane
     H, W = padded.shape
-    tiles = padded.reshape(H // block, block, W // block, block).transpose(0, 2, 1, 3)
+    rows, cols = H // block, W // block
+    tiles = padded.reshape(rows, block, cols, block).transpose(0, 2, 1, 3).reshape(-1, block, block)
     d = _DCT16 if block == 16 else _DCT8
-    coeffs = d @ tiles @ d.T
+    coeffs = _two_sided(tiles, d)
     steps = np.full((block, block), step, dtype=np.float32)
     steps[0, 0] = max(1.0, step / 4.0)
     coeffs = np.round(coeffs / steps) * steps
-    back = (d.T @ coeffs @ d).transpose(0, 2, 1, 3).reshape(H, W)
+    back = _two_sided(coeffs, np.ascontiguousarray(d.T))
+    back = back.reshape(rows, cols, block, block).transpose(0, 2, 1, 3).reshape(H, W)
     return back[:h, :w]
+
+
+def _two_sided(tiles: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``d @ tile @ d.T`` for every tile of (N, b, b), as two (N·b, b) x (b, b) products (one
+    large product is many times faster than N small ones)."""
+    n, b, _ = tiles.shape
+    right = (np.ascontiguousarray(tiles).reshape(n * b, b) @ d.T).reshape(n, b, b)
+    both = (np.ascontiguousarray(right.transpose(0, 2, 1)).reshape(n * b, b) @ d.T).reshape(n, b, b)
+    return both.transpose(0, 2, 1)
 
 
 def _h264_like(image: np.ndarray, quality: int) -> np.ndarray:
