@@ -36,6 +36,7 @@ def car_park_document(*, world=None, sensors=None, cameras=("pole_north",), sun_
     block["render"] = {"samples": 2, "denoise": False, "max_bounces": 2, "resolution_px": [64, 48]}
     block["frame_range"] = {"frame_start": 0, "frame_end": 0}
     block.pop("exports", None)
+    block.pop("world", None)  # the example's sky
     if world is not None:
         block["world"] = world
     streams = {}
@@ -46,9 +47,10 @@ def car_park_document(*, world=None, sensors=None, cameras=("pole_north",), sun_
             stream["stream_properties"]["usdscene"]["sensor"] = sensors[name]
         streams[name] = stream
     body["streams"] = streams
-    if not sun_power:
-        data = body["objects"]["0"]["object_data"]
-        data["num"] = [n for n in data["num"] if n["name"] != "power_w"]
+    data = body["objects"]["0"]["object_data"]  # the sun, stated: so that usdscene before the
+    data["num"] = [n for n in data["num"] if n["name"] != "power_w"]  # daylight default renders it alike
+    if sun_power:
+        data["num"].append({"name": "power_w", "val": 4.0})
     return doc
 
 
@@ -147,3 +149,14 @@ def test_hdri_from_the_document_folder_lights_the_background(tmp_path, monkeypat
     out = run_document(tmp_path, doc, monkeypatch)
     blue, green, red = image(out, "pole_north")[:4].astype(float).mean(axis=(0, 1))  # cv2 reads BGR
     assert green > 200 and green > red + 60 and green > blue + 60
+
+
+def test_a_sun_without_power_gives_a_daylight_picture(tmp_path, monkeypatch):
+    # the car park as shipped: a sun without a stated power under the physical sky
+    doc = car_park_document(world={"sky": "nishita"}, sun_power=False, cameras=("pole_north", "pole_east"))
+    out = run_document(tmp_path, doc, monkeypatch)
+    for camera in ("pole_north", "pole_east"):
+        picture = image(out, camera)
+        clipped = float((picture == 255).any(axis=-1).mean())
+        assert clipped <= 0.01, f"{camera}: {100 * clipped:.1f} % of the pixels clipped"
+        assert picture.mean() > 70, f"{camera}: a dark picture ({picture.mean():.0f})"
