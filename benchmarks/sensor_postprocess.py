@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from usdscene.imaging import Sensor, image_seed
+from usdscene.document.imaging import Sensor, image_seed
 from usdscene.render.sensor import apply_sensor
 
 CASES = {

@@ -310,7 +310,7 @@ def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
 def sensor_record(sensor, seed: int, camera: str, frame: int) -> dict:
     """What the camera's sensor did to one image: its fields at this frame (defaults left out;
     an empty object for a sensor of defaults) and the entropy of the noise generator."""
-    from usdscene.imaging import image_seed, spec_to_json
+    from usdscene.document.imaging import image_seed, spec_to_json
 
     return {**spec_to_json(sensor.at_frame(frame)), "seed": image_seed(seed, camera, frame)}
 

@@ -1,5 +1,5 @@
 """``metadata.usdscene.world`` and ``stream_properties.usdscene.sensor`` →
-:class:`usdscene.imaging.World` / :class:`usdscene.imaging.Sensor`, and back. Pure module.
+:class:`usdscene.document.imaging.World` / :class:`usdscene.document.imaging.Sensor`, and back. Pure module.
 
 Every value is checked against what the renderer and the post-process accept, so that what
 ``usdscene validate`` accepts renders; a bad value is a problem naming the JSON path and the
@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from usdscene.errors import Problem, ProblemCollector
-from usdscene.imaging import (
+from usdscene.document.imaging import (
     COMPRESSIONS,
     HDRI_SUFFIXES,
     SENSOR_RANDOMIZABLE,
@@ -186,9 +186,9 @@ def hdri_problems(world: World | None, where: str, document_folder: str | os.Pat
         world: the document's world (None: nothing to check).
         where: JSON path of the ``hdri`` field.
         document_folder: folder a relative path is relative to (None: the working folder).
-        roots: reading roots (:func:`usdscene.containment.reading_roots`).
+        roots: reading roots (:func:`usdscene.document.containment.reading_roots`).
     """
-    from usdscene.containment import is_inside, outside_problem
+    from usdscene.document.containment import is_inside, outside_problem
 
     if world is None or not world.hdri:
         return []
@@ -216,8 +216,8 @@ def _is_image(head: bytes) -> bool:
 
 def document_hdri_problems(scene, document_path: str | os.PathLike) -> list[Problem]:
     """:func:`hdri_problems` of a read document: its world's HDRI against the reading roots of
-    the document's folder (``usdscene.containment.reading_roots``)."""
-    from usdscene.containment import reading_roots
+    the document's folder (``usdscene.document.containment.reading_roots``)."""
+    from usdscene.document.containment import reading_roots
 
     if scene is None or scene.world is None or not scene.world.hdri:
         return []

@@ -55,7 +55,7 @@ def read_metadata(doc: DocumentBody) -> dict:
         ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
         ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``,
         ``frame_range`` (a :class:`FrameInterval` or None), ``world`` (a
-        :class:`usdscene.imaging.World` or None), ``split_rule`` and ``split_seed``
+        :class:`usdscene.document.imaging.World` or None), ``split_rule`` and ``split_seed``
         (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.document.splits`), with defaults for what is absent
         or bad (the problem is recorded in ``doc``).
     """

@@ -254,7 +254,7 @@ def _read_light(doc: DocumentBody, uid: str, name: str, obj: Mapping, where: str
         return None
     if kind is LightKind.SUN and "power_w" not in items:
         # Light's 100 W default would be a sun of 100 W/m²: most of an outdoor image clipped.
-        from usdscene.imaging import DEFAULT_SUN_IRRADIANCE_W_M2
+        from usdscene.document.imaging import DEFAULT_SUN_IRRADIANCE_W_M2
 
         kwargs["power_w"] = DEFAULT_SUN_IRRADIANCE_W_M2
     return Light(uid=uid, name=name, kind=kind, pose=pose, frame_intervals=intervals, **kwargs)

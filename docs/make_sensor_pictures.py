@@ -23,8 +23,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from usdscene import layout
-from usdscene.contact_sheet import contact_sheet
+from usdscene.document import output_layout as layout
+from usdscene.dataset.contact_sheet import contact_sheet
 from usdscene.files import write_png_atomic
 
 REPO = Path(__file__).resolve().parents[1]
@@ -37,7 +37,7 @@ DAY_CAMERAS = {
     "noisy": ({"iso": 12800, "read_noise_e": 4.0, "vignetting": 0.35}, "ISO 12800, vignetting 0.35"),
     "jpeg": ({"compression": "jpeg", "quality": 12}, "JPEG quality 12"),
     "h264": ({"compression": "h264_like", "quality": 35}, "H.264-like quality 35"),
-    "blurred": ({"shutter_frames": 1.0}, "shutter 1 frame (the car drives)"),
+    "blurred": ({"shutter_frames": 1.0}, "shutter open 1 frame: everything that moves blurs"),
 }
 NIGHT_CAMERAS = {
     "night_colour": (None, "night, colour, no illuminator"),
@@ -53,7 +53,9 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
     block["render"] = dict(block["render"], samples=samples, denoise=True)
     block["frame_range"] = {"frame_start": 1, "frame_end": 1}
     block["exports"] = []
-    if not night:
+    if night:
+        block.pop("world", None)  # no sun: no sky; a black night
+    else:
         block["world"] = {"sky": "nishita"}
     del body["coordinate_systems"]
     body["streams"] = {}

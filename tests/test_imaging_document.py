@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from usdscene.errors import DocumentError
-from usdscene.imaging import (DEFAULT_SUN_IRRADIANCE_W_M2, Sensor, World, draw_per_frame, randomize_scene,
+from usdscene.document.imaging import (DEFAULT_SUN_IRRADIANCE_W_M2, Sensor, World, draw_per_frame, randomize_scene,
                               sun_sky_angles)
-from usdscene.model import euler_zyx_to_rotation
+from usdscene.document.model import euler_zyx_to_rotation
 
 REPO = Path(__file__).resolve().parents[1]
 MINIMAL = REPO / "examples" / "minimal" / "scene.openlabel.json"

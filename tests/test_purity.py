@@ -40,7 +40,7 @@ PURE_MODULES = [
     "usdscene.converters.openlabel",
     "usdscene.converters.openlabel_annotations",
     "usdscene.converters.openlabel_imaging",
-    "usdscene.imaging",
+    "usdscene.document.imaging",
     "usdscene.render.sensor",
     "usdscene.converters.coco",
     "usdscene.converters.yolo",

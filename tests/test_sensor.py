@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdscene.imaging import Sensor, image_seed
+from usdscene.document.imaging import Sensor, image_seed
 from usdscene.render.sensor import apply_sensor, has_effect, vignetting_map
 
 

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from usdscene import layout
+from usdscene.document import output_layout as layout
 
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 

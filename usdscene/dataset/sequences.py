@@ -403,7 +403,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
     drawn = None
     if (scene.world is not None and scene.world.randomize) or any(
             c.sensor is not None and c.sensor.randomize for c in scene.cameras):
-        from usdscene.imaging import randomize_scene
+        from usdscene.document.imaging import randomize_scene
 
         # A generator of its own: the objects drawn above stay what they were without ranges.
         scene, drawn = randomize_scene(scene, np.random.default_rng([int(options.seed), DOMAIN_STREAM]))

@@ -315,7 +315,7 @@ class Camera:
             its ``stream_properties``), as :func:`canonical_json` text; "" = none. Written
             back unchanged.
         sensor: what the camera's sensor and encoder do to its image
-            (:class:`usdscene.imaging.Sensor`); None = a clean image.
+            (:class:`usdscene.document.imaging.Sensor`); None = a clean image.
     """
 
     name: str
@@ -359,7 +359,7 @@ class Light:
         pose: light → world; the light shines along its local -Z axis.
         power_w: radiant power in watts for point, spot and area lights (Blender's "Power");
             for sun, the irradiance in W/m² (Blender's sun "Strength"). The document reader
-            gives a sun without a stated power ``usdscene.imaging.DEFAULT_SUN_IRRADIANCE_W_M2``.
+            gives a sun without a stated power ``usdscene.document.imaging.DEFAULT_SUN_IRRADIANCE_W_M2``.
         color_rgb: linear RGB in [0, 1].
         radius_m: emitter radius (point, spot) in metres; softens shadows.
         spot_angle_deg: full cone angle of a spot light in degrees.
@@ -685,7 +685,7 @@ class SceneSpec:
             given; "" = none.
         split_seed: seed of a ``fractions`` split rule.
         world: background, sky or HDRI, exposure and view transform
-            (:class:`usdscene.imaging.World`); None = the black world of the Standard view.
+            (:class:`usdscene.document.imaging.World`); None = the black world of the Standard view.
         description: free text.
         provenance: where it came from.
         extra: the document's content usdscene does not model, as :func:`canonical_json` text

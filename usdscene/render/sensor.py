@@ -3,13 +3,13 @@ infrared night mode's monochrome response and JPEG or H.264-like compression, ap
 rendered 8-bit sRGB image. Pure module (numpy + OpenCV; no bpy, no pxr).
 
 The render is the light that reaches the sensor; this module is what the sensor and the encoder
-make of it (:class:`usdscene.imaging.Sensor`). Masks and labels never pass through it. The
+make of it (:class:`usdscene.document.imaging.Sensor`). Masks and labels never pass through it. The
 operations run in a camera's order:
 
 1. exposure bias: each sRGB level decoded to linear light, times ``2^exposure_bias_ev``,
    clipped and encoded again (one 256-entry table, exact);
 2. IR night mode: one near-infrared channel, the linear RGB weighted by
-   :data:`usdscene.imaging.IR_RGB_WEIGHTS` and encoded again (exact);
+   :data:`usdscene.document.imaging.IR_RGB_WEIGHTS` and encoded again (exact);
 3. vignetting: the linear falloff ``1 - v · ρ²`` applied to the sRGB values as
    ``(1 - v · ρ²)^(1/2.2)`` (the sRGB curve as a 2.2 power: within 2 levels of the exact curve);
 4. noise in electrons: a linear value x holds ``n = x · full_well_e · 100 / iso`` electrons;
@@ -23,7 +23,7 @@ operations run in a camera's order:
 Working on the 8-bit image with small tables keeps a 640x480 image within about 10 ms of CPU
 (``benchmarks/sensor_postprocess.py``). The shutter and the IR illuminator act while rendering
 (the worker). The draws are random bytes of the ``numpy.random.Generator`` the caller passes,
-seeded per image by :func:`usdscene.imaging.image_seed`: the same document gives the same bytes
+seeded per image by :func:`usdscene.document.imaging.image_seed`: the same document gives the same bytes
 whatever the order, worker or executor.
 """
 
@@ -35,7 +35,7 @@ from statistics import NormalDist
 import cv2
 import numpy as np
 
-from usdscene.imaging import IR_RGB_WEIGHTS, Sensor
+from usdscene.document.imaging import IR_RGB_WEIGHTS, Sensor
 
 # Linear values are encoded through a table of this many steps: the darkest step (1/16383 linear)
 # is 0.2 of an sRGB level, so rounding matches the exact curve to within one level.
@@ -107,7 +107,7 @@ def apply_sensor(image: np.ndarray, sensor: Sensor, rng: np.random.Generator) ->
     Args:
         image: (H, W, 3) uint8 sRGB image in RGB order (not modified).
         sensor: the camera's sensor at this frame (``Sensor.at_frame``).
-        rng: the image's generator (:func:`usdscene.imaging.image_seed`); only noise draws from it.
+        rng: the image's generator (:func:`usdscene.document.imaging.image_seed`); only noise draws from it.
 
     Returns:
         (H, W, 3) uint8 sRGB image, a new array; in IR night mode the three channels are equal.
@@ -216,6 +216,6 @@ def _h264_like(image: np.ndarray, quality: int) -> np.ndarray:
 def sensor_provenance(sensor: Sensor, seed: list[int]) -> dict:
     """What was applied to one image, for the annotations: the sensor's fields at this frame
     (defaults left out) and the generator's entropy."""
-    from usdscene.imaging import spec_to_json
+    from usdscene.document.imaging import spec_to_json
 
     return {**spec_to_json(sensor), "seed": [int(v) for v in seed]}

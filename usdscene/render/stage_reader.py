@@ -54,7 +54,7 @@ class StagePlan:
         shared_prims: prims every shard imports (environment, lights, looks; not cameras,
             not objects).
         world: the ``usdscene:render:worldJson`` of ``/Render/Settings`` decoded
-            (:func:`usdscene.imaging.world_stage_json`), None when the stage has none.
+            (:func:`usdscene.document.imaging.world_stage_json`), None when the stage has none.
         sensors: camera name → ``usdscene:camera:sensorJson`` decoded (``{"sensor", "seed"}``),
             for the cameras that have one.
     """

@@ -237,7 +237,7 @@ class Session:
         """The document's world (background, sky or HDRI, view transform) and the cameras'
         render-time sensor parts (shutter, IR illuminator). Nothing is touched for a stage
         without them, so its images stay byte-identical to before they existed."""
-        from usdscene.imaging import Sensor, World, spec_from_json
+        from usdscene.document.imaging import Sensor, World, spec_from_json
 
         self.world = None
         self.world_at = None
@@ -256,7 +256,7 @@ class Session:
     def _build_world(self) -> None:
         """A world node tree of our own (it replaces a dome light's world: the document's world
         is what the user asked for): Background ← colour, sky texture or environment image."""
-        from usdscene.imaging import SKY_KINDS, SKY_PER_SUN_IRRADIANCE
+        from usdscene.document.imaging import SKY_KINDS, SKY_PER_SUN_IRRADIANCE
 
         bpy, world = self.bpy, self.world
         bworld = bpy.data.worlds.new("usdscene_world")
@@ -291,7 +291,7 @@ class Session:
         bworld.light_settings.distance = float(self.job["settings"]["fast_gi_distance_m"])
         view = self.scene.view_settings
         if world.view_transform != "standard":
-            from usdscene.imaging import VIEW_TRANSFORMS
+            from usdscene.document.imaging import VIEW_TRANSFORMS
 
             view.view_transform = VIEW_TRANSFORMS[world.view_transform]
         self._apply_world(self.current_frame if self.current_frame is not None else 0)
@@ -320,7 +320,7 @@ class Session:
     def _apply_camera_sensor(self, name: str) -> None:
         """Shutter (Cycles motion blur, centred on the frame: labels are at the frame time) and
         the IR illuminator of the camera about to render; reset for cameras without them."""
-        from usdscene.imaging import ir_illuminator_power_w
+        from usdscene.document.imaging import ir_illuminator_power_w
 
         sensor = self.sensors.get(name, (None, 0))[0]
         shutter = sensor.shutter_frames if sensor is not None else 0.0
@@ -472,7 +472,7 @@ class Session:
         image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
         clean = None
         if camera in self.sensors:
-            from usdscene.imaging import image_seed
+            from usdscene.document.imaging import image_seed
             from usdscene.render.sensor import apply_sensor, has_effect
 
             sensor, seed = self.sensors[camera]

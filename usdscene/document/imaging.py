@@ -68,7 +68,7 @@ class World:
         air_density, aerosol_density, ozone_density: the sky's atmosphere (1 = clear day).
         altitude_m: height of the viewer above sea level for the sky, metres.
         hdri: equirectangular image as written in the document ("" = none); resolved against
-            the document's folder and inside the asset folders (``usdscene.containment``).
+            the document's folder and inside the asset folders (``usdscene.document.containment``).
         hdri_rotation_deg: rotation of the HDRI about world Z, degrees.
         exposure_ev: exposure of the picture in stops (Blender's colour management exposure).
         view_transform: ``standard`` (sRGB curve, what images had before), ``agx`` or ``filmic``.
@@ -267,7 +267,7 @@ def world_stage_json(scene) -> str:
     """What the renderer needs of a SceneSpec's world, as the canonical JSON text of the stage's
     ``usdscene:render:worldJson``: the world's document form, the HDRI's absolute path and the
     sky's sun (elevation and rotation in radians, irradiance in W/m²) from the first sun light."""
-    from usdscene.model import LightKind
+    from usdscene.document.model import LightKind
 
     world = scene.world
     source = scene.provenance.source
