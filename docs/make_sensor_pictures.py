@@ -34,14 +34,14 @@ VIEW = "pole_east"
 # name → (sensor block, tile label)
 DAY_CAMERAS = {
     "clean": (None, "clean render"),
-    "noisy": ({"iso": 12800, "read_noise_e": 4.0, "vignetting": 0.35}, "ISO 12800, vignetting 0.35"),
+    "noisy": ({"iso": 12800, "read_noise_e": 4.0, "vignetting": 0.35}, "ISO 12800, vignetting"),
     "jpeg": ({"compression": "jpeg", "quality": 12}, "JPEG quality 12"),
     "h264": ({"compression": "h264_like", "quality": 35}, "H.264-like quality 35"),
-    "blurred": ({"shutter_frames": 1.0}, "shutter open 1 frame: everything that moves blurs"),
+    "blurred": ({"shutter_frames": 1.0}, "shutter 1 frame"),
 }
 NIGHT_CAMERAS = {
-    "night_colour": (None, "night, colour, no illuminator"),
-    "night_ir": ({"ir_night": True, "ir_range_m": 25.0, "iso": 3200}, "IR night mode, 25 m illuminator, ISO 3200"),
+    "night_colour": (None, "night, colour"),
+    "night_ir": ({"ir_night": True, "ir_range_m": 25.0, "iso": 3200}, "IR night, ISO 3200"),
 }
 
 
