@@ -54,7 +54,8 @@ def main() -> None:
     args = parser.parse_args()
     os.environ["USDSCENE_ASSET_PATH"] = str(CAR_PARK)
     args.out.mkdir(parents=True, exist_ok=True)
-    hdri = args.out / "sky.hdr"
+    hdri = args.out / "variant3" / "sky.hdr"  # in the document's folder: a readable place
+    hdri.parent.mkdir(parents=True, exist_ok=True)
     rows = np.linspace(1.0, 0.2, 64, dtype=np.float32)[:, None, None]
     cv2.imwrite(str(hdri), np.concatenate([np.broadcast_to(rows * np.array([0.9, 0.6, 0.4], np.float32), (64, 128, 3)),
                                            np.full((64, 128, 3), 0.15, np.float32)], axis=0))
@@ -63,7 +64,7 @@ def main() -> None:
         "physical sky (nishita)": {"sky": "nishita"},
         "sky, strength per frame": {"sky": "nishita", "per_frame": {str(f): {"strength": 0.8 + 0.1 * f}
                                                                    for f in range(args.frames)}},
-        "HDRI 128x128": {"hdri": str(hdri)},
+        "HDRI 128x128": {"hdri": hdri.name},
     }
     results = {}
     for name, world in variants.items():
