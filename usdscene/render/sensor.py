@@ -11,7 +11,8 @@ operations run in a camera's order:
 2. IR night mode: one near-infrared channel, the linear RGB weighted by
    :data:`usdscene.document.imaging.IR_RGB_WEIGHTS` and encoded again (exact);
 3. vignetting: the linear falloff ``1 - v · ρ²`` applied to the sRGB values as
-   ``(1 - v · ρ²)^(1/2.2)`` (the sRGB curve as a 2.2 power: within 2 levels of the exact curve);
+   ``(1 - v · ρ²)^(1/2.2)`` (the sRGB curve taken as a 2.2 power: within 2 levels of the exact
+   curve where the falloff is 0.7 or more, within 5 where it is 0.3);
 4. noise in electrons: a linear value x holds ``n = x · full_well_e · 100 / iso`` electrons;
    shot noise (variance n) and read noise (``read_noise_e``) are Gaussian, scaled back by the
    gain and carried through the sRGB curve to first order (its slope at each level); each
