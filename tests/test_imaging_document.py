@@ -181,3 +181,51 @@ def test_randomize_scene_reports_what_it_drew():
     for frame, values in drawn["sensors"]["cam_01"].items():
         assert drawn_scene.cameras[0].sensor.at_frame(int(frame)).exposure_bias_ev == values["exposure_bias_ev"]
     assert drawn_scene.world.randomize == () and isinstance(drawn_scene.world, World)
+
+
+@pytest.mark.usd
+def test_generate_draws_world_and_sensor_per_frame_and_reports_them(tmp_path, monkeypatch):
+    from usdscene.dataset.sequences import GenerateOptions, generate_document
+
+    car_park = REPO / "examples" / "car_park"
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(car_park))
+    setup = json.loads((car_park / "setup.openlabel.json").read_text())
+    setup["openlabel"]["metadata"]["usdscene"]["asset_paths"] = [str(car_park / "assets")]
+    plain = tmp_path / "plain.json"
+    plain.write_text(json.dumps(setup))
+    block = setup["openlabel"]["metadata"]["usdscene"]
+    block["world"] = {"sky": "nishita", "randomize": {"strength": [0.5, 1.5]}}
+    for stream in setup["openlabel"]["streams"].values():
+        stream["stream_properties"]["usdscene"]["sensor"] = {"iso": 400, "randomize": {"iso": [100, 3200],
+                                                                                       "quality": [30, 90]}}
+    ranged = tmp_path / "ranged.json"
+    ranged.write_text(json.dumps(setup))
+    options = GenerateOptions(strategy="appearance", frames=3, seed=11, classes=("vehicle", "backpack"),
+                              objects_per_frame=3)
+    without = generate_document(plain, tmp_path / "without.json", options)
+    with_ranges = generate_document(ranged, tmp_path / "with.json", options)
+    drawn = with_ranges.report["domain_randomization"]
+    assert set(drawn["world"]) == {"0", "1", "2"}
+    assert all(0.5 <= v["strength"] <= 1.5 for v in drawn["world"].values())
+    assert set(drawn["sensors"]) == set(setup["openlabel"]["streams"])
+    isos = [v["iso"] for frames in drawn["sensors"].values() for v in frames.values()]
+    assert len(set(isos)) == len(isos) == 12 and all(100 <= iso <= 3200 for iso in isos)
+    # the document holds the draws, not the ranges, and the objects are those drawn without ranges
+    written = json.loads((tmp_path / "with.json").read_text())["openlabel"]
+    sensor = written["streams"]["pole_north"]["stream_properties"]["usdscene"]["sensor"]
+    assert "randomize" not in sensor and sensor["per_frame"]["1"] == drawn["sensors"]["pole_north"]["1"]
+    assert written["metadata"]["usdscene"]["world"]["per_frame"]["2"] == drawn["world"]["2"]
+    assert with_ranges.scene.objects == without.scene.objects
+    assert "domain_randomization" not in without.report
+    again = generate_document(ranged, tmp_path / "again.json", options)
+    assert again.report["domain_randomization"] == drawn
+
+
+@pytest.mark.parametrize("command", ["run", "render"])
+def test_keep_clean_is_an_option_of_run_and_render(command, capsys):
+    from usdscene.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main([command, "--help"])
+    assert info.value.code == 0
+    assert "--keep-clean" in capsys.readouterr().out
