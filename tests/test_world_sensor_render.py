@@ -160,3 +160,32 @@ def test_a_sun_without_power_gives_a_daylight_picture(tmp_path, monkeypatch):
         clipped = float((picture == 255).any(axis=-1).mean())
         assert clipped <= 0.01, f"{camera}: {100 * clipped:.1f} % of the pixels clipped"
         assert picture.mean() > 70, f"{camera}: a dark picture ({picture.mean():.0f})"
+
+
+def test_the_sky_is_brightest_towards_the_sun_light(tmp_path, monkeypatch):
+    # Blender's sky rotation convention (about the zenith, from +Y towards +X) checked by the
+    # picture: a camera facing the sun light's azimuth sees the bright forward-scattering glow,
+    # one facing away does not. Both look 20 degrees up from 40 m above the deck: sky only.
+    from usdscene.converters.openlabel import read_openlabel
+    from usdscene.document.imaging import sun_sky_angles
+
+    doc = car_park_document(world={"sky": "nishita"}, cameras=("towards", "away"))
+    # the sun 50 degrees up in the east (+X): a convention that took x for y would put the sky's
+    # sun in the north, 90 degrees off both cameras
+    data = doc["openlabel"]["objects"]["0"]["object_data"]
+    data["vec"] = [v for v in data["vec"] if v["name"] == "color_rgb"] + [
+        {"name": "position_m", "val": [0.0, 0.0, 20.0]}, {"name": "rotation_xyz_deg", "val": [40.0, 0.0, 90.0]}]
+    sun = next(light for light in read_openlabel(copy.deepcopy(doc)).lights if light.kind.value == "sun")
+    elevation, _ = sun_sky_angles(sun.pose.rotation)
+    assert 0.2 < elevation < 1.2  # the example's sun stands between 11 and 69 degrees up
+    # towards the sun: the light shines along its -Z, so the sun lies along its +Z
+    to_sun = sun.pose.rotation[:2, 2] / np.linalg.norm(sun.pose.rotation[:2, 2])
+    for name, horizontal in (("towards", to_sun), ("away", -to_sun)):
+        friendly = doc["openlabel"]["streams"][name]["stream_properties"]["usdscene"]
+        direction = [horizontal[0] * np.cos(0.35), horizontal[1] * np.cos(0.35), np.sin(0.35)]
+        friendly["position_m"] = [0.0, 0.0, 40.0]
+        friendly["target_m"] = [float(d * 10.0 + p) for d, p in zip(direction, (0.0, 0.0, 40.0))]
+    out = run_document(tmp_path, doc, monkeypatch)
+    towards, away = image(out, "towards").astype(float), image(out, "away").astype(float)
+    assert np.all(mask(out, "towards") == 0) and np.all(mask(out, "away") == 0)
+    assert towards.mean() > away.mean() + 15, (towards.mean(), away.mean())

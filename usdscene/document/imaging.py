@@ -207,7 +207,8 @@ def sun_sky_angles(sun_rotation: np.ndarray) -> tuple[float, float]:
     """Sky angles of a sun light: ``(elevation, rotation)`` in radians as Blender's sky texture
     takes them, from the light's (3, 3) world rotation (it shines along its local -Z axis, so
     the sun stands along +Z). Blender's rotation is measured about the zenith from +Y towards
-    +X (checked by rendering the sky's sun disc, tests/test_world_render.py)."""
+    +X (checked by rendering: tests/test_world_sensor_render.py, the sky is brightest towards the
+    sun light)."""
     to_sun = np.asarray(sun_rotation, dtype=np.float64)[:, 2]
     to_sun = to_sun / np.linalg.norm(to_sun)
     elevation = math.asin(max(-1.0, min(1.0, float(to_sun[2]))))
