@@ -344,9 +344,12 @@ class Session:
                 import math
 
                 render_intr = self.job["cameras"][name]["render_intrinsics"]
-                w, h, fx = render_intr["width_px"], render_intr["height_px"], render_intr["fx_px"]
-                half_diagonal = math.atan(math.hypot(w, h) / 2.0 / fx)
-                self.ir_light.data.spot_size = min(math.pi, 2.0 * half_diagonal + math.radians(10.0))
+                if render_intr.get("fov_deg"):  # a fisheye: its image circle
+                    field = math.radians(float(render_intr["fov_deg"]))
+                else:
+                    w, h, fx = render_intr["width_px"], render_intr["height_px"], render_intr["fx_px"]
+                    field = 2.0 * math.atan(math.hypot(w, h) / 2.0 / fx)  # the diagonal
+                self.ir_light.data.spot_size = min(math.pi, field + math.radians(10.0))
                 self.ir_light.data.energy = ir_illuminator_power_w(sensor.ir_range_m)
             if self.ir_light.hide_render == ir:
                 self.ir_light.hide_render = not ir
