@@ -51,7 +51,7 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
     body = doc["openlabel"]
     block = body["metadata"]["usdscene"]
     block["render"] = dict(block["render"], samples=samples, denoise=True)
-    block["frame_range"] = {"frame_start": 1, "frame_end": 1}
+    block["frame_range"] = {"frame_start": 0, "frame_end": 2}  # frame 1 is rendered
     block["exports"] = []
     if night:
         block.pop("world", None)  # no sun: no sky; a black night
@@ -80,7 +80,6 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
             body["frames"].setdefault(str(frame), {}).setdefault("objects", {})[uid] = {"object_data": {
                 "vec": [{"name": "position_m", "val": [3.0 + 1.5 * frame, 0.3, 0.0]},
                         {"name": "rotation_xyz_deg", "val": [0.0, 0.0, 0.0]}]}}
-        block["frame_range"] = {"frame_start": 0, "frame_end": 2}
     return doc
 
 
