@@ -37,9 +37,9 @@ import numpy as np
 # shipped car park, docs/sensors.md.
 DEFAULT_SUN_IRRADIANCE_W_M2 = 4.0
 # The physical sky is scaled to the sun light: Blender's Nishita sky has a mean radiance of about
-# 2 over the upper hemisphere with its sun disc at real strength. Scaled by sun irradiance / 40
-# (0.1 for the 4 W/m² sun), the sky gives about 15 % of the sun's irradiance on a horizontal
-# surface, the share of diffuse skylight on a clear day.
+# 2 over the upper hemisphere (sun disc off). Scaled by sun irradiance / 40 (0.1 for the 4 W/m²
+# sun), its irradiance on a horizontal surface is roughly 15 % of a high sun's, the share of
+# diffuse skylight on a clear day (an estimate from those figures).
 SKY_PER_SUN_IRRADIANCE = 1.0 / 40.0
 
 SKY_KINDS = {"nishita": "SINGLE_SCATTERING", "multiple_scattering": "MULTIPLE_SCATTERING"}
