@@ -11,7 +11,9 @@ for moving cameras; a friendly-form camera block becomes calibrated intrinsics) 
 * ``frames[f].frame_properties.usdscene.streams[<camera>]``: ``{"mask_uri", "width_px",
   "height_px"}``, the 16-bit instance mask (``masks/<camera>/<frame:06d>.png``, 0 = background,
   ids in the ``mask_id`` attributes) and the image size. The schema's ``stream`` object admits
-  no extra key, ``frame_properties`` does, hence this place.
+  no extra key, ``frame_properties`` does, hence this place. For a camera with a sensor also
+  ``sensor`` (the sensor's values at that frame and the noise generator's entropy, see
+  :func:`sensor_record`) and, with ``--keep-clean``, ``clean_uri`` (the image before them).
 * ``frames[f].objects[<uid>].object_data``, per camera that sees the object:
 
   - ``bbox`` named ``<camera>_bbox``: tight box of the visible pixels, ``[cx, cy, w, h]`` in
@@ -305,6 +307,14 @@ def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
                 target[f"{cam.name}_to_{root_cs}"] = dict(copy.deepcopy(transform), dst=root_cs)
 
 
+def sensor_record(sensor, seed: int, camera: str, frame: int) -> dict:
+    """What the camera's sensor did to one image: its fields at this frame (defaults left out;
+    an empty object for a sensor of defaults) and the entropy of the noise generator."""
+    from usdscene.document.imaging import image_seed, spec_to_json
+
+    return {**spec_to_json(sensor.at_frame(frame)), "seed": image_seed(seed, camera, frame)}
+
+
 def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                     out_dir: str | os.PathLike, *, densities: Densities | None = None,
                     dori_table: Sequence[DoriClass] | None = None) -> dict:
@@ -335,6 +345,7 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
     objects = root.setdefault("objects", {})
     frames = root.setdefault("frames", {})
     cameras = {c.name for c in scene.cameras}
+    sensors = {c.name: c.sensor for c in scene.cameras if c.sensor is not None}
     problems = ProblemCollector()
     # name → (type, frames) per object, for the data pointers.
     pointer_frames: dict[str, dict[str, tuple[str, set[int]]]] = {}
@@ -350,6 +361,12 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
         ours = props.setdefault(FRAME_PROPERTIES_KEY, {}).setdefault("streams", {})
         ours[image.camera] = {"mask_uri": _relative_uri(layout.mask_path(out_dir, image.camera, image.frame), out_dir),
                               "width_px": int(image.width_px), "height_px": int(image.height_px)}
+        sensor = sensors.get(image.camera)
+        if sensor is not None:
+            ours[image.camera]["sensor"] = sensor_record(sensor, scene.seed, image.camera, int(image.frame))
+            clean = layout.clean_image_path(out_dir, image.camera, image.frame)
+            if clean.is_file():
+                ours[image.camera]["clean_uri"] = _relative_uri(clean, out_dir)
         for label in image.objects:
             key = _document_key(label.uid, objects, scene)
             if key is None:

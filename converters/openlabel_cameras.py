@@ -122,10 +122,15 @@ def _read_camera(doc: DocumentBody, name: str, stream: Mapping, where: str, rend
     custom = {}
     if "custom" in friendly:
         custom = read_object(friendly["custom"], f"{where_f}.custom", problems) or {}
+    sensor = None
+    if "sensor" in friendly:
+        from usdscene.converters.openlabel_imaging import read_sensor
+
+        sensor = read_sensor(friendly["sensor"], f"{where_f}.sensor", problems)
     description = stream.get("description", "")
     if not isinstance(description, str):
         doc.add(f"{where}.description", f"expected a string, got {describe(description)}")
         description = ""
     return Camera(name=name, intrinsics=intrinsics, pose=pose, frame_poses=tuple(frame_poses),
                   clip_near_m=clip[0], clip_far_m=clip[1], model_name=model_name,
-                  description=description, custom=dict(custom), extra=stream_residue(stream))
+                  description=description, custom=dict(custom), extra=stream_residue(stream), sensor=sensor)

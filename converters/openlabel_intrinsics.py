@@ -47,7 +47,7 @@ EQUISOLID_KB_COEFFS = (-1.0 / 24.0, 1.0 / 1920.0, -1.0 / 322560.0, 1.0 / 9289728
 # The friendly camera block ``stream_properties.usdscene``.
 FRIENDLY_KEYS = ("model", "model_name", "resolution_px", "sensor_size_mm", "focal_length_mm", "fov_deg",
                  "distortion", "principal_point_px", "ortho_width_m", "position_m", "orientation_deg",
-                 "target_m", "clip_range_m", "custom")
+                 "target_m", "clip_range_m", "custom", "sensor")
 # Friendly keys that define optics; they may not be combined with calibrated intrinsics.
 FRIENDLY_OPTICS = ("resolution_px", "focal_length_mm", "distortion", "principal_point_px", "ortho_width_m")
 DEFAULT_SENSOR_WIDTH_MM = 36.0  # Blender's default sensor width

@@ -25,7 +25,8 @@ from usdscene.converters.openlabel_values import (
 )
 from usdscene.errors import ProblemCollector
 
-METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split", "fps")
+METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split", "fps",
+                 "world")
 RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
                "path_guiding", "clamp_indirect", "sampling_pattern", "fast_gi", "fast_gi_method",
@@ -53,7 +54,8 @@ def read_metadata(doc: DocumentBody) -> dict:
     Returns:
         ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
         ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``,
-        ``frame_range`` (a :class:`FrameInterval` or None), ``fps`` (or None), ``split_rule`` and ``split_seed``
+        ``frame_range`` (a :class:`FrameInterval` or None), ``fps`` (or None), ``world`` (a
+        :class:`usdscene.document.imaging.World` or None), ``split_rule`` and ``split_seed``
         (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.document.splits`), with defaults for what is absent
         or bad (the problem is recorded in ``doc``).
     """
@@ -62,7 +64,8 @@ def read_metadata(doc: DocumentBody) -> dict:
     where = f"{R}.metadata"
     meta = doc.body.get("metadata")
     out: dict = dict(name="scene", description="", render=RenderSettings(), seed=0, environment=None,
-                     asset_paths=(), exports=(), roi_rules={}, frame_range=None, split_rule="", split_seed=0, fps=None)
+                     asset_paths=(), exports=(), roi_rules={}, frame_range=None, split_rule="", split_seed=0, fps=None,
+                     world=None)
     if meta is None:
         problems.add(where, f"missing 'metadata' with 'schema_version': '{SCHEMA_VERSION}'")
         return out
@@ -121,6 +124,10 @@ def read_metadata(doc: DocumentBody) -> dict:
         out["frame_range"] = read_interval(block["frame_range"], f"{where}.frame_range", problems)
     if "render" in block:
         out["render"] = read_render(block["render"], f"{where}.render", problems)
+    if "world" in block:
+        from usdscene.converters.openlabel_imaging import read_world
+
+        out["world"] = read_world(block["world"], f"{where}.world", problems)
     return out
 
 

@@ -253,6 +253,11 @@ def _read_light(doc: DocumentBody, uid: str, name: str, obj: Mapping, where: str
         doc.add(f"{where}.object_data", "a light needs a pose: vec 'position_m' (+ 'rotation_xyz_deg' or "
                                         "'rotation_quaternion_xyzw') or vec 'pose_matrix4x4'")
         return None
+    if kind is LightKind.SUN and "power_w" not in items:
+        # Light's 100 W default would be a sun of 100 W/m²: most of an outdoor image clipped.
+        from usdscene.document.imaging import DEFAULT_SUN_IRRADIANCE_W_M2
+
+        kwargs["power_w"] = DEFAULT_SUN_IRRADIANCE_W_M2
     return Light(uid=uid, name=name, kind=kind, pose=pose, frame_intervals=intervals, **kwargs)
 
 

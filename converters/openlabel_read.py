@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Mapping
 
 from usdscene.bulk import paused_collection
 from usdscene.errors import DocumentError
-from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, Provenance, SceneSpec, union_intervals
+from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, LightKind, Provenance, SceneSpec, union_intervals
 
 from usdscene.converters.openlabel_cameras import read_cameras
 from usdscene.converters.openlabel_carry import scene_residue
@@ -91,8 +91,13 @@ def read_loaded(document: dict, provenance: Provenance, *, catalog: Catalog | No
         environment=settings["environment"], asset_paths=settings["asset_paths"],
         exports=settings["exports"], roi_rules=settings["roi_rules"],
         split_rule=settings["split_rule"], split_seed=settings["split_seed"], fps=settings["fps"],
-        description=settings["description"],
+        description=settings["description"], world=settings["world"],
         extra=scene_residue(doc.body, doc.frames(), cameras, relations))
+    if settings["world"] is not None and settings["world"].sky and not any(
+            light.kind is LightKind.SUN for light in lights):
+        doc.add(f"{R}.metadata.usdscene.world.sky", f"a physical sky ({settings['world'].sky!r}) stands its sun where "
+                                                     "the document's sun light comes from, and there is no light of "
+                                                     "kind 'sun'; add one")
     if catalog is not None:
         _check_catalog(doc, catalog, scene)
     doc.problems.raise_if_any(DocumentError)

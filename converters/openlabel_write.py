@@ -349,6 +349,10 @@ def _metadata(scene: SceneSpec) -> dict:
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}
     if scene.fps is not None:
         block["fps"] = float(scene.fps)
+    if scene.world is not None:
+        from usdscene.converters.openlabel_imaging import world_json
+
+        block["world"] = world_json(scene.world)
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
     if scene.description:
         meta["comment"] = scene.description
@@ -409,6 +413,10 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
     friendly["clip_range_m"] = [float(cam.clip_near_m), float(cam.clip_far_m)]
     if cam.custom:
         friendly["custom"] = dict(cam.custom)
+    if cam.sensor is not None:
+        from usdscene.converters.openlabel_imaging import sensor_json
+
+        friendly["sensor"] = sensor_json(cam.sensor)
     props["usdscene"] = friendly
     return props
 

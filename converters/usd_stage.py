@@ -219,6 +219,7 @@ class _StageReader:
                      frame_intervals=tuple(FrameInterval(int(a), int(b)) for a, b in r.get("frameIntervals", [])))
             for r in self._json("relationsJson", []))
         environment = str(self.data.get("environment", "")) or self._environment_from_prims()
+        world = self._imaging(self.stage.GetPrimAtPath(ss.RENDER_SETTINGS), ss.ATTR_RENDER_WORLD, "world")
         self.problems.raise_if_any(DocumentError)
         sha = ""
         if os.path.isfile(self.root_path):
@@ -231,7 +232,7 @@ class _StageReader:
             asset_paths=tuple(str(p) for p in self._json("assetPathsJson", [])),
             exports=tuple(str(e) for e in self._json("exportsJson", [])),
             roi_rules={str(k): str(v) for k, v in self._json("roiRulesJson", {}).items()},
-            description=str(self.data.get("description", "")),
+            description=str(self.data.get("description", "")), world=world,
             # A stage that states its rate (compose writes one only for documents with fps).
             fps=(float(self.stage.GetTimeCodesPerSecond())
                  if self.stage.GetRootLayer().HasTimeCodesPerSecond() else None),
@@ -321,11 +322,26 @@ class _StageReader:
             except json.JSONDecodeError:
                 self.problems.add(f"{prim.GetPath()}.{ss.ATTR_CAMERA_CUSTOM}", f"malformed JSON {custom_text!r}")
                 custom = {}
+            sensor = self._imaging(prim, ss.ATTR_CAMERA_SENSOR, "sensor")
             cameras.append(Camera(
                 name=name, intrinsics=intr, pose=pose, frame_poses=frame_poses, clip_near_m=near, clip_far_m=far,
                 model_name=str(_value(prim, ss.ATTR_CAMERA_MODEL_NAME) or ""),
-                description=str(_value(prim, ss.ATTR_CAMERA_DESCRIPTION) or ""), custom=custom))
+                description=str(_value(prim, ss.ATTR_CAMERA_DESCRIPTION) or ""), custom=custom, sensor=sensor))
         return tuple(cameras)
+
+    def _imaging(self, prim, attribute: str, key: str):
+        """The world (``key`` "world") or a camera's sensor ("sensor") a composed stage carries
+        as JSON (``usdscene.document.imaging``), or None."""
+        from usdscene.document.imaging import Sensor, World, spec_from_json
+
+        text = _value(prim, attribute) if prim else None
+        if not text:
+            return None
+        try:
+            return spec_from_json(World if key == "world" else Sensor, json.loads(text)[key])
+        except (ValueError, KeyError, TypeError) as exc:
+            self.problems.add(f"{prim.GetPath()}.{attribute}", f"malformed {key} JSON: {exc}")
+            return None
 
     def _clipping(self, prim) -> tuple[float, float]:
         from pxr import UsdGeom

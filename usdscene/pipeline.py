@@ -86,6 +86,13 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
 
     path = Path(document)
     scene = read_openlabel(path)
+    if scene.world is not None:
+        from usdscene.converters.openlabel_imaging import document_hdri_problems
+        from usdscene.errors import DocumentError
+
+        hdri = document_hdri_problems(scene, path)
+        if hdri:
+            raise DocumentError(hdri)
     if seed is not None:
         scene = dataclasses.replace(scene, seed=seed)
     catalog = load_catalog(scene.asset_paths, base_dir=path.resolve().parent)
@@ -124,6 +131,8 @@ class RunOptions:
             visible pixels or a smaller visible fraction (0: keep all).
         rle_below_px: COCO segmentation as RLE for objects of fewer visible pixels (0: polygons
             only). See :func:`usdscene.dataset.export.export_formats`.
+        keep_clean: also write each sensor camera's image before its sensor effects
+            (``OUT/images_clean/``).
     """
 
     frames: Sequence[int] | None = None
@@ -139,6 +148,7 @@ class RunOptions:
     min_pixels: int = 0
     min_visible_fraction: float = 0.0
     rle_below_px: int = 0
+    keep_clean: bool = False
 
 
 def run_pipeline(document: str | Path, out_dir: str | Path, options: RunOptions = RunOptions(), *,
@@ -234,7 +244,7 @@ class _Run:
 
             report = render(stage_path, self.out, frames=options.frames, cameras=options.cameras,
                             settings_override=override, progress=self.progress, workers=options.workers,
-                            executor=self.executor, on_event=on_event,
+                            executor=self.executor, on_event=on_event, keep_clean=options.keep_clean,
                             **({} if options.retries is None else {"retries": options.retries}))
         return labelling, report
 

@@ -90,6 +90,10 @@ def validate_document(path: str | os.PathLike, *,
         scene = None
     if scene is not None and catalog is not None:
         problems.extend(_composition_input_problems(scene, catalog))
+    if scene is not None and scene.world is not None:
+        from usdscene.converters.openlabel_imaging import document_hdri_problems
+
+        problems.extend(document_hdri_problems(scene, path))
     if problems:
         raise DocumentError(problems)
     return ValidatedDocument(scene=scene, schema=schema_path, catalog=catalog)

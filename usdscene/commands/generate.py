@@ -139,5 +139,15 @@ def run(args: argparse.Namespace) -> int:
     if coverage["uncovered_count"]:
         console.print(f"  {coverage['uncovered_count']} not covered; --frames "
                       f"{coverage['frames_for_full_coverage']} would cover all")
+    drawn = report.get("domain_randomization")
+    if drawn:
+        world_fields = sorted({k for values in drawn["world"].values() for k in values})
+        sensor_fields = sorted({k for frames in drawn["sensors"].values() for values in frames.values() for k in values})
+        parts = []
+        if world_fields:
+            parts.append(f"world per frame ({', '.join(world_fields)})")
+        if sensor_fields:
+            parts.append(f"sensors of {len(drawn['sensors'])} cameras per frame ({', '.join(sensor_fields)})")
+        console.print(f"  drawn: {'; '.join(parts)}; the values are in the report's domain_randomization")
     console.print(f"  report: {report_path(args.output)}")
     return 0

@@ -28,6 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "--executor ray: at most N tasks in flight, default what the cluster holds)")
     add_executor_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--keep-clean", action="store_true",
+                        help="also keep the image before the camera's sensor effects (OUT/images_clean/)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     override = {"samples": args.samples} if args.samples is not None else None
     report = render(stage, Path(args.output), frames=frames, cameras=args.cameras,
                     settings_override=override, progress=not args.no_progress and sys.stderr.isatty(),
-                    executor=executor, retries=args.retries)
+                    executor=executor, retries=args.retries, keep_clean=args.keep_clean)
     rate = report.pairs_rendered / report.wall_s if report.wall_s > 0 else 0.0
     retried = f", {report.retries} shards retried" if report.retries else ""
     print(f"{report.pairs_rendered} images rendered, {report.pairs_skipped} already done, "

@@ -41,6 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="do not write the browsable report OUT/report/index.html (usdscene report OUT "
                              "writes it later)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--keep-clean", action="store_true",
+                        help="also keep the image before the camera's sensor effects (OUT/images_clean/)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
                          workers=args.workers, retries=args.retries, split=args.split,
                          split_seed=args.split_seed, report=not args.no_report,
                          document_classes=not args.catalog_classes, min_pixels=args.min_pixels,
-                         min_visible_fraction=args.min_visible, rle_below_px=args.coco_rle_below)
+                         min_visible_fraction=args.min_visible, rle_below_px=args.coco_rle_below,
+                         keep_clean=args.keep_clean)
     summary = run_pipeline(args.document, args.output, options, executor=executor, progress=progress,
                            on_step=show_step)
     print(summary_text(summary))

@@ -76,6 +76,9 @@ REGION_TOUCH_M = 1e-3
 SEAT_HEIGHT_TOLERANCE_M = 0.05
 """How much shorter than a seated asset's legs a seat may be."""
 COLOR_DECIMALS = 4
+# Second entropy word of the generator that draws world and sensor ranges (seeded with the
+# generator seed and this), apart from the one that draws objects.
+DOMAIN_STREAM = 28
 
 Region = tuple[str, str]
 """(place name, relation): one support region of the environment."""
@@ -398,6 +401,13 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
     looks = _draw_looks(plan, slots, catalog, setup.environment, options, rng)
     seats = _dress_passengers(seated, plan, catalog, laps, rng)
     scene = _sequence_scene(setup, plan, slots, looks, seats, options)
+    drawn = None
+    if (scene.world is not None and scene.world.randomize) or any(
+            c.sensor is not None and c.sensor.randomize for c in scene.cameras):
+        from usdscene.document.imaging import randomize_scene
+
+        # A generator of its own: the objects drawn above stay what they were without ranges.
+        scene, drawn = randomize_scene(scene, np.random.default_rng([int(options.seed), DOMAIN_STREAM]))
     covered = {c for frame in plan for c in frame}
     uncovered = sorted(set(combos) - covered)
     report = balance_report(scene, catalog)
@@ -418,6 +428,8 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
     single = _without_variants(catalog, classes, options)
     if single:  # only then: reports of documents without such classes stay as they were
         report["coverage"]["classes_without_variants"] = single
+    if drawn is not None:
+        report["domain_randomization"] = drawn
     return GeneratedSequence(scene=scene, report=report)
 
 
@@ -1031,6 +1043,10 @@ def _generate_document(setup_path: Path, out_path: Path, options: GenerateOption
     moved = tuple(os.path.relpath(p if os.path.isabs(p) else base / p, out_dir).replace(os.sep, "/")
                   for p in setup.asset_paths)
     setup = replace(setup, asset_paths=moved)
+    if setup.world is not None and setup.world.hdri and not os.path.isabs(setup.world.hdri):
+        # relative to the document, like asset_paths
+        setup = replace(setup, world=replace(setup.world, hdri=os.path.relpath(
+            base / setup.world.hdri, out_dir).replace(os.sep, "/")))
     generated = generate_sequence(setup, catalog, options, setup_sha256=provenance.source_sha256)
     written = write_openlabel(generated.scene)
     # What composition will read: the written document, read back.

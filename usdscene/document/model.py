@@ -314,6 +314,8 @@ class Camera:
         extra: the stream's content usdscene does not model (other keys of the stream and of
             its ``stream_properties``), as :func:`canonical_json` text; "" = none. Written
             back unchanged.
+        sensor: what the camera's sensor and encoder do to its image
+            (:class:`usdscene.document.imaging.Sensor`); None = a clean image.
     """
 
     name: str
@@ -326,6 +328,7 @@ class Camera:
     description: str = ""
     custom: Mapping[str, Any] = field(default_factory=dict)
     extra: str = ""
+    sensor: Any = None
 
     def pose_at(self, frame: int) -> Pose:
         for f, p in self.frame_poses:
@@ -355,7 +358,8 @@ class Light:
         kind: point / spot / sun / area.
         pose: light → world; the light shines along its local -Z axis.
         power_w: radiant power in watts for point, spot and area lights (Blender's "Power");
-            for sun, the irradiance in W/m² (Blender's sun "Strength").
+            for sun, the irradiance in W/m² (Blender's sun "Strength"). The document reader
+            gives a sun without a stated power ``usdscene.document.imaging.DEFAULT_SUN_IRRADIANCE_W_M2``.
         color_rgb: linear RGB in [0, 1].
         radius_m: emitter radius (point, spot) in metres; softens shadows.
         spot_angle_deg: full cone angle of a spot light in degrees.
@@ -685,6 +689,8 @@ class SceneSpec:
             ``f / fps`` s, written as the OpenLABEL frame ``timestamp`` and as the stage's
             ``timeCodesPerSecond``; labels are defined at that instant (a motion-blurred image's
             shutter centre). None = the document states no rate.
+        world: background, sky or HDRI, exposure and view transform
+            (:class:`usdscene.document.imaging.World`); None = the black world of the Standard view.
         description: free text.
         provenance: where it came from.
         extra: the document's content usdscene does not model, as :func:`canonical_json` text
@@ -716,6 +722,7 @@ class SceneSpec:
     split_rule: str = ""
     split_seed: int = 0
     fps: float | None = None
+    world: Any = None
 
     @property
     def frames(self) -> range:

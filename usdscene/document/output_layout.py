@@ -23,6 +23,7 @@ from usdscene.document.model import SceneSpec
 STAGE_DIR = "stage"
 IMAGES_DIR = "images"
 MASKS_DIR = "masks"
+CLEAN_IMAGES_DIR = "images_clean"  # images before sensor effects (--keep-clean)
 EXPORTS_DIR = "exports"
 LABELS_DIR = "labels"
 ID_MAP_FILE = "masks/ids.json"
@@ -46,6 +47,11 @@ def image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
 def mask_path(out_dir: str | Path, camera: str, frame: int) -> Path:
     """``out/masks/<camera>/<frame:06d>.png`` (16-bit instance ids)."""
     return Path(out_dir) / MASKS_DIR / camera / frame_file(frame)
+
+
+def clean_image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    """The image before the camera's sensor effects (``--keep-clean``)."""
+    return Path(out_dir) / CLEAN_IMAGES_DIR / camera / frame_file(frame)
 
 
 def labels_path(out_dir: str | Path, camera: str, frame: int) -> Path:

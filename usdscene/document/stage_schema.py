@@ -86,6 +86,10 @@ ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
 ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int
 ATTR_RENDER_RESOLUTION = "usdscene:render:resolutionPx"      # int2 (width, height)
 ATTR_RENDER_SEED = "usdscene:render:seed"                    # int
+# string, JSON {"world": <metadata.usdscene.world>, "hdri_path": absolute path or "",
+# "sun": {"elevation_rad", "rotation_rad", "irradiance_w_m2"} or null}; only when the document
+# has a world
+ATTR_RENDER_WORLD = "usdscene:render:worldJson"
 
 # Object appearance.
 VARIANT_SET_APPEARANCE = "appearance"
@@ -115,6 +119,9 @@ ATTR_USER_MASK_ID = "userProperties:usdscene_mask_id"      # int, same as ATTR_M
 ATTR_USER_COLOR = "userProperties:usdscene_color"          # double3, exact linear RGB override
 ATTR_CAMERA_DESCRIPTION = "usdscene:camera:description"     # string
 ATTR_CAMERA_CUSTOM = "usdscene:camera:customJson"           # string, JSON of Camera.custom
+# string, JSON {"sensor": <stream_properties.usdscene.sensor>, "seed": <document seed>}; only
+# on cameras with a sensor
+ATTR_CAMERA_SENSOR = "usdscene:camera:sensorJson"
 ATTR_CAMERA_CLIPPING = "usdscene:camera:clippingRangeM"     # double2 (near, far), exact
 # Lights: exact document values beside the UsdLux attributes (the Blender worker sets light
 # energy from these directly).

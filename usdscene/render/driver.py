@@ -174,7 +174,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
            settings_override: RenderSettings | Mapping[str, Any] | None = None,
            progress: bool = True, workers: int | None = None,
            on_event: Callable[[dict], None] | None = None,
-           executor: str | Any = "local", retries: int = DEFAULT_RETRIES) -> RenderReport:
+           executor: str | Any = "local", retries: int = DEFAULT_RETRIES, keep_clean: bool = False) -> RenderReport:
     """Render every requested camera of every requested frame of a composed stage.
 
     Writes ``out/images/<camera>/<frame:06d>.png`` (8-bit sRGB), ``out/masks/<camera>/
@@ -200,6 +200,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
             :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
         retries: how many times a shard whose worker died (a signal such as the OOM killer's
             SIGKILL, a lost node) is run again for its unfinished images, on any slot.
+        keep_clean: for cameras with a sensor, also write the image before the sensor's
+            effects to ``out/images_clean/<camera>/<frame:06d>.png``.
 
     Returns:
         A :class:`RenderReport`.
@@ -222,7 +224,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         executor = make_executor(executor, workers=workers)
 
     cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
-    manifest = _open_manifest(out_dir, plan, settings, cam_json)
+    manifest = _open_manifest(out_dir, plan, settings, cam_json, keep_clean=keep_clean)
     _remove_stale_temporaries(out_dir, camera_list)
     remove_stale_scratch()
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
@@ -241,7 +243,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                                     _seconds_per_image(manifest), retries=int(retries))
                 runner = ShardRunner(executor, queue, tally, bar, out_dir,
                                       functools.partial(shard_job, plan, settings, cam_json,
-                                                        executor.threads_per_worker))
+                                                        executor.threads_per_worker, keep_clean))
                 errors = runner.run()
         finally:
             if tally.totals["retries"]:
@@ -290,13 +292,15 @@ def _checked_selection(plan, stage_path: Path, frames: Sequence[int] | None, cam
     return frame_list, camera_list
 
 
-def _open_manifest(out_dir: Path, plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict]) -> Manifest:
+def _open_manifest(out_dir: Path, plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], *,
+                   keep_clean: bool = False) -> Manifest:
     """The output's manifest of finished pairs, kept only when it was written for the same stage,
     settings (the device aside), cameras and objects."""
     from usdscene.render.stage_reader import stage_digest
 
     print_settings = {k: v for k, v in settings.items() if k != "device"}
     manifest = Manifest.load(out_dir, fingerprint({
+        **({"keep_clean": True} if keep_clean and plan.sensors else {}),
         "stage": stage_digest(plan.stage_path), "settings": print_settings,
         "cameras": {n: {k: v for k, v in c.items()} for n, c in cam_json.items()},
         "objects": [dataclasses.asdict(o) for o in plan.objects],
@@ -325,6 +329,10 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
             "poses": {str(f): list(p.matrix) for f, p in cam.frame_poses if f in wanted},
             "clip_m": [cam.clip_near_m, cam.clip_far_m],
         }
+        # Only cameras with a sensor carry the key: the manifest fingerprint of the others
+        # stays what it was before sensors existed.
+        if name in getattr(plan, "sensors", {}):
+            out[name]["sensor"] = plan.sensors[name]
     return out
 
 

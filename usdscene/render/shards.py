@@ -30,15 +30,20 @@ ASSUMED_SECONDS_PER_IMAGE = 15.0
 
 
 def shard_job(plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], threads: int | None,
-              pairs: Sequence[tuple[int, str]]) -> dict:
+              keep_clean: bool, pairs: Sequence[tuple[int, str]]) -> dict:
     """The worker job (:mod:`usdscene.render.job`) of one shard: its (frame, camera) pairs, the
-    objects present in its frames and the prims to import, without machine-specific paths."""
+    objects present in its frames and the prims to import, without machine-specific paths;
+    ``keep_clean`` asks sensor cameras' workers for the image before the sensor too."""
     frame_set = {f for f, _ in pairs}
     objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
                 "visible_frames": [f for f in o.visible_frames if f in frame_set]}
                for o in plan.objects if frame_set.intersection(o.visible_frames)]
     mask = list(plan.shared_prims) + [o["prim"] for o in objects]
     return {
+        # Only documents with a world, and runs keeping clean images, add keys: other jobs stay
+        # what they were before worlds and sensors existed.
+        **({"world": plan.world} if plan.world is not None else {}),
+        **({"keep_clean": True} if keep_clean else {}),
         "stage": str(plan.stage_path),
         # An empty mask would import everything: name a path that cannot exist.
         "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",

@@ -8,6 +8,8 @@ and travel in the job file.
 from __future__ import annotations
 
 import bisect
+import dataclasses
+import json
 import logging
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -51,6 +53,10 @@ class StagePlan:
         settings: render settings (``/Render/Settings`` attributes over the defaults).
         shared_prims: prims every shard imports (environment, lights, looks; not cameras,
             not objects).
+        world: the ``usdscene:render:worldJson`` of ``/Render/Settings`` decoded
+            (:func:`usdscene.document.imaging.world_stage_json`), None when the stage has none.
+        sensors: camera name → ``usdscene:camera:sensorJson`` decoded (``{"sensor", "seed"}``),
+            for the cameras that have one.
     """
 
     stage_path: Path
@@ -60,6 +66,8 @@ class StagePlan:
     objects: tuple[ObjectEntry, ...]
     settings: RenderSettings
     shared_prims: tuple[str, ...]
+    world: dict | None = None
+    sensors: dict = dataclasses.field(default_factory=dict)
 
     @property
     def frames(self) -> range:
@@ -97,9 +105,34 @@ def read_stage_plan(stage_path: str | Path) -> StagePlan:
                     shared.append(child.GetPath().pathString)
         elif not prim.GetPath().pathString.startswith("/Render"):
             shared.append(prim.GetPath().pathString)
+    world = _json_attr(stage.GetPrimAtPath(names.RENDER_SETTINGS), names.ATTR_RENDER_WORLD, problems)
+    sensors = {}
+    for camera in cameras:
+        prim = stage.GetPrimAtPath(names.CAMERAS).GetChild(camera.name)
+        sensor = _json_attr(prim, names.ATTR_CAMERA_SENSOR, problems) if prim else None
+        if sensor is not None:
+            sensors[camera.name] = sensor
     if problems:
         raise RenderError(problems)
-    return StagePlan(path, start, end, tuple(cameras), tuple(objects), settings, tuple(shared))
+    return StagePlan(path, start, end, tuple(cameras), tuple(objects), settings, tuple(shared), world, sensors)
+
+
+def _json_attr(prim, name: str, problems: list[Problem]) -> dict | None:
+    """A string attribute holding a JSON object (None when the prim or attribute is absent)."""
+    if not prim:
+        return None
+    text = _attr(prim, name)
+    if text is None:
+        return None
+    try:
+        value = json.loads(str(text))
+    except ValueError as exc:
+        problems.append(Problem(f"{prim.GetPath()}.{name}", f"not JSON: {exc}"))
+        return None
+    if not isinstance(value, dict):
+        problems.append(Problem(f"{prim.GetPath()}.{name}", "expected a JSON object"))
+        return None
+    return value
 
 
 def recorded_source(stage_path: str | Path) -> tuple[Path | None, str]:

@@ -100,6 +100,7 @@ class Session:
             self._enable_gpu()
         self._import_stage()
         self._setup_render()
+        self._setup_imaging()
 
     # ---------------------------------------------------------------------------------------
     def _setup_scene(self) -> None:
@@ -232,6 +233,127 @@ class Session:
         scene.collection.objects.link(self.camera)
         scene.camera = self.camera
 
+    def _setup_imaging(self) -> None:
+        """The document's world (background, sky or HDRI, view transform) and the cameras'
+        render-time sensor parts (shutter, IR illuminator). Nothing is touched for a stage
+        without them, so its images stay byte-identical to before they existed."""
+        from usdscene.document.imaging import Sensor, World, spec_from_json
+
+        self.world = None
+        self.world_at = None
+        self.display_png = self.scratch / f"display-{os.getpid()}.png"
+        self.sensors = {name: (spec_from_json(Sensor, cam["sensor"]["sensor"]), int(cam["sensor"]["seed"]))
+                        for name, cam in self.job["cameras"].items() if "sensor" in cam}
+        self.ir_light = None
+        self._shutter = 0.0
+        world_job = self.job.get("world")
+        if world_job is None:
+            return
+        self.world = spec_from_json(World, world_job["world"])
+        self.world_job = world_job
+        self._build_world()
+
+    def _build_world(self) -> None:
+        """A world node tree of our own (it replaces a dome light's world: the document's world
+        is what the user asked for): Background ← colour, sky texture or environment image."""
+        from usdscene.document.imaging import SKY_KINDS, SKY_PER_SUN_IRRADIANCE
+
+        bpy, world = self.bpy, self.world
+        bworld = bpy.data.worlds.new("usdscene_world")
+        self.scene.world = bworld
+        nodes, links = bworld.node_tree.nodes, bworld.node_tree.links
+        self.background = nodes["Background"]
+        self.sky_node = self.env_mapping = None
+        self.strength_scale = 1.0
+        if world.sky:
+            sky = nodes.new("ShaderNodeTexSky")
+            sky.sky_type = SKY_KINDS[world.sky]
+            # The sun light lights the scene; a sun disc in the sky too would light it twice.
+            sky.sun_disc = False
+            sun = self.world_job["sun"]
+            sky.sun_elevation = float(sun["elevation_rad"])
+            sky.sun_rotation = float(sun["rotation_rad"])
+            links.new(sky.outputs["Color"], self.background.inputs["Color"])
+            self.sky_node = sky
+            self.strength_scale = float(sun["irradiance_w_m2"]) * SKY_PER_SUN_IRRADIANCE
+        elif world.hdri:
+            env = nodes.new("ShaderNodeTexEnvironment")
+            env.image = bpy.data.images.load(self.world_job["hdri_path"], check_existing=True)
+            coords = nodes.new("ShaderNodeTexCoord")
+            mapping = nodes.new("ShaderNodeMapping")
+            links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+            links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+            links.new(env.outputs["Color"], self.background.inputs["Color"])
+            self.env_mapping = mapping
+        else:
+            self.background.inputs["Color"].default_value = (*world.color_rgb, 1.0)
+            bworld.color = world.color_rgb
+        bworld.light_settings.distance = float(self.job["settings"]["fast_gi_distance_m"])
+        view = self.scene.view_settings
+        if world.view_transform != "standard":
+            from usdscene.document.imaging import VIEW_TRANSFORMS
+
+            view.view_transform = VIEW_TRANSFORMS[world.view_transform]
+        self._apply_world(self.current_frame if self.current_frame is not None else 0)
+
+    def _apply_world(self, frame: int) -> None:
+        """Set the world's per-frame values (only what changed: each change re-syncs the world)."""
+        import math
+
+        at = self.world.at_frame(frame)
+        if at == self.world_at:
+            return
+        strength = at.strength * self.strength_scale
+        if self.background.inputs["Strength"].default_value != strength:
+            self.background.inputs["Strength"].default_value = strength
+        if self.sky_node is not None:
+            for name, value in (("air_density", at.air_density), ("aerosol_density", at.aerosol_density),
+                                ("ozone_density", at.ozone_density), ("altitude", at.altitude_m)):
+                if getattr(self.sky_node, name) != value:
+                    setattr(self.sky_node, name, value)
+        if self.env_mapping is not None:
+            self.env_mapping.inputs["Rotation"].default_value[2] = math.radians(at.hdri_rotation_deg)
+        if at.view_transform != "standard":
+            self.scene.view_settings.exposure = at.exposure_ev
+        self.world_at = at
+
+    def _apply_camera_sensor(self, name: str) -> None:
+        """Shutter (Cycles motion blur, centred on the frame: labels are at the frame time) and
+        the IR illuminator of the camera about to render; reset for cameras without them."""
+        from usdscene.document.imaging import ir_illuminator_power_w
+
+        sensor = self.sensors.get(name, (None, 0))[0]
+        shutter = sensor.shutter_frames if sensor is not None else 0.0
+        if shutter != self._shutter:
+            render = self.scene.render
+            render.use_motion_blur = shutter > 0
+            if shutter > 0:
+                render.motion_blur_shutter = shutter
+                render.motion_blur_position = "CENTER"
+            self._shutter = shutter
+        ir = sensor is not None and sensor.ir_night
+        if ir and self.ir_light is None:
+            data = self.bpy.data.lights.new("usdscene_ir_illuminator", type="SPOT")
+            data.shadow_soft_size = 0.02
+            self.ir_light = self.bpy.data.objects.new("usdscene_ir_illuminator", data)
+            self.scene.collection.objects.link(self.ir_light)
+            # At the camera, shining along its view axis (-Z of both).
+            self.ir_light.parent = self.camera
+        if self.ir_light is not None:
+            if ir:
+                import math
+
+                render_intr = self.job["cameras"][name]["render_intrinsics"]
+                if render_intr.get("fov_deg"):  # a fisheye: its image circle
+                    field = math.radians(float(render_intr["fov_deg"]))
+                else:
+                    w, h, fx = render_intr["width_px"], render_intr["height_px"], render_intr["fx_px"]
+                    field = 2.0 * math.atan(math.hypot(w, h) / 2.0 / fx)  # the diagonal
+                self.ir_light.data.spot_size = min(math.pi, field + math.radians(10.0))
+                self.ir_light.data.energy = ir_illuminator_power_w(sensor.ir_range_m)
+            if self.ir_light.hide_render == ir:
+                self.ir_light.hide_render = not ir
+
     def _enable_gpu(self) -> None:
         """Let Cycles render on every GPU of the first backend that has one.
 
@@ -272,6 +394,8 @@ class Session:
             self.hidden[o["uid"]] = hide
             for ob in members:
                 ob.hide_render = hide
+        if self.world is not None:
+            self._apply_world(frame)
         self.current_frame = frame
 
     def set_camera(self, name: str, frame: int) -> None:
@@ -293,6 +417,8 @@ class Session:
         if render != getattr(self, "_lens", None):
             apply_intrinsics(self.scene, data, render)
             self._lens = render
+        if self.sensors or self._shutter or self.ir_light is not None:
+            self._apply_camera_sensor(name)
 
     def render_image(self, frame: int, camera: str):
         """Render one (frame, camera) and decode it.
@@ -308,14 +434,58 @@ class Session:
         self.bpy.ops.render.render(write_still=True)
         rendered, cpu_rendered = time.perf_counter(), time.process_time()
         rgb, ids = read_exr(self.exr_path)
+        if self.world_at is not None:
+            rgb = self._display(rgb)
         return rgb, ids, {"render_s": rendered - started, "render_cpu_s": cpu_rendered - cpu_started,
                           "decode_s": time.perf_counter() - rendered}
 
+    def _display(self, rgb):
+        """The world's exposure and view transform: Standard is the sRGB curve of
+        :func:`linear_to_srgb8` after ``2^exposure_ev``; AgX and Filmic come from Blender's
+        colour management (the render result saved as an 8-bit PNG, read back).
+
+        Returns:
+            (H, W, 3) float32 linear (Standard) or uint8 sRGB (AgX, Filmic).
+        """
+        at = self.world_at
+        if at.view_transform == "standard":
+            return rgb * float(2.0 ** at.exposure_ev) if at.exposure_ev else rgb
+        import cv2
+
+        image = self.scene.render.image_settings
+        saved = (image.media_type, image.file_format, image.color_depth)
+        image.media_type, image.file_format, image.color_depth = "IMAGE", "PNG", "8"
+        try:
+            self.bpy.data.images["Render Result"].save_render(str(self.display_png), scene=self.scene)
+        finally:
+            image.media_type, image.file_format = saved[0], saved[1]
+            image.color_depth = saved[2]
+        display = cv2.imread(str(self.display_png), cv2.IMREAD_COLOR)
+        if display is None:
+            raise RuntimeError(f"{self.display_png}: the view-transformed image could not be read back")
+        return display[:, :, ::-1].copy()
+
     def write_image(self, frame: int, camera: str, rgb, ids) -> dict:
-        """Remap / mask out, encode and write atomically (runs beside the next render)."""
+        """Remap / mask out, apply the camera's sensor, encode and write atomically (runs
+        beside the next render)."""
+        import numpy as np
+
         started, cpu_started = time.perf_counter(), time.thread_time()
         rgb, ids = self._finish(camera, rgb, ids)
-        write_outputs(Path(self.job["out_dir"]), camera, frame, rgb, ids)
+        image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
+        clean = None
+        if camera in self.sensors:
+            from usdscene.document.imaging import image_seed
+            from usdscene.render.sensor import apply_sensor, has_effect
+
+            sensor, seed = self.sensors[camera]
+            at = sensor.at_frame(frame)
+            if has_effect(at):
+                clean = image if self.job.get("keep_clean") else None
+                image = apply_sensor(image, at, np.random.default_rng(image_seed(seed, camera, frame)))
+            elif self.job.get("keep_clean"):
+                clean = image
+        write_display_outputs(Path(self.job["out_dir"]), camera, frame, image, ids, clean=clean)
         return {"post_s": time.perf_counter() - started, "post_cpu_s": time.thread_time() - cpu_started}
 
     def render_pair(self, frame: int, camera: str) -> dict:
@@ -439,17 +609,28 @@ def linear_to_srgb8(rgb):
 
 
 def write_outputs(out_dir: Path, camera: str, frame: int, rgb, ids) -> None:
-    """Write the image (8-bit sRGB PNG) and the mask (uint16 PNG) atomically."""
+    """Write the image (8-bit sRGB PNG of the (H, W, 3) linear ``rgb``) and the mask (uint16
+    PNG) atomically."""
+    write_display_outputs(out_dir, camera, frame, linear_to_srgb8(rgb), ids)
+
+
+def write_display_outputs(out_dir: Path, camera: str, frame: int, image, ids, *, clean=None) -> None:
+    """Write the image ((H, W, 3) uint8 sRGB, RGB order), the mask (uint16 PNG) and, when
+    given, the clean image before the sensor's effects, atomically."""
     import cv2
 
     from usdscene.document import output_layout as layout
     from usdscene.files import write_bytes_atomic
 
-    ok, image_png = cv2.imencode(".png", linear_to_srgb8(rgb)[:, :, ::-1],
-                                 [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    ok, image_png = cv2.imencode(".png", image[:, :, ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
     ok2, mask_png = cv2.imencode(".png", ids, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     if not (ok and ok2):
         raise RuntimeError(f"PNG encoding failed for {camera} frame {frame}")
+    if clean is not None:
+        ok3, clean_png = cv2.imencode(".png", clean[:, :, ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        if not ok3:
+            raise RuntimeError(f"PNG encoding failed for {camera} frame {frame}")
+        write_bytes_atomic(layout.clean_image_path(out_dir, camera, frame), clean_png.tobytes())
     # Mask first: a pair counts as done only when both exist, and the driver records it only
     # after this returns.
     write_bytes_atomic(layout.mask_path(out_dir, camera, frame), mask_png.tobytes())

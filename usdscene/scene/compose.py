@@ -480,6 +480,10 @@ def _render_layer(scene: SceneSpec) -> str:
             (ss.ATTR_RENDER_RESOLUTION, T.Int2, Gf.Vec2i(*rs.resolution_px)),
             (ss.ATTR_RENDER_SEED, T.Int, int(rs.seed))):
         _attr(settings, name, type_name, value, custom=True)
+    if scene.world is not None:
+        from usdscene.document.imaging import world_stage_json
+
+        _attr(settings, ss.ATTR_RENDER_WORLD, T.String, world_stage_json(scene), custom=True)
     rel = Sdf.RelationshipSpec(settings, "products", custom=False)
     for cam in scene.cameras:
         product = _prim(products, ss.prim_name(cam.name), "RenderProduct")
@@ -557,6 +561,12 @@ def _cameras_layer(scene: SceneSpec) -> str:
         _attr(prim, ss.ATTR_CAMERA_MODEL_NAME, T.String, cam.model_name, custom=True)
         _attr(prim, ss.ATTR_CAMERA_DESCRIPTION, T.String, cam.description, custom=True)
         _attr(prim, ss.ATTR_CAMERA_CUSTOM, T.String, json.dumps(dict(cam.custom), sort_keys=True), custom=True)
+        if cam.sensor is not None:
+            from usdscene.document.imaging import spec_to_json
+
+            _attr(prim, ss.ATTR_CAMERA_SENSOR, T.String,
+                  json.dumps({"sensor": spec_to_json(cam.sensor), "seed": int(scene.seed)}, sort_keys=True),
+                  custom=True)
     return layer.ExportToString()
 
 
