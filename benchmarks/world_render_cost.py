@@ -44,7 +44,7 @@ def document(world: dict | None, frames: int, samples: int, width: int) -> dict:
 
 
 def main() -> None:
-    from usdscene.pipeline import run_pipeline
+    from usdscene.pipeline import RunOptions, run_pipeline
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
@@ -72,7 +72,7 @@ def main() -> None:
         path = folder / "scene.openlabel.json"
         folder.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(document(world, args.frames, args.samples, args.width)))
-        run_pipeline(path, folder / "out", exports=[], progress=False)
+        run_pipeline(path, folder / "out", RunOptions(exports=[]), progress=False)
         manifest = json.loads((folder / "out" / "manifest.json").read_text())
         times = [manifest["done"]["pole_north"][str(f)]["render_s"] for f in range(args.frames)]
         results[name] = (times[0], float(np.mean(times[1:])) if len(times) > 1 else float("nan"))

@@ -85,7 +85,7 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
 
 def main() -> None:
     from usdscene.converters.openlabel import write_document
-    from usdscene.pipeline import run_pipeline
+    from usdscene.pipeline import RunOptions, run_pipeline
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
@@ -96,7 +96,7 @@ def main() -> None:
         doc_path = CAR_PARK / ("sensor_views_night.openlabel.json" if night else "sensor_views.openlabel.json")
         write_document(doc_path, _document(cameras, night=night, samples=args.samples))
         out = args.out / part
-        run_pipeline(doc_path, out, frames=[1], exports=[], progress=False)
+        run_pipeline(doc_path, out, RunOptions(frames=[1], exports=[]), progress=False)
         for name, (_, label) in cameras.items():
             image = cv2.imread(str(layout.image_path(out, name, 1)), cv2.IMREAD_COLOR)
             tiles.append((label, image))
