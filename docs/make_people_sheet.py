@@ -24,8 +24,8 @@ def build_stage(folder: Path, library: Path | None) -> Path:
     """Write ``folder/scene.usda``; returns its path."""
     from pxr import Gf, Usd, UsdGeom
 
-    from usdscene import stage_schema as ss
-    from usdscene.catalog import load_catalog
+    from usdscene.document import stage_schema as ss
+    from usdscene.scene.catalog import load_catalog
 
     catalog = load_catalog([library] if library else None)
     person, passenger = catalog["person"], catalog["passenger"]

@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 
 PEOPLE_FOLDER = "people"
 ENTRIES_FILE = "catalog_entries.json"
+LICENCES_FILE = "LICENSES.md"
 SEAT_FLOOR_BELOW_HIP_M = 0.45
 """Passengers: the floor is this far below the cushion top (the cabin's cushion height)."""
 BACKREST_Y_M = 0.20
@@ -208,7 +209,7 @@ STANDING_POSES: dict[str, Callable[[], tuple[Directions, dict]]] = {
 
 def _seated(spine_back: float, lean: float, head: tuple[float, float, float],
             arms: Mapping[str, tuple[float, float, float]], knees_apart: float = 0.0) -> tuple[Directions, dict]:
-    d: Directions = dict(_mirror({"thigh_l": (0.06 + knees_apart, -1.0, -0.04)}))
+    d: Directions = dict(_mirror({"thigh_l": (0.06 + knees_apart, -1.0, 0.05)}))
     spine = (lean, spine_back, 1.0)
     d.update({"spine_01": spine, "spine_02": spine, "spine_03": spine, "neck_01": (lean * 0.5, spine_back * 0.3, 1.0),
               "head": head})
@@ -243,11 +244,13 @@ class BakedBody:
         spec: the body.
         face_material: (F,) index into :data:`MATERIALS` per low-poly face.
         poses: pose name → (points (N, 3), keypoints (17, 3)), asset frame, metres.
+        vertex_bones: (N,) the bone that moves each vertex most (str).
     """
 
     spec: BodySpec
     face_material: np.ndarray
     poses: Mapping[str, tuple[np.ndarray, np.ndarray]]
+    vertex_bones: np.ndarray
 
 
 def _dominant_bones(weights: np.ndarray, names: tuple[str, ...]) -> list[str]:
@@ -354,6 +357,7 @@ def bake_body(src: bm.SourceData, binding: bm.LowPolyBinding, spec: BodySpec, se
     materials = face_regions(binding, rest, weights, skel, spec, sources["head"][1][1:3])
     rest = _hair_volume(rest, binding, materials, 0.018 if spec.long_hair else 0.009)
     poses = {}
+    centre = None  # standing: every pose shares the standing footprint's centre as origin
     for name, make in (SEATED_POSES if seated else STANDING_POSES).items():
         directions, twists = make()
         if seated:
@@ -362,12 +366,14 @@ def bake_body(src: bm.SourceData, binding: bm.LowPolyBinding, spec: BodySpec, se
             t = bm.pose_transforms(skel, directions, twists)
             points = bm.skin(rest, weights, t)
             keypoints = _posed_keypoints(skel, sources, t)
-            # Origin on the floor below the hips; the lowest sole touches the floor.
-            offset = np.array([-skel.heads[skel.index("pelvis")][0], -skel.heads[skel.index("pelvis")][1],
-                               -points[:, 2].min()])
+            # Origin on the floor at the centre of the standing pose's footprint, fixed to the
+            # hips for every pose (a walk cycle does not jitter); the lowest sole on the floor.
+            if centre is None:
+                centre = (points[:, :2].min(axis=0) + points[:, :2].max(axis=0)) / 2.0
+            offset = np.array([-centre[0], -centre[1], -points[:, 2].min()])
             points, keypoints = points + offset, keypoints + offset
         poses[name] = (points, keypoints)
-    return BakedBody(spec, materials, poses)
+    return BakedBody(spec, materials, poses, np.asarray(_dominant_bones(weights, skel.names)))
 
 
 def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dict, directions: Directions,
@@ -379,11 +385,14 @@ def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dic
     back_part = np.array([b.startswith("spine") for b in bones])
     feet = np.array([b.startswith(("foot", "ball", "calf")) for b in bones])
     best = None
-    for shin_deg in np.arange(0.0, 61.0, 2.0):
+    # Long legs: the shins lean forward until the soles are on the floor; short legs: the shins
+    # hang straight and the feet point down until the toes touch it.
+    tries = [(0.0, toe) for toe in np.arange(80.0, 19.0, -4.0)] + [(shin, 20.0) for shin in np.arange(2.0, 61.0, 2.0)]
+    for shin_deg, toe_deg in tries:
         d = dict(directions)
         for side, sign in (("l", 1.0), ("r", -1.0)):
             d[f"calf_{side}"] = _sagittal(shin_deg, sign * 0.02)
-            d[f"foot_{side}"] = (sign * 0.05, -1.0, -0.35)
+            d[f"foot_{side}"] = (sign * 0.05, -float(np.cos(np.radians(toe_deg))), -float(np.sin(np.radians(toe_deg))))
         t = bm.pose_transforms(skel, d, twists)
         pts = bm.skin(rest, weights, t)
         hips = pts[seat_part]
@@ -393,7 +402,7 @@ def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dic
         z0 = under[:, 2].min()
         drop = z0 - pts[feet][:, 2].min()
         best = (t, pts, z0)
-        if drop <= SEAT_FLOOR_BELOW_HIP_M:
+        if drop <= SEAT_FLOOR_BELOW_HIP_M + 0.005:
             break
     t, pts, z0 = best
     keypoints = _posed_keypoints(skel, sources, t)
@@ -416,7 +425,7 @@ def write_people_asset(folder: Path, class_name: str, binding: bm.LowPolyBinding
     (path, extent (lo, hi) of the default variants)."""
     from pxr import Gf, Kind, Sdf, UsdGeom, UsdShade, Vt
 
-    from usdscene import stage_schema as ss
+    from usdscene.document import stage_schema as ss
     from usdscene.assetgen.usd_write import MaterialSpec, define_material, new_asset_stage, save_stage, set_material_color
 
     stage, root = new_asset_stage(class_name, Kind.Tokens.component)
@@ -432,6 +441,10 @@ def write_people_asset(folder: Path, class_name: str, binding: bm.LowPolyBinding
     mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(binding.face_indices.astype(np.int32)))
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
     mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    # Every face has exactly one material; the mesh's own binding is the fallback renderers
+    # and checkers see first.
+    UsdGeom.Subset.SetFamilyType(mesh, UsdShade.Tokens.materialBind, UsdGeom.Tokens.partition)
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(materials["Skin"])
     # Face regions differ per body (hair length, proportions): subsets are authored per appearance.
     kp_attr = root.CreateAttribute(KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray)
     kp_attr.SetCustomDataByKey("usdscene:names", Vt.StringArray(list(COCO_KEYPOINTS)))
@@ -467,7 +480,7 @@ def write_people_asset(folder: Path, class_name: str, binding: bm.LowPolyBinding
     _select(root, ss.VARIANT_SET_POSE, default_pose)
     path = folder / PEOPLE_FOLDER / f"{class_name}.usda"
     save_stage(stage, path)
-    pts = bodies[0].poses[default_pose][0]
+    pts = np.round(bodies[0].poses[default_pose][0], POINT_DECIMALS)  # as written
     return path, (pts.min(axis=0), pts.max(axis=0))
 
 
@@ -500,9 +513,9 @@ def bake_people(folder: str | Path, data: str | Path | None = None) -> list[Path
     Returns:
         The written files.
     """
-    from usdscene.catalog import AssetEntry, entry_to_json
-    from usdscene.files import write_json_atomic, write_text_atomic
-    from usdscene import stage_schema as ss
+    from usdscene.scene.catalog import AssetEntry, entry_to_json
+    from usdscene.files import write_json_atomic
+    from usdscene.document import stage_schema as ss
 
     root = Path(folder)
     src = bm.load_source(bm.find_source_data(data))
@@ -513,8 +526,8 @@ def bake_people(folder: str | Path, data: str | Path | None = None) -> list[Path
     entries = []
     for class_name, seated, default_pose, kind, description in (
             ("person", False, "standing", "object",
-             "Standing or walking adult (24 bodies, MakeHuman/MPFB2 data). Origin on the floor below the hips, "
-             "facing -Y."),
+             "Standing or walking adult (24 bodies, MakeHuman/MPFB2 data). Origin on the floor at the centre "
+             "of the standing footprint (the same point under the hips in every pose), facing -Y."),
             ("passenger", True, "upright", "passenger",
              "Seated adult passenger (24 bodies, MakeHuman/MPFB2 data). Origin at the seated hip contact point "
              f"on the cushion, facing -Y, the floor {SEAT_FLOOR_BELOW_HIP_M} m below.")):
@@ -527,7 +540,7 @@ def bake_people(folder: str | Path, data: str | Path | None = None) -> list[Path
         poses = tuple((SEATED_POSES if seated else STANDING_POSES))
         extra = {}
         if seated:
-            extra["variant_places"] = {"appearance+pose": lap_places(baked)}
+            extra["variant_places"] = lap_places(baked)
         entries.append(AssetEntry(
             class_name=class_name, kind=kind, usd_path=path,
             description=description + f" Recolour the top: {ss.ASSET_COLOR_SHADER}.{ss.ATTR_ASSET_COLOR}.",
@@ -541,6 +554,150 @@ def bake_people(folder: str | Path, data: str | Path | None = None) -> list[Path
     return written
 
 
-def lap_places(baked: list[BakedBody]) -> dict:
-    """Placeholder replaced below."""
-    return {}
+LAP_PLACE = "lap"
+LAP_MIN_CLEARANCE_M = 0.03
+"""Free height above the thighs a lap needs (a magazine, a phone, a closed laptop)."""
+LAP_CELL_M = 0.01
+LAP_MARGIN_M = 0.015
+"""Vertices block the grid cells this close (the low-poly mesh has a vertex every 2-4 cm)."""
+LAP_MAX_CLEARANCE_M = 0.25
+LAP_SAG_M = 0.05
+"""The lap reaches forward to the last thigh point this close below the crest (the knees):
+rigid things lie on the crest, whatever the thighs do below it."""
+_LAP_SUPPORT = ("thigh",)
+_LAP_FLOOR = ("pelvis", "spine_01", "Root")
+_LAP_IGNORED = ("thigh", "calf", "foot", "ball")
+
+
+def lap_region(points: np.ndarray, bones: np.ndarray):
+    """The lap of one seated body: the largest box resting on the thighs' crest that no other
+    body part (hands, forearms, belly) reaches into.
+
+    Args:
+        points: (N, 3) posed vertices, asset frame (facing -Y), metres.
+        bones: (N,) dominant bone name per vertex.
+
+    Returns:
+        The ``is_on`` :class:`usdscene.catalog.PlaceRegion` (region frame: Z up, its -Y
+        towards the body's front), or None when no box of :data:`LAP_MIN_CLEARANCE_M` fits.
+    """
+    from usdscene.scene.catalog import PlaceRegion
+    from usdscene.document.model import Pose as PoseMatrix
+
+    # Work facing +X (forward = -Y of the asset): x from the belly to the knees, y across.
+    fwd = np.stack([-points[:, 1], points[:, 0], points[:, 2]], axis=1)
+    starts = np.char.startswith
+    support = fwd[np.any([starts(bones, b) for b in _LAP_SUPPORT], axis=0)]
+    belly = fwd[np.any([starts(bones, b) for b in _LAP_FLOOR], axis=0)]
+    others = fwd[~np.any([starts(bones, b) for b in _LAP_IGNORED], axis=0)]
+    surface = float(support[:, 2].max())
+    x0 = float(belly[belly[:, 2] >= surface, 0].max()) if (belly[:, 2] >= surface).any() else float(belly[:, 0].max())
+    top = support[support[:, 2] >= surface - LAP_SAG_M]
+    x1 = float(top[:, 0].max())
+    y0, y1 = float(support[:, 1].min()), float(support[:, 1].max())
+    nx, ny = int((x1 - x0) // LAP_CELL_M), int((y1 - y0) // LAP_CELL_M)
+    if nx <= 0 or ny <= 0:
+        return None
+    free = np.full((nx, ny), np.inf)  # free height above the surface per cell, metres
+    for p in others:
+        i0 = int(np.floor((p[0] - LAP_MARGIN_M - x0) / LAP_CELL_M))
+        i1 = int(np.floor((p[0] + LAP_MARGIN_M - x0) / LAP_CELL_M))
+        j0 = int(np.floor((p[1] - LAP_MARGIN_M - y0) / LAP_CELL_M))
+        j1 = int(np.floor((p[1] + LAP_MARGIN_M - y0) / LAP_CELL_M))
+        if i1 < 0 or j1 < 0 or i0 >= nx or j0 >= ny:
+            continue
+        cells = free[max(i0, 0):i1 + 1, max(j0, 0):j1 + 1]
+        np.minimum(cells, p[2] - surface, out=cells)
+    best = None  # (area cells, clearance, i0, i1, j0, j1)
+    for j0 in range(ny):
+        column = np.full(nx, np.inf)
+        for j1 in range(j0, ny):
+            column = np.minimum(column, free[:, j1])
+            ok = column >= LAP_MIN_CLEARANCE_M
+            i = 0
+            while i < nx:
+                if not ok[i]:
+                    i += 1
+                    continue
+                k = i
+                while k < nx and ok[k]:
+                    k += 1
+                area = (k - i) * (j1 - j0 + 1)
+                clearance = float(column[i:k].min())
+                if best is None or (area, clearance) > best[:2]:
+                    best = (area, clearance, i, k, j0, j1 + 1)
+                i = k
+    if best is None:
+        return None
+    _, clearance, i0, i1, j0, j1 = best
+    cx, cy = x0 + (i0 + i1) / 2.0 * LAP_CELL_M, y0 + (j0 + j1) / 2.0 * LAP_CELL_M
+    length, width = (i1 - i0) * LAP_CELL_M, (j1 - j0) * LAP_CELL_M
+    # The thighs' highest point may lie outside the footprint (by the hips): what holds an
+    # object is the highest leg point under it.
+    under = support[(np.abs(support[:, 0] - cx) <= length / 2) & (np.abs(support[:, 1] - cy) <= width / 2)]
+    if len(under):
+        floor = float(under[:, 2].max())
+        clearance += surface - floor
+        surface = floor
+    clearance = min(clearance, LAP_MAX_CLEARANCE_M)
+    matrix = np.eye(4)  # back to the asset frame: (x, y) → (y, -x), sizes swap
+    matrix[:3, 3] = [round(cy, 4) + 0.0, round(-cx, 4) + 0.0, round(surface, 4) + 0.0]
+    return PlaceRegion(relation="is_on", pose=PoseMatrix.from_matrix(matrix.reshape(16).tolist()),
+                       size_m=(round(width, 4), round(length, 4), round(clearance, 4)))
+
+
+def lap_places(baked: list[BakedBody]) -> dict[str, dict[str, dict]]:
+    """``variant_places`` of the passenger: ``pose+appearance`` → ``<pose>+<body>`` → the
+    exact lap of that body in that pose; ``pose`` → pose → a lap every body offers (its
+    footprint the smallest, centred on the mean, at the mean crest height) for planning."""
+    from usdscene.scene.catalog import COMBINED_SETS, Place, PlaceRegion
+    from usdscene.document.model import Pose as PoseMatrix
+    from usdscene.document import stage_schema as ss
+
+    exact: dict[str, dict] = {}
+    per_pose: dict[str, list] = {}
+    for body in baked:
+        for pose, (points, _) in body.poses.items():
+            region = lap_region(points, body.vertex_bones)
+            key = f"{pose}{COMBINED_SETS}{body.spec.name}"
+            exact[key] = {LAP_PLACE: Place(LAP_PLACE, LAP_PLACE, {"is_on": region})} if region else {}
+            per_pose.setdefault(pose, []).append(region)
+    planning: dict[str, dict] = {}
+    for pose, regions in per_pose.items():
+        if any(r is None for r in regions):
+            planning[pose] = {}
+            continue
+        centre = np.mean([r.pose.as_array()[:3, 3] for r in regions], axis=0)
+        size = np.min([r.size_m for r in regions], axis=0)
+        matrix = np.eye(4)
+        matrix[:3, 3] = np.round(centre, 4) + 0.0
+        region = PlaceRegion("is_on", PoseMatrix.from_matrix(matrix.reshape(16).tolist()),
+                             tuple(round(float(v), 4) + 0.0 for v in size))
+        planning[pose] = {LAP_PLACE: Place(LAP_PLACE, LAP_PLACE, {"is_on": region})}
+    return {ss.VARIANT_SET_POSE: planning,
+            f"{ss.VARIANT_SET_POSE}{COMBINED_SETS}{ss.VARIANT_SET_APPEARANCE}": dict(sorted(exact.items()))}
+
+
+def baked_people_entries(folder: str | Path) -> tuple[list, list[Path]]:
+    """Catalog entries of the baked people classes for a library build into ``folder``, and
+    the other files of ``folder/people/`` (entries, licences).
+
+    The bake needs the body data (extra ``people-build``); an ordinary build reuses the baked
+    files: those in ``folder/people/``, else the shipped library's, copied there.
+    """
+    import shutil
+
+    from usdscene.scene.catalog import entry_from_json
+    from usdscene.shipped import shipped_folder
+
+    root = Path(folder)
+    target = root / PEOPLE_FOLDER
+    if not (target / ENTRIES_FILE).exists():
+        shipped = shipped_folder("assets") / PEOPLE_FOLDER
+        target.mkdir(parents=True, exist_ok=True)
+        for path in sorted(shipped.iterdir()):
+            if path.is_file():
+                shutil.copyfile(path, target / path.name)
+    raw = json.loads((target / ENTRIES_FILE).read_text(encoding="utf-8"))
+    entries = [entry_from_json(name, entry, root) for name, entry in sorted(raw.items())]
+    return entries, [target / ENTRIES_FILE, target / LICENCES_FILE]
