@@ -564,6 +564,8 @@ LAP_MAX_CLEARANCE_M = 0.25
 LAP_SAG_M = 0.05
 """The lap reaches forward to the last thigh point this close below the crest (the knees):
 rigid things lie on the crest, whatever the thighs do below it."""
+LAP_OVERHANG_M = 0.10
+"""A lap reaches this far in front of the knees (a laptop on a short person's lap overhangs)."""
 _LAP_SUPPORT = ("thigh",)
 _LAP_FLOOR = ("pelvis", "spine_01", "Root")
 _LAP_IGNORED = ("thigh", "calf", "foot", "ball")
@@ -593,7 +595,7 @@ def lap_region(points: np.ndarray, bones: np.ndarray):
     surface = float(support[:, 2].max())
     x0 = float(belly[belly[:, 2] >= surface, 0].max()) if (belly[:, 2] >= surface).any() else float(belly[:, 0].max())
     top = support[support[:, 2] >= surface - LAP_SAG_M]
-    x1 = float(top[:, 0].max())
+    x1 = float(top[:, 0].max()) + LAP_OVERHANG_M
     y0, y1 = float(support[:, 1].min()), float(support[:, 1].max())
     nx, ny = int((x1 - x0) // LAP_CELL_M), int((y1 - y0) // LAP_CELL_M)
     if nx <= 0 or ny <= 0:
