@@ -33,6 +33,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from usdscene.assetgen import body_model as bm
+from usdscene.labels.keypoints import COCO_KEYPOINTS
 
 log = logging.getLogger(__name__)
 
@@ -43,14 +44,6 @@ SEAT_FLOOR_BELOW_HIP_M = 0.45
 """Passengers: the floor is this far below the cushion top (the cabin's cushion height)."""
 BACKREST_Y_M = 0.20
 """Passengers: the back of the torso touches the backrest this far behind the origin (+Y)."""
-
-COCO_KEYPOINTS = ("nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder",
-                  "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
-                  "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle")
-"""The 17 COCO keypoints in COCO order (left = the person's left)."""
-COCO_SKELETON = ((16, 14), (14, 12), (17, 15), (15, 13), (12, 13), (6, 12), (7, 13), (6, 7), (6, 8),
-                 (7, 9), (8, 10), (9, 11), (2, 3), (1, 2), (1, 3), (2, 4), (3, 5), (4, 6), (5, 7))
-"""COCO's person skeleton: pairs of 1-based keypoint indices."""
 
 SKIN_TONES = {  # linear RGB, lightest to darkest
     "tone1": (0.78, 0.55, 0.44), "tone2": (0.66, 0.43, 0.31), "tone3": (0.53, 0.33, 0.21),
@@ -413,8 +406,6 @@ def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dic
 
 # --- USD ------------------------------------------------------------------------------------
 
-KEYPOINTS_ATTR = "usdscene:keypoints"
-"""point3f[17] on the asset's default prim: COCO-17 keypoints in the asset frame, metres."""
 POINT_DECIMALS = 3   # a millimetre: plenty for a person, and it keeps the files small
 NORMAL_DECIMALS = 2
 
@@ -446,7 +437,7 @@ def write_people_asset(folder: Path, class_name: str, binding: bm.LowPolyBinding
     UsdGeom.Subset.SetFamilyType(mesh, UsdShade.Tokens.materialBind, UsdGeom.Tokens.partition)
     UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(materials["Skin"])
     # Face regions differ per body (hair length, proportions): subsets are authored per appearance.
-    kp_attr = root.CreateAttribute(KEYPOINTS_ATTR, Sdf.ValueTypeNames.Point3fArray)
+    kp_attr = root.CreateAttribute(ss.ATTR_KEYPOINTS, Sdf.ValueTypeNames.Point3fArray)
     kp_attr.SetCustomDataByKey("usdscene:names", Vt.StringArray(list(COCO_KEYPOINTS)))
 
     def vec3(values: np.ndarray, decimals: int) -> Vt.Vec3fArray:
