@@ -42,8 +42,6 @@ ENTRIES_FILE = "catalog_entries.json"
 LICENCES_FILE = "LICENSES.md"
 SEAT_FLOOR_BELOW_HIP_M = 0.45
 """Passengers: the floor is this far below the cushion top (the cabin's cushion height)."""
-BACKREST_Y_M = 0.20
-"""Passengers: the back of the torso touches the backrest this far behind the origin (+Y)."""
 
 SKIN_TONES = {  # linear RGB, lightest to darkest
     "tone1": (0.78, 0.55, 0.44), "tone2": (0.66, 0.43, 0.31), "tone3": (0.53, 0.33, 0.21),
@@ -202,7 +200,7 @@ STANDING_POSES: dict[str, Callable[[], tuple[Directions, dict]]] = {
 
 def _seated(spine_back: float, lean: float, head: tuple[float, float, float],
             arms: Mapping[str, tuple[float, float, float]], knees_apart: float = 0.0) -> tuple[Directions, dict]:
-    d: Directions = dict(_mirror({"thigh_l": (0.06 + knees_apart, -1.0, 0.05)}))
+    d: Directions = dict(_mirror({"thigh_l": (0.06 + knees_apart, -1.0, 0.05)}))  # pitch set by _seat
     spine = (lean, spine_back, 1.0)
     d.update({"spine_01": spine, "spine_02": spine, "spine_03": spine, "neck_01": (lean * 0.5, spine_back * 0.3, 1.0),
               "head": head})
@@ -369,39 +367,84 @@ def bake_body(src: bm.SourceData, binding: bm.LowPolyBinding, spec: BodySpec, se
     return BakedBody(spec, materials, poses, np.asarray(_dominant_bones(weights, skel.names)))
 
 
+SEAT_CLEARANCE_M = 0.005
+CUSHION_HALF_DEPTH_M = 0.23
+"""The cabin's cushion reaches this far in front of the passenger origin (0.46 m deep)."""
+"""Gap kept between a seated body and the backrest, and between the knees and the seat in front."""
+
+
+def _asset_to_seat(points: np.ndarray) -> np.ndarray:
+    """Passenger asset frame → the cabin's seat frame (x forward, cushion centre at x = -0.235,
+    cushion top at z = 0.45; ``usdscene.assetgen.cabin.seat_parts``)."""
+    from usdscene.assetgen.cabin import CabinConfig
+
+    return np.stack([-0.235 - points[:, 1], points[:, 0], CabinConfig().cushion_height_m + points[:, 2]], axis=1)
+
+
 def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dict, directions: Directions,
           twists: dict) -> tuple[np.ndarray, np.ndarray]:
-    """A seated pose placed on the cushion: buttocks on z = 0, back against the backrest,
-    shins angled so the soles reach the floor (short legs dangle straight down)."""
+    """A seated pose placed on the cushion: buttocks on z = 0, back against the cabin seat's
+    backrest (its tilted front face), shins angled so the soles reach the floor (short legs:
+    the toes point down), long thighs splayed and lowered until the knees clear the seat in
+    front."""
+    from usdscene.assetgen.cabin import backrest_clearance_m
+
     bones = _dominant_bones(weights, skel.names)
-    seat_part = np.array([b.startswith(("thigh", "pelvis", "Root")) for b in bones])
-    back_part = np.array([b.startswith("spine") for b in bones])
+    # What rests on the cushion: buttocks, thighs and the back of the knees (LBS folds the
+    # skin there downwards, and it is weighted to the shins).
+    seat_part = np.array([b.startswith(("thigh", "pelvis", "Root", "calf")) for b in bones])
     feet = np.array([b.startswith(("foot", "ball", "calf")) for b in bones])
+    legs = np.array([b.startswith(("thigh", "calf")) for b in bones])
+    shins = np.array([b.startswith(("calf", "foot", "ball")) for b in bones])
+    hip_y = skel.heads[skel.index("thigh_l")][1]
     best = None
-    # Long legs: the shins lean forward until the soles are on the floor; short legs: the shins
-    # hang straight and the feet point down until the toes touch it.
-    tries = [(0.0, toe) for toe in np.arange(80.0, 19.0, -4.0)] + [(shin, 20.0) for shin in np.arange(2.0, 61.0, 2.0)]
-    for shin_deg, toe_deg in tries:
-        d = dict(directions)
+    for splay, pitch in ((0.0, 0.05), (0.12, 0.0), (0.22, -0.06), (0.32, -0.12), (0.42, -0.18)):
+        d0 = dict(directions)
         for side, sign in (("l", 1.0), ("r", -1.0)):
-            d[f"calf_{side}"] = _sagittal(shin_deg, sign * 0.02)
-            d[f"foot_{side}"] = (sign * 0.05, -float(np.cos(np.radians(toe_deg))), -float(np.sin(np.radians(toe_deg))))
-        t = bm.pose_transforms(skel, d, twists)
-        pts = bm.skin(rest, weights, t)
-        hips = pts[seat_part]
-        # The buttocks: the lowest seat points within 12 cm behind the hip joints.
-        hip_y = skel.heads[skel.index("thigh_l")][1]
-        under = hips[np.abs(hips[:, 1] - hip_y) < 0.12]
-        z0 = under[:, 2].min()
-        drop = z0 - pts[feet][:, 2].min()
-        best = (t, pts, z0)
-        if drop <= SEAT_FLOOR_BELOW_HIP_M + 0.005:
+            x, _, _ = d0[f"thigh_{side}"]
+            d0[f"thigh_{side}"] = (x + sign * splay, -1.0, pitch)
+        # Long legs: the shins lean forward until the soles are on the floor; short legs: the
+        # shins hang straight and the feet point down until the toes touch it.
+        tries = [(0.0, toe) for toe in np.arange(80.0, 19.0, -4.0)] + [(shin, 20.0) for shin in np.arange(2.0, 61.0, 2.0)]
+        for shin_deg, toe_deg in tries:
+            d = dict(d0)
+            for side, sign in (("l", 1.0), ("r", -1.0)):
+                d[f"calf_{side}"] = _sagittal(shin_deg, sign * 0.02)
+                d[f"foot_{side}"] = (sign * 0.05, -float(np.cos(np.radians(toe_deg))), -float(np.sin(np.radians(toe_deg))))
+            t = bm.pose_transforms(skel, d, twists)
+            pts = bm.skin(rest, weights, t)
+            hips = pts[seat_part]
+            # Buttocks and thighs rest on the cushion up to about its front edge.
+            under = hips[(hips[:, 1] > hip_y - 0.25) & (hips[:, 1] < hip_y + 0.2)]
+            z0 = under[:, 2].min()
+            drop = z0 - pts[feet][:, 2].min()
+            if drop <= SEAT_FLOOR_BELOW_HIP_M + 0.005:
+                break
+        offset = np.array([-skel.heads[skel.index("pelvis")][0], 0.0, -z0])
+        for _ in range(3):
+            # Back against the backrest: slide along the cushion until the closest point above
+            # it is SEAT_CLEARANCE_M in front of the backrest's face (cos(tilt) per metre) ...
+            moved = pts + offset
+            above = moved[moved[:, 2] > -0.02]
+            gap = backrest_clearance_m(_asset_to_seat(above)).min()
+            offset[1] += (gap - SEAT_CLEARANCE_M) / np.cos(np.radians(12.0))
+            # Short thighs: sit forward until the shins hang clear of the cushion's front edge.
+            moved = pts + offset
+            hanging = moved[shins & (moved[:, 2] < -0.01)]
+            if len(hanging):
+                offset[1] -= max(0.0, hanging[:, 1].max() + CUSHION_HALF_DEPTH_M + SEAT_CLEARANCE_M)
+            # ... then everything over the cushion (±0.21 m) rests on its top.
+            moved = pts + offset
+            over = moved[seat_part & (np.abs(moved[:, 1]) < 0.21)]
+            offset[2] -= over[:, 2].min()
+        pts = pts + offset
+        knees = backrest_clearance_m(_asset_to_seat(pts[legs]), pitch_rows=1.0).min()
+        best = (t, pts, offset)
+        if knees >= SEAT_CLEARANCE_M:
             break
-    t, pts, z0 = best
-    keypoints = _posed_keypoints(skel, sources, t)
-    back_y = pts[back_part][:, 1].max()
-    offset = np.array([-skel.heads[skel.index("pelvis")][0], BACKREST_Y_M - back_y, -z0])
-    return pts + offset, keypoints + offset
+    t, pts, offset = best
+    keypoints = _posed_keypoints(skel, sources, t) + offset
+    return pts, keypoints
 
 
 # --- USD ------------------------------------------------------------------------------------
