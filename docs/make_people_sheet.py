@@ -27,7 +27,7 @@ def build_stage(folder: Path, library: Path | None) -> Path:
     from usdscene.document import stage_schema as ss
     from usdscene.scene.catalog import load_catalog
 
-    catalog = load_catalog([library] if library else None)
+    catalog = load_catalog([library] if library else ())
     person, passenger = catalog["person"], catalog["passenger"]
     bodies = person.variants[ss.VARIANT_SET_APPEARANCE]
     stage = Usd.Stage.CreateNew(str(folder / "scene.usda"))
@@ -36,21 +36,24 @@ def build_stage(folder: Path, library: Path | None) -> Path:
     world = UsdGeom.Xform.Define(stage, "/World").GetPrim()
     stage.SetDefaultPrim(world)
 
-    def add(name: str, entry, appearance: str, pose: str, x: float, y: float, z: float = 0.0) -> None:
+    def add(name: str, entry, appearance: str, pose: str, x: float, y: float, z: float = 0.0,
+            yaw_deg: float = 0.0) -> None:
         prim = UsdGeom.Xform.Define(stage, f"/World/{name}").GetPrim()
         prim.GetReferences().AddReference(str(entry.usd_path))
         prim.GetVariantSets().GetVariantSet(ss.VARIANT_SET_APPEARANCE).SetVariantSelection(appearance)
         prim.GetVariantSets().GetVariantSet(ss.VARIANT_SET_POSE).SetVariantSelection(pose)
         UsdGeom.Xformable(prim).AddTranslateOp().Set(Gf.Vec3d(x, y, z))
+        UsdGeom.Xformable(prim).AddRotateZOp().Set(yaw_deg)
 
     for i, body in enumerate(bodies):
         row, col = divmod(i, 12)
         add(f"body_{i:02d}", person, body, "standing", (col - 5.5) * SPACING_M, 2.5 * row, 0.0)
     poses = person.variants[ss.VARIANT_SET_POSE]
     for i, pose in enumerate(poses):
-        add(f"pose_{i:02d}", person, bodies[15], pose, (i - 7.0) * 0.85, -2.6)
+        # Turned three quarters to the camera, so strides and arms show.
+        add(f"pose_{i:02d}", person, bodies[15], pose, (i - 7.0) * 0.85, -2.6, 0.0, -55.0)
     for i, pose in enumerate(passenger.variants[ss.VARIANT_SET_POSE]):
-        add(f"seated_{i:02d}", passenger, bodies[4], pose, (i + 4.0) * 0.85, -2.6, 0.45)
+        add(f"seated_{i:02d}", passenger, bodies[4], pose, (i + 4.5) * 0.85, -2.6, 0.45, -40.0)
     stage.GetRootLayer().Save()
     return folder / "scene.usda"
 
@@ -64,12 +67,12 @@ def render(scene: Path, out: Path, samples: int, width: int) -> float:
     bpy.ops.wm.usd_import(filepath=str(scene))
     sc = bpy.context.scene
     cam_data = bpy.data.cameras.new("front")
-    cam_data.lens = 40.0
+    cam_data.lens = 33.0
     cam = bpy.data.objects.new("front", cam_data)
     sc.collection.objects.link(cam)
     # From the front and a little to the left, so walking legs and seated thighs show.
-    cam.location = (-3.0, -14.5, 3.2)
-    cam.rotation_euler = (math.radians(83.0), 0.0, math.radians(-12.0))
+    cam.location = (0.3, -14.0, 3.0)
+    cam.rotation_euler = (math.radians(82.0), 0.0, math.radians(0.0))
     sc.camera = cam
     sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
     sun.data.energy = 3.5
