@@ -67,11 +67,11 @@ def render(scene: Path, out: Path, samples: int, width: int) -> float:
     bpy.ops.wm.usd_import(filepath=str(scene))
     sc = bpy.context.scene
     cam_data = bpy.data.cameras.new("front")
-    cam_data.lens = 33.0
+    cam_data.lens = 30.0
     cam = bpy.data.objects.new("front", cam_data)
     sc.collection.objects.link(cam)
     # From the front and a little to the left, so walking legs and seated thighs show.
-    cam.location = (0.3, -14.0, 3.0)
+    cam.location = (0.0, -14.0, 3.0)
     cam.rotation_euler = (math.radians(82.0), 0.0, math.radians(0.0))
     sc.camera = cam
     sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
