@@ -160,3 +160,23 @@ def test_pycocotools_loads_the_keypoints(output):
         assert np.all((seen[:, 1] >= y - 1.5) & (seen[:, 1] <= y + h + 1.5)), ann["id"]
     suitcase = coco.loadAnns(coco.getAnnIds(catIds=coco.getCatIds(catNms=["trolley_suitcase"])))
     assert suitcase and all("keypoints" not in a for a in suitcase)
+
+
+def test_visibility_flags_on_a_synthetic_mask():
+    """Pure: flags from a mask built in the test (no render)."""
+    from usdscene.labels.keypoints import keypoint_visibility
+
+    mask = np.zeros((10, 12), dtype=np.uint16)
+    mask[2:6, 3:7] = 5          # the person
+    mask[6:9, 3:7] = 9          # something else below it
+    uv = np.array([[4.0, 3.0],   # on its own pixel → 2
+                   [7.4, 3.0],   # one pixel right of it (x 7 px) → within 1 px → 2
+                   [4.0, 7.6],   # on the other object, 2 rows below → 1
+                   [-0.6, 3.0],  # left of the image → 0
+                   [11.4, 9.4],  # last pixel, background → 1
+                   [4.0, 3.0]])  # behind the camera → 0
+    valid = np.array([True, True, True, True, True, False])
+    flags = keypoint_visibility(uv, valid, mask, 5)
+    assert flags[:, 2].tolist() == [2, 2, 1, 0, 1, 0]
+    assert flags[3, :2].tolist() == [0, 0] and flags[5, :2].tolist() == [0, 0]
+    assert flags[0, :2].tolist() == [4.0, 3.0]

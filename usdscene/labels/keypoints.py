@@ -44,12 +44,23 @@ def keypoint_visibility(uv: np.ndarray, valid: np.ndarray, mask: np.ndarray, mas
     height, width = mask.shape
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
     out = np.zeros((len(uv), 3))
-    for k, ((x, y), ok) in enumerate(zip(uv, np.asarray(valid, dtype=bool))):
-        if not ok or not (-0.5 <= x < width - 0.5 and -0.5 <= y < height - 0.5):
-            continue
-        col, row = int(np.floor(x + 0.5)), int(np.floor(y + 0.5))
-        r0, r1 = max(row - MASK_TOLERANCE_PX, 0), min(row + MASK_TOLERANCE_PX + 1, height)
-        c0, c1 = max(col - MASK_TOLERANCE_PX, 0), min(col + MASK_TOLERANCE_PX + 1, width)
-        seen = bool(np.any(mask[r0:r1, c0:c1] == mask_id))
-        out[k] = (x, y, VISIBLE if seen else OCCLUDED)
+    x, y = uv[:, 0], uv[:, 1]
+    with np.errstate(invalid="ignore"):
+        inside = (np.asarray(valid, dtype=bool) & (x >= -0.5) & (x < width - 0.5)
+                  & (y >= -0.5) & (y < height - 0.5))
+    if not inside.any():
+        return out
+    col = np.floor(x[inside] + 0.5).astype(np.int64)
+    row = np.floor(y[inside] + 0.5).astype(np.int64)
+    seen = np.zeros(len(col), dtype=bool)
+    # The 3x3 neighbourhood, offsets that leave the image skipped.
+    for dr in range(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1):
+        for dc in range(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1):
+            r, c = row + dr, col + dc
+            ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+            hit = np.zeros(len(col), dtype=bool)
+            hit[ok] = mask[r[ok], c[ok]] == mask_id
+            seen |= hit
+    out[inside, 0], out[inside, 1] = x[inside], y[inside]
+    out[inside, 2] = np.where(seen, VISIBLE, OCCLUDED)
     return out
