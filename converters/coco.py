@@ -20,6 +20,9 @@ Reads only the document written by :func:`usdscene.converters.openlabel_annotati
   Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``, and for a moving
   sequence (a document with ``metadata.usdscene.fps``) ``track_id``, the object's id in every
   export (:func:`usdscene.converters.tracks.track_ids`).
+  People (labels with keypoints) also get ``keypoints`` (17 ``x, y, v`` triples in COCO's
+  pixel convention, ``0, 0, 0`` where v = 0) and ``num_keypoints`` (v > 0); their category
+  gets ``keypoints`` (the COCO-17 names) and ``skeleton``, supercategory ``person``.
   Fully occluded objects (amodal box only) are not exported, nor are labels that
   :class:`LabelFilter` drops (fewer pixels or a smaller visible fraction than asked).
 """
@@ -164,6 +167,13 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
             })
             if tracks is not None and label["uid"] in tracks:
                 annotations[-1]["track_id"] = tracks[label["uid"]]
+            if label.get("keypoints") is not None:
+                # COCO's pixel convention (+0.5); x = y = 0 where v = 0.
+                flat: list[float] = []
+                for x, y, v in label["keypoints"]:
+                    flat += [x + 0.5, y + 0.5, v] if v else [0, 0, 0]
+                annotations[-1]["keypoints"] = flat
+                annotations[-1]["num_keypoints"] = sum(1 for _, _, v in label["keypoints"] if v > 0)
     return images, annotations
 
 
@@ -180,8 +190,20 @@ def coco_document(images: list[dict], annotations: list[dict], names: list[str],
                  "bbox": "[x, y, w, h], top-left corner, pixel i covers [i, i + 1)", **info},
         "images": images,
         "annotations": annotations,
-        "categories": [{"id": k + 1, "name": n, "supercategory": "object"} for k, n in enumerate(names)],
+        "categories": [_category(k + 1, n, {a["category_id"] for a in annotations if "keypoints" in a})
+                       for k, n in enumerate(names)],
     }
+
+
+def _category(category_id: int, name: str, with_keypoints: set[int]) -> dict:
+    """A COCO category; person-like ones (whose annotations carry keypoints) name the 17
+    keypoints and COCO's skeleton."""
+    out = {"id": category_id, "name": name, "supercategory": "object"}
+    if category_id in with_keypoints:
+        from usdscene.labels.keypoints import COCO_KEYPOINTS, COCO_SKELETON
+
+        out.update(supercategory="person", keypoints=list(COCO_KEYPOINTS), skeleton=[list(p) for p in COCO_SKELETON])
+    return out
 
 
 def coco_dataset(document: dict, classes: Iterable[str] | None = None, *,

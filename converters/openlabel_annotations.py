@@ -27,6 +27,11 @@ for moving cameras; a friendly-form camera block becomes calibrated intrinsics) 
     whenever it is known, *also for fully occluded objects* (which have no ``<camera>_bbox``).
     Attributes: ``visible_fraction``, ``pixel_count``, ``amodal_pixel_count``, ``truncated``,
     ``mask_id``.
+  - people (objects whose asset carries keypoints): 17 ``point2d`` named
+    ``<camera>_kp_<keypoint>`` (COCO-17 names, e.g. ``cam0_kp_left_wrist``), ``val`` ``[x, y]``
+    pixels (``[0, 0]`` when not in the image), ``coordinate_system`` = camera, attribute ``num``
+    ``visibility``: 2 on the person's own mask pixels (within 1 px), 1 hidden, 0 outside the
+    image or behind the camera. Projected through the camera's lens model like the amodal box.
   - ``poly2d`` named ``<camera>_poly2d_<k>`` (k = 0, 1, ...): closed polygons
     (``MODE_POLY2D_ABSOLUTE``, ``[x0, y0, x1, y1, ...]`` pixel centres of boundary pixels) of
     the visible region; ``hierarchy`` = OpenCV's ``[next, previous, first_child, parent]`` with
@@ -73,6 +78,7 @@ BBOX_SUFFIX = "_bbox"
 AMODAL_BBOX_SUFFIX = "_amodal_bbox"
 POLY2D_INFIX = "_poly2d_"
 POLY2D_MODE = "MODE_POLY2D_ABSOLUTE"
+KEYPOINT_INFIX = "_kp_"
 RESOLVED_PLACE = "resolved_place"
 RESOLVED_RELATION = "resolved_relation"
 CAMERAS_DATA = "usdscene_cameras"
@@ -143,6 +149,13 @@ def _object_data(camera: str, label: ObjectLabel) -> dict[str, list]:
             "closed": True, "coordinate_system": camera,
             "hierarchy": [nxt, prev, children[0] if children else -1, int(contour.parent)],
             "attributes": {"boolean": [{"name": "is_hole", "val": bool(contour.is_hole)}]}})
+    if label.keypoints is not None:
+        from usdscene.labels.keypoints import COCO_KEYPOINTS
+
+        for name, (x, y, v) in zip(COCO_KEYPOINTS, label.keypoints):
+            data.setdefault("point2d", []).append({
+                "name": keypoint_name(camera, name), "val": [float(x), float(y)], "coordinate_system": camera,
+                "attributes": {"num": [{"name": "visibility", "val": int(v)}]}})
     return data
 
 
@@ -164,11 +177,18 @@ def _cameras_data(row: CrossCameraRow) -> dict:
             "attributes": _attributes(values, _CAMERAS_ATTRIBUTES)}
 
 
+def keypoint_name(camera: str, keypoint: str) -> str:
+    """``point2d`` name of one COCO keypoint seen by one camera: ``<camera>_kp_<keypoint>``."""
+    return f"{camera}{KEYPOINT_INFIX}{keypoint}"
+
+
 def _pointer_type_attrs(name: str, kind: str) -> dict[str, str]:
     if name == CAMERAS_DATA:
         return _CAMERAS_ATTRIBUTES
     if kind == "text":
         return {}
+    if kind == "point2d":
+        return {"visibility": "num"}
     if kind == "poly2d":
         return _POLY_ATTRIBUTES
     return _AMODAL_ATTRIBUTES if name.endswith(AMODAL_BBOX_SUFFIX) else _BBOX_ATTRIBUTES
@@ -526,7 +546,8 @@ class LabelIndex:
         frame = int(frame)
         if frame not in self._read:
             self._read[frame] = self._read_frame(frame)
-        return [dict(label, attributes=dict(label["attributes"]), polygons=[dict(p) for p in label["polygons"]])
+        return [dict(label, attributes=dict(label["attributes"]), polygons=[dict(p) for p in label["polygons"]],
+                     keypoints=None if label["keypoints"] is None else list(label["keypoints"]))
                 for label in self._read[frame].get(camera, [])]
 
     def _read_frame(self, frame: int) -> dict[str, list[dict]]:
@@ -538,7 +559,7 @@ class LabelIndex:
 
             def of(camera: str) -> dict:
                 return found.setdefault(camera, {"bbox": None, "amodal_bbox": None, "attributes": {},
-                                                 "polygons": []})
+                                                 "polygons": [], "keypoints": {}})
 
             for item in data.get("bbox", []):
                 name = item.get("name", "")
@@ -562,6 +583,15 @@ class LabelIndex:
                 of(name[:cut])["polygons"].append((int(index), {
                     "points": [float(v) for v in item["val"]], "parent": int(hierarchy[3]),
                     "is_hole": int(hierarchy[3]) >= 0}))
+            for item in data.get("point2d", []):
+                name = item.get("name", "")
+                cut = name.rfind(KEYPOINT_INFIX)
+                if cut < 0:
+                    continue
+                v = next((a.get("val") for a in (item.get("attributes") or {}).get("num", [])
+                          if a.get("name") == "visibility"), 0)
+                x, y = item["val"]
+                of(name[:cut])["keypoints"][name[cut + len(KEYPOINT_INFIX):]] = (float(x), float(y), int(v))
             element = self._objects.get(uid, {})
             for camera, label in found.items():
                 if label["bbox"] is None and label["amodal_bbox"] is None and not label["polygons"]:
@@ -570,10 +600,20 @@ class LabelIndex:
                     "uid": uid, "type": element.get("type", ""), "name": element.get("name", ""),
                     "bbox": label["bbox"], "amodal_bbox": label["amodal_bbox"],
                     "polygons": [p for _, p in sorted(label["polygons"], key=lambda kp: kp[0])],
-                    "attributes": label["attributes"]})
+                    "attributes": label["attributes"],
+                    "keypoints": _coco_order(label["keypoints"])})
         for labels in by_camera.values():
             labels.sort(key=lambda o: (o["attributes"].get("mask_id", 0), o["uid"]))
         return by_camera
+
+
+def _coco_order(found: dict) -> list[tuple[float, float, int]] | None:
+    """The 17 keypoints in COCO order, or None when the label has none (missing ones: v = 0)."""
+    if not found:
+        return None
+    from usdscene.labels.keypoints import COCO_KEYPOINTS
+
+    return [found.get(name, (0.0, 0.0, 0)) for name in COCO_KEYPOINTS]
 
 
 def _merge_attributes(into: dict, item: dict) -> None:

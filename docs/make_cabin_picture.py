@@ -22,19 +22,19 @@ REPO = Path(__file__).resolve().parent.parent
 
 # (class, place, relation, variants, yaw_deg, extra local rotation, colour override or None)
 PASSENGERS = [
-    ("seat_19A", "upright", "light_blue_shirt"), ("seat_19C", "reading", "medium_white_shirt"),
-    ("seat_19E", "leaning", "dark_grey_hoodie"), ("seat_18B", "sleeping", "light_red_sweater"),
-    ("seat_18D", "upright", "dark_yellow_top"), ("seat_18F", "reading", "medium_green_jacket"),
-    ("seat_17A", "leaning", "medium_white_shirt"), ("seat_17C", "upright", "dark_grey_hoodie"),
-    ("seat_17E", "upright", "light_red_sweater"), ("seat_16C", "reading", "light_blue_shirt"),
-    ("seat_16D", "sleeping", "medium_green_jacket"), ("seat_15A", "upright", "dark_yellow_top"),
-    ("seat_15B", "reading", "light_red_sweater"), ("seat_15F", "upright", "medium_white_shirt"),
-    ("seat_14C", "leaning", "medium_green_jacket"), ("seat_14E", "upright", "light_blue_shirt"),
-    ("seat_13D", "reading", "dark_grey_hoodie"), ("seat_12A", "upright", "light_red_sweater"),
-    ("seat_12C", "upright", "medium_white_shirt"), ("seat_11F", "sleeping", "dark_yellow_top"),
-    ("seat_10B", "upright", "medium_green_jacket"), ("seat_10D", "reading", "light_blue_shirt"),
-    ("seat_09C", "upright", "dark_grey_hoodie"), ("seat_08E", "leaning", "light_red_sweater"),
-    ("seat_07A", "upright", "medium_white_shirt"), ("seat_06D", "upright", "dark_yellow_top"),
+    ("seat_19A", "upright", "f_18_166_slim_tone1"), ("seat_19C", "reading", "f_57_175_average_tone2"),
+    ("seat_19E", "leaning", "m_29_195_slim_tone6"), ("seat_18B", "sleeping", "m_69_189_average_tone1"),
+    ("seat_18D", "upright", "f_41_150_average_tone5"), ("seat_18F", "reading", "f_80_155_heavy_tone6"),
+    ("seat_17A", "leaning", "m_52_165_average_tone4"), ("seat_17C", "upright", "f_24_177_average_tone2"),
+    ("seat_17E", "upright", "f_63_164_heavy_tone3"), ("seat_16C", "reading", "m_35_192_average_tone1"),
+    ("seat_16D", "sleeping", "m_74_177_heavy_tone2"), ("seat_15A", "upright", "f_46_172_heavy_tone6"),
+    ("seat_15B", "reading", "m_18_171_average_tone4"), ("seat_15F", "upright", "m_57_174_heavy_tone5"),
+    ("seat_14C", "leaning", "f_29_169_heavy_tone3"), ("seat_14E", "upright", "f_69_153_slim_tone4"),
+    ("seat_13D", "reading", "m_41_168_heavy_tone2"), ("seat_12A", "upright", "m_80_162_slim_tone3"),
+    ("seat_12C", "upright", "f_52_180_slim_tone1"), ("seat_11F", "sleeping", "m_24_186_heavy_tone5"),
+    ("seat_10B", "upright", "m_63_180_slim_tone6"), ("seat_10D", "reading", "f_35_161_slim_tone4"),
+    ("seat_09C", "upright", "f_74_158_average_tone5"), ("seat_08E", "leaning", "m_46_183_slim_tone3"),
+    ("seat_07A", "upright", "f_18_166_slim_tone1"), ("seat_06D", "upright", "f_57_175_average_tone2"),
 ]
 OBJECTS = [
     ("trolley_suitcase", "aisle_18", "is_on", "black", 90.0, None, (0.9, 0.7, 0.05)),

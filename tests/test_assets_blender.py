@@ -13,6 +13,7 @@ from usdscene.scene.catalog import load_catalog
 pytestmark = [pytest.mark.usd, pytest.mark.blender]
 
 OVERRIDE = (0.9, 0.7, 0.1)
+PASSENGER_BODY = "m_35_192_average_tone1"
 
 
 def _stage(folder: Path) -> Path:
@@ -32,7 +33,7 @@ def _stage(folder: Path) -> Path:
             prim.GetVariantSets().GetVariantSet(key).SetVariantSelection(value)
         return prim
 
-    add("pax", "passenger", {"pose": "reading", "appearance": "light_red_sweater"})
+    add("pax", "passenger", {"pose": "reading", "appearance": PASSENGER_BODY})
     add("bag", "backpack", {"appearance": "red"})
     recoloured = add("case", "trolley_suitcase", {"appearance": "black"})
     shader = stage.OverridePrim(f"{recoloured.GetPath()}/{stage_schema.ASSET_COLOR_SHADER}")
@@ -44,6 +45,11 @@ def _stage(folder: Path) -> Path:
 def _base_colour(obj) -> tuple[float, float, float]:
     material = obj.material_slots[0].material
     bsdf = next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    return tuple(round(v, 3) for v in bsdf.inputs["Base Color"].default_value[:3])
+
+
+def _slot_colour(slot) -> tuple[float, float, float]:
+    bsdf = next(n for n in slot.material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     return tuple(round(v, 3) for v in bsdf.inputs["Base Color"].default_value[:3])
 
 
@@ -63,7 +69,7 @@ def test_cabin_and_objects_import_with_materials(tmp_path):
     import bpy
 
     from usdscene.assetgen.objects import OBJECT_CLASSES
-    from usdscene.assetgen.passenger import APPEARANCES
+    from usdscene.assetgen.people import SKIN_TONES, family
 
     scene = _stage(tmp_path)
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -77,8 +83,15 @@ def test_cabin_and_objects_import_with_materials(tmp_path):
     assert not any(o.name.startswith(("seat_", "bin_", "aisle_")) for o in bpy.data.objects)
     names = {m.name.split(".")[0] for m in bpy.data.materials}
     assert {"SeatFabric", "Carpet", "Sidewall", "BinDoor", "Body", "Skin"} <= names
-    passenger_top = _base_colour(_mesh_under(meshes, "pax", "Body"))
-    assert passenger_top == pytest.approx(APPEARANCES["light_red_sweater"][1], abs=1e-3)
+    # The passenger is one mesh whose face subsets bind the clothing, skin and hair materials.
+    body = next(b for b in family() if b.name == PASSENGER_BODY)
+    pax = _mesh_under(meshes, "pax", "Body")
+    slots = {slot.material.name.split(".")[0]: slot for slot in pax.material_slots}
+    assert {"Body", "Bottom", "Shoes", "Skin", "Hair"} <= set(slots)
+    assert _slot_colour(slots["Body"]) == pytest.approx(body.top, abs=1e-3)
+    assert _slot_colour(slots["Skin"]) == pytest.approx(SKIN_TONES[body.skin], abs=1e-3)
+    used = {pax.material_slots[p.material_index].material.name.split(".")[0] for p in pax.data.polygons}
+    assert used == {"Body", "Bottom", "Shoes", "Skin", "Hair"}
     red = next(v for v in next(c for c in OBJECT_CLASSES if c.name == "backpack").variants if v.name == "red")
     assert _base_colour(_mesh_under(meshes, "bag", "Body")) == pytest.approx(red.colors["Body"], abs=1e-3)
     assert _base_colour(_mesh_under(meshes, "case", "Body")) == pytest.approx(OVERRIDE, abs=1e-3)

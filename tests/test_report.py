@@ -85,7 +85,7 @@ def output(tmp_path) -> Path:
             kept.write_text(json.dumps({"key": {}, "labels": image_labels_to_json(labels)}))
     document = add_annotations(_document(), _scene(), label_images(images), out)
     bag = document["openlabel"]["frames"]["1"]["objects"]["0"]["object_data"]
-    bag["point2d"] = [{"name": "cam_a_keypoint_nose", "val": [55.0, 50.0],
+    bag["point2d"] = [{"name": "cam_a_kp_nose", "val": [55.0, 50.0],
                        "attributes": {"num": [{"name": "visibility", "val": 1}]}}]
     (out / "annotations.openlabel.json").write_text(json.dumps(document))
     return out

@@ -394,16 +394,17 @@ def test_magazine_on_a_reading_passengers_lap_in_the_composed_cabin(tmp_path):
 
     mag_lo, mag_hi = box(stage.GetPrimAtPath(ss.object_prim_path("magazine", "2")))
     hip_z = UsdGeom.Xformable(pax).ComputeLocalToWorldTransform(Usd.TimeCode(0)).ExtractTranslation()[2]
-    chest_lo, chest_hi = box(pax.GetPrimAtPath("Geom/Body"))
-    legs_lo, legs_hi = box(pax.GetPrimAtPath("Geom/Trousers"))
-    thigh_top = hip_z + 0.176  # the thigh capsules' top (the pelvis rises higher, behind the lap)
+    body_lo, body_hi = box(pax.GetPrimAtPath("Geom/Body"))
+    body = pax.GetVariantSets().GetVariantSet(ss.VARIANT_SET_APPEARANCE).GetVariantSelection()
+    lap = catalog["passenger"].places_for({ss.VARIANT_SET_POSE: "reading", ss.VARIANT_SET_APPEARANCE: body})
+    thigh_top = hip_z + lap["lap"].regions["is_on"].pose.as_array()[2, 3]  # that body's thighs
     assert mag_lo[2] == pytest.approx(thigh_top, abs=0.003)  # resting on the thighs
-    assert mag_hi[2] < chest_hi[2] - 0.3  # far below the chest's top (not on the head)
+    assert mag_hi[2] < body_hi[2] - 0.3  # far below the head (not on it)
     centre = (mag_lo + mag_hi) / 2.0
-    assert legs_lo[0] < centre[0] < legs_hi[0] and legs_lo[1] < centre[1] < legs_hi[1]
-    # A sleeping passenger's hands lie in its lap: what is left in front of them is too short.
-    sleeping = dataclasses.replace(scene, objects=(dataclasses.replace(scene.objects[0], pose_variant="sleeping"),
-                                                   scene.objects[1]))
-    with pytest.raises(CompositionError, match="'2' .magazine.*does not fit object '1' .is_on."):
-        compose_stage(sleeping, catalog, tmp_path / "sleeping")
+    assert body_lo[0] < centre[0] < body_hi[0] and body_lo[1] < centre[1] < body_hi[1]
+    # A trolley case is no lap object.
+    trolley = dataclasses.replace(scene, objects=(scene.objects[0], dataclasses.replace(
+        scene.objects[1], class_name="trolley_suitcase", name="case")))
+    with pytest.raises(CompositionError, match="'2' .trolley_suitcase.*does not fit object '1' .is_on."):
+        compose_stage(trolley, catalog, tmp_path / "trolley")
 

@@ -128,8 +128,8 @@ def _check_inputs(source: Path, class_name: str, catalog_dir: Path, options: Imp
     if not _CLASS_NAME.match(class_name):
         raise AssetError(f"class name {class_name!r} must be lower_snake_case (a-z, 0-9, _), "
                          "starting with a letter", where="--class")
-    if options.kind not in ASSET_KINDS:
-        raise AssetError(f"kind {options.kind!r} is not one of {ASSET_KINDS}", where="--kind")
+    if options.kind not in ASSET_KINDS + (PERSON_KIND,):
+        raise AssetError(f"kind {options.kind!r} is not one of {ASSET_KINDS + (PERSON_KIND,)}", where="--kind")
     if options.up_axis not in (None, "Y", "Z"):
         raise AssetError(f"up axis {options.up_axis!r} must be 'Y' or 'Z'", where="--up-axis")
     if options.forward_axis not in FORWARD_AXES:
@@ -618,6 +618,23 @@ def _export_blend(blend: Path, usd_path: Path) -> Path:
     return usd_path
 
 
+PERSON_KIND = "person"
+"""``--kind person``: a rigged person; checked by :mod:`usdscene.assetgen.person_rig`."""
+
+
+def _refuse_person(path: Path) -> None:
+    """A person file is never registered rigid: every reason it cannot be posed, or (a
+    posable rig) that posing one's own rig is not supported yet, as one error naming the file."""
+    from usdscene.assetgen.person_rig import NOT_YET, person_rig_problems
+    from usdscene.errors import Problem
+
+    try:
+        reasons = person_rig_problems(path)
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise AssetError(f"cannot read the person file: {exc}", where=str(path)) from None
+    raise AssetError([Problem(str(path), reason) for reason in (reasons or [NOT_YET])])
+
+
 def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | os.PathLike,
                  options: ImportOptions = ImportOptions(),
                  allowed_roots: Sequence[str | os.PathLike] | None = None) -> AssetEntry:
@@ -658,6 +675,8 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         log.warning("%s lies outside the working and catalog folders and is referenced where it is; scenes "
                     "using class %r need --asset-path %s (or $USDSCENE_ASSET_PATH)", resolved, class_name,
                     resolved.parent)
+    if options.kind == PERSON_KIND:
+        _refuse_person(resolved)
     target = catalog / IMPORTED_FOLDER / f"{class_name}.usda"
     suffix = resolved.suffix.lower()
     from usdscene.document import stage_schema

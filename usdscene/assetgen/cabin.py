@@ -134,6 +134,22 @@ def _on_backrest(s: float, offset_fwd: float) -> np.ndarray:
     return _BACK_BASE + s * _BACK_DIR + offset_fwd * _BACK_FWD
 
 
+def backrest_clearance_m(points_seat: np.ndarray, pitch_rows: float = 0.0) -> np.ndarray:
+    """Signed distance (N,) of seat-frame points in front of the backrest's front face (of
+    the seat ``pitch_rows`` seat pitches further forward, its rear shell face when
+    ``pitch_rows`` is 1): positive = in front of it. Used to seat people against the
+    backrest and clear of the seat in front."""
+    base = _BACK_BASE + np.array([pitch_rows * CabinConfig().seat_pitch_m, 0.0, 0.0])
+    rel = np.asarray(points_seat, dtype=np.float64) - base
+    d = rel @ _BACK_FWD
+    if pitch_rows:
+        return -(d + 0.0955)  # behind its pocket (the rearmost part of the shell): positive = clear
+    # The headrest (0.22 m tall around 0.55 m up the backrest) stands 0.08 m proud of it.
+    up = rel @ _BACK_DIR
+    headrest = (up > 0.44) & (up < 0.66) & (np.abs(rel[:, 1]) < 0.19)
+    return d - np.where(headrest, 0.08, _BACK_THICKNESS / 2)
+
+
 def _tilted(mesh: m.MeshData, centre: np.ndarray) -> m.MeshData:
     return mesh.transformed(m.translation(centre) @ m.rotation_y(-_BACK_TILT_DEG))
 

@@ -1,7 +1,8 @@
 """Build the whole procedural asset library and its ``catalog.json``.
 
 ``build_library(folder)`` writes every asset below ``folder`` (``environments/``,
-``objects/``, ``passengers/``) and the catalog, byte-identically for the same code: files are
+``objects/``; ``people/`` is baked separately by ``usdscene.assetgen.people.bake_people`` and
+copied from the shipped library when missing) and the catalog, byte-identically for the same code: files are
 authored in a fixed order from sorted inputs and written as ``.usda`` text.
 """
 
@@ -145,7 +146,7 @@ def build_library(folder: str | Path, config: CabinConfig = CabinConfig()) -> li
     Returns:
         The written files, catalog last.
     """
-    from usdscene.assetgen.passenger import write_passenger_asset
+    from usdscene.assetgen.people import baked_people_entries
 
     root = Path(folder)
     entries = [write_cabin_asset(root, config)]
@@ -153,6 +154,7 @@ def build_library(folder: str | Path, config: CabinConfig = CabinConfig()) -> li
     for cls in sorted(OBJECT_CLASSES, key=lambda c: c.name):
         entries.append(write_object_asset(cls, root))
         log.info("wrote %s", cls.name)
-    entries.append(write_passenger_asset(root))
+    people, people_files = baked_people_entries(root)
+    entries.extend(people)
     catalog = write_catalog(root, entries)
-    return [e.usd_path for e in entries] + [catalog]
+    return [e.usd_path for e in entries] + people_files + [catalog]

@@ -38,7 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p_add.add_argument("--class", dest="class_name", required=True, help="class name (lower_snake_case)")
     p_add.add_argument("--catalog", type=Path, default=None, metavar="DIR",
                        help="catalog folder to register into (default: the shipped library)")
-    p_add.add_argument("--kind", default="object", choices=("object", "passenger", "environment"))
+    p_add.add_argument("--kind", default="object", choices=("object", "passenger", "environment", "person"),
+                       help="person: a rigged person (USD UsdSkel or glTF skin); checked and refused with the "
+                            "reason (posing one's own rig is not supported yet)")
     p_add.add_argument("--up-axis", choices=("Y", "Z"), default=None,
                        help="up axis of the file (default: Y for OBJ/glTF, Z for STL/PLY, USD: its upAxis)")
     p_add.add_argument("--unit-scale", type=float, default=None, metavar="M",

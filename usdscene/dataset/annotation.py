@@ -124,6 +124,7 @@ class ImageLabeller:
                      "ids_sha256": hashlib.sha256(id_bytes).hexdigest(),
                      "stage_sha256": stage_digest(stage_path) if amodal else None}
         self._triangles: tuple[int, dict] | None = None  # (frame, uid → triangles) of the last frame
+        self._keypoints: tuple[int, dict] | None = None  # (frame, uid → (17, 3) world keypoints)
 
     @staticmethod
     def settings_key(epsilon_px: float | None, min_visible_fraction: float, amodal: bool) -> tuple:
@@ -177,11 +178,12 @@ class ImageLabeller:
         from usdscene.labels.cross_camera import camera_for_image
         from usdscene.errors import OutputError
         from usdscene.labels.image_labels import label_image
+        from usdscene.labels.projection import project_points
 
         mask = cv2.imdecode(np.frombuffer(mask_bytes, np.uint8), cv2.IMREAD_UNCHANGED)
         if mask is None or mask.ndim != 2 or mask.dtype.kind != "u":
             raise OutputError("not a single-channel 16-bit instance mask", where=str(mask_file))
-        amodal_masks = None
+        amodal_masks = keypoints = None
         camera = self.cameras.get(camera_name)
         if self.geometry is not None and camera is not None:
             if self._triangles is None or self._triangles[0] != frame:
@@ -192,9 +194,13 @@ class ImageLabeller:
             amodal_masks = amodal_projections(camera, self._triangles[1], frame)
             # Objects the camera does not see at all carry no label there.
             amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
+            if self._keypoints is None or self._keypoints[0] != frame:
+                self._keypoints = (frame, self.geometry.keypoints(frame, set(self.ids.values())))
+            # The same lens model and pose as the amodal projections.
+            keypoints = {uid: project_points(camera, points, frame) for uid, points in self._keypoints[1].items()}
         return label_image(mask, self.ids, amodal_masks, classes=self.classes, camera=camera_name,
                            frame=frame, epsilon_px=self.epsilon_px,
-                           min_visible_fraction=self.min_visible_fraction)
+                           min_visible_fraction=self.min_visible_fraction, keypoints=keypoints)
 
 
 class LabelsWhileRendering:

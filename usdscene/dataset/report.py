@@ -28,8 +28,9 @@ document yet) they come from the labels kept per image in ``OUT/labels/`` (see
 :class:`usdscene.dataset.annotation.ImageLabeller`), and images rendered but not yet labelled are shown
 without labels.
 
-Keypoints are read from ``point2d`` object data named ``<camera>_keypoint_<joint>`` with an
-optional ``num`` attribute ``visibility`` (COCO flags: 0 outside, 1 occluded, 2 visible).
+Keypoints are read from ``point2d`` object data named ``<camera>_kp_<joint>``
+(:func:`usdscene.converters.openlabel_annotations.keypoint_name`) with an optional ``num``
+attribute ``visibility`` (COCO flags: 0 outside, 1 occluded, 2 visible).
 The track id of an object is its uid, the same in every frame and camera.
 """
 
@@ -41,6 +42,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from usdscene.converters.openlabel_annotations import KEYPOINT_INFIX
 from usdscene.dataset.statistics import HISTOGRAM_BINS
 from usdscene.document import output_layout as layout
 
@@ -58,7 +60,6 @@ THUMB_WIDTH_PX = 160
 THUMB_ABOVE_PX = 2 * THUMB_WIDTH_PX
 UNKNOWN_BIN = HISTOGRAM_BINS
 _STATIC_FILES = ("index.html", "report.js", "report.css")
-KEYPOINT_INFIX = "_keypoint_"
 
 
 @dataclass(frozen=True)

@@ -56,7 +56,7 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from usdscene.scene.catalog import Catalog, Place, PlaceRegion, place_items
+from usdscene.scene.catalog import COMBINED_SETS, Catalog, Place, PlaceRegion, place_items
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Pose, Randomization, Relation, SceneObject, SceneSpec
 from usdscene.scene.placement import fits_region
@@ -649,7 +649,8 @@ def lap_regions(catalog: Catalog, environment: str, passenger_classes: Sequence[
         entry = catalog[class_name]
         if not entry.declares_support(PASSENGER_RELATION):
             continue
-        variant_set = next(iter(sorted(entry.variant_places)), "")
+        # Combined sets (pose+appearance) give exact laps at placement; plans use the one set.
+        variant_set = next(iter(sorted(n for n in entry.variant_places if COMBINED_SETS not in n)), "")
         variants = entry.variants.get(variant_set, ()) if variant_set else ("",)
         for seat in passenger_seats(catalog, environment, class_name, options.place_patterns):
             seat_pose = places[seat].regions[PASSENGER_RELATION].pose

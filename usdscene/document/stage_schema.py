@@ -107,6 +107,7 @@ ASSET_MAIN_MATERIAL = "Body"                   # the recolourable material of an
 ASSET_COLOR_SHADER = "Looks/Body/Surface"      # relative prim path of the colour shader
 ATTR_ASSET_COLOR = "inputs:diffuseColor"       # color3f, linear RGB
 # Places of an environment asset: <defaultPrim>/Places/<place>/<region>.
+ATTR_KEYPOINTS = "usdscene:keypoints"           # point3f[17] on a person asset's default prim: COCO-17, asset frame
 ASSET_PLACES = "Places"
 ATTR_PLACE_KIND = "usdscene:place:kind"        # token on the place prim: seat, bin, aisle
 ATTR_PLACE_RELATION = "usdscene:place:relation"  # token on the region prim: is_on, ...

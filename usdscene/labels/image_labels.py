@@ -98,6 +98,8 @@ class ObjectLabel:
         truncated: the unclipped projection leaves the image.
         visible_fraction: visible pixels inside the amodal projection / ``amodal_pixel_count``,
             in [0, 1]; None = unknown.
+        keypoints: people only: the 17 COCO keypoints as ``(x, y, v)`` rows (pixels, flags of
+            :mod:`usdscene.labels.keypoints`); None for objects without keypoints.
     """
 
     uid: str
@@ -110,6 +112,7 @@ class ObjectLabel:
     amodal_pixel_count: int | None = None
     truncated: bool = False
     visible_fraction: float | None = None
+    keypoints: tuple[tuple[float, float, int], ...] | None = None
 
     @property
     def visible(self) -> bool:
@@ -264,7 +267,8 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
                 camera: str = "", frame: int = 0,
                 epsilon_px: float = DEFAULT_EPSILON_PX,
                 min_visible_fraction: float = 0.0,
-                min_pixel_count: int = 1) -> ImageLabels:
+                min_pixel_count: int = 1,
+                keypoints: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> ImageLabels:
     """Labels of every object of one instance mask.
 
     Args:
@@ -284,6 +288,9 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
         min_pixel_count: drop visible objects with fewer visible pixels (slivers). Fully
             occluded objects (0 visible pixels, amodal projection given) are kept unless
             ``min_visible_fraction`` > 0 drops them.
+        keypoints: uid → ``(uv (K, 2), valid (K,))``, the object's keypoints projected into
+            this image (:func:`usdscene.labels.projection.project_points`); flagged against
+            the mask (:func:`usdscene.labels.keypoints.keypoint_visibility`).
 
     Returns:
         ImageLabels with objects sorted by mask id.
@@ -347,10 +354,17 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
             continue
         if fraction is not None and fraction < min_visible_fraction:
             continue
+        points = None
+        if keypoints and uid in keypoints:
+            from usdscene.labels.keypoints import keypoint_visibility
+
+            flagged = keypoint_visibility(*keypoints[uid], mask, int(mask_id))
+            points = tuple((round(float(x), 3) + 0.0, round(float(y), 3) + 0.0, int(v)) for x, y, v in flagged)
         labels.append(ObjectLabel(uid=uid, class_name=classes.get(uid, ""), mask_id=int(mask_id),
                                   box=visible_box, pixel_count=pixel_count, contours=contours,
                                   amodal_box=amodal_box, amodal_pixel_count=amodal_count,
-                                  truncated=bool(is_truncated), visible_fraction=fraction))
+                                  truncated=bool(is_truncated), visible_fraction=fraction,
+                                  keypoints=points))
     return ImageLabels(camera=camera, frame=int(frame), width_px=int(width), height_px=int(height),
                        objects=tuple(labels))
 
@@ -421,15 +435,19 @@ def image_labels_to_json(image: ImageLabels) -> dict:
     def optional(value, kind):
         return None if value is None else kind(value)
 
+    def one(o: ObjectLabel) -> dict:
+        out = {"uid": o.uid, "class": o.class_name, "mask_id": int(o.mask_id), "box": box(o.box),
+               "pixel_count": int(o.pixel_count),
+               "contours": [{"points_px": c.flat(), "is_hole": bool(c.is_hole), "parent": int(c.parent)}
+                            for c in o.contours],
+               "amodal_box": box(o.amodal_box), "amodal_pixel_count": optional(o.amodal_pixel_count, int),
+               "truncated": bool(o.truncated), "visible_fraction": optional(o.visible_fraction, float)}
+        if o.keypoints is not None:  # only people have them: other labels keep their bytes
+            out["keypoints"] = [[float(x), float(y), int(v)] for x, y, v in o.keypoints]
+        return out
+
     return {"camera": image.camera, "frame": int(image.frame), "width_px": int(image.width_px),
-            "height_px": int(image.height_px), "objects": [
-                {"uid": o.uid, "class": o.class_name, "mask_id": int(o.mask_id), "box": box(o.box),
-                 "pixel_count": int(o.pixel_count),
-                 "contours": [{"points_px": c.flat(), "is_hole": bool(c.is_hole), "parent": int(c.parent)}
-                              for c in o.contours],
-                 "amodal_box": box(o.amodal_box), "amodal_pixel_count": optional(o.amodal_pixel_count, int),
-                 "truncated": bool(o.truncated), "visible_fraction": optional(o.visible_fraction, float)}
-                for o in image.objects]}
+            "height_px": int(image.height_px), "objects": [one(o) for o in image.objects]}
 
 
 def image_labels_from_json(data: Mapping) -> ImageLabels:
@@ -449,7 +467,9 @@ def image_labels_from_json(data: Mapping) -> ImageLabels:
                     amodal_box=box(o["amodal_box"]),
                     amodal_pixel_count=None if o["amodal_pixel_count"] is None else int(o["amodal_pixel_count"]),
                     truncated=bool(o["truncated"]),
-                    visible_fraction=None if o["visible_fraction"] is None else float(o["visible_fraction"]))
+                    visible_fraction=None if o["visible_fraction"] is None else float(o["visible_fraction"]),
+                    keypoints=(None if o.get("keypoints") is None
+                               else tuple((float(x), float(y), int(v)) for x, y, v in o["keypoints"])))
         for o in data["objects"])
     return ImageLabels(camera=str(data["camera"]), frame=int(data["frame"]), width_px=int(data["width_px"]),
                        height_px=int(data["height_px"]), objects=objects)

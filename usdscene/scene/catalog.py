@@ -36,7 +36,9 @@ object coordinates: where another object goes when it ``is_on`` (``is_in``, ...)
 this class (a passenger's ``lap``). Places that depend on a variant (the lap moves with the
 passenger's ``pose``) go under ``variant_places``: variant set → variant → places, which
 replace ``places`` when that variant is selected; a variant listed with no places (``{}``) has
-none (a sleeping passenger's hands lie in its lap). At most one variant set carries places.
+none (a sleeping passenger's hands lie in its lap). At most one variant set carries places;
+besides it, a combination of sets (``pose+appearance``: keys ``<pose>+<appearance>``) may
+give the exact places of each combination, used when every set of it is selected explicitly.
 """
 
 from __future__ import annotations
@@ -184,8 +186,19 @@ class AssetEntry:
             ``variant_places[set][variant]`` for the variant set that carries places when the
             selected variant is listed there, else ``places``.
         """
+        chosen_of = dict(selection or {})
         for set_name, by_variant in sorted(self.variant_places.items()):
-            chosen = (selection or {}).get(set_name) or self.default_variants.get(set_name)
+            if COMBINED_SETS in set_name:
+                # A combination applies only when every one of its sets is chosen explicitly
+                # (a seated body's lap depends on the body and the pose).
+                names = [chosen_of.get(part) for part in set_name.split(COMBINED_SETS)]
+                key = COMBINED_SETS.join(n for n in names if n)
+                if all(names) and key in by_variant:
+                    return by_variant[key]
+        for set_name, by_variant in sorted(self.variant_places.items()):
+            if COMBINED_SETS in set_name:
+                continue
+            chosen = chosen_of.get(set_name) or self.default_variants.get(set_name)
             if chosen in by_variant:
                 return by_variant[chosen]
         return self.places
@@ -367,6 +380,11 @@ def _places_from_json(raw: Mapping) -> dict[str, Place]:
     return places
 
 
+COMBINED_SETS = "+"
+"""Joins variant-set names (and variant names) in a ``variant_places`` key that depends on
+several sets: ``pose+appearance`` → ``upright+f_34_162_slim_tone2``."""
+
+
 def _variant_places_from_json(raw: Mapping, variants: Mapping[str, tuple[str, ...]]) -> dict:
     """``variant_places`` read and checked against the entry's variant sets.
 
@@ -374,18 +392,26 @@ def _variant_places_from_json(raw: Mapping, variants: Mapping[str, tuple[str, ..
         ValueError: a variant set or variant the entry does not have, or places under more
             than one variant set (the message names the field and the value).
     """
-    if len(raw) > 1:
-        raise ValueError(f"variant_places: places under more than one variant set ({', '.join(sorted(raw))}); "
-                         "at most one variant set may carry places")
+    single = [name for name in raw if COMBINED_SETS not in name]
+    if len(single) > 1:
+        raise ValueError(f"variant_places: places under more than one variant set ({', '.join(sorted(single))}); "
+                         "at most one variant set may carry places (plus combinations such as pose+appearance)")
     out = {}
     for set_name, by_variant in raw.items():
-        if set_name not in variants:
-            raise ValueError(f"variant_places.{set_name}: the entry has no variant set {set_name!r} "
-                             f"(variant sets: {', '.join(sorted(variants)) or 'none'})")
+        parts = set_name.split(COMBINED_SETS)
+        for part in parts:
+            if part not in variants:
+                raise ValueError(f"variant_places.{set_name}: the entry has no variant set {part!r} "
+                                 f"(variant sets: {', '.join(sorted(variants)) or 'none'})")
         for variant in by_variant:
-            if variant not in variants[set_name]:
-                raise ValueError(f"variant_places.{set_name}.{variant}: {variant!r} is not a variant of "
-                                 f"{set_name!r} (variants: {', '.join(variants[set_name])})")
+            names = variant.split(COMBINED_SETS)
+            if len(names) != len(parts):
+                raise ValueError(f"variant_places.{set_name}.{variant}: expected {len(parts)} variant names "
+                                 f"joined by {COMBINED_SETS!r}")
+            for part, name in zip(parts, names):
+                if name not in variants[part]:
+                    raise ValueError(f"variant_places.{set_name}.{variant}: {name!r} is not a variant of "
+                                     f"{part!r} (variants: {', '.join(variants[part])})")
         out[set_name] = {variant: _places_from_json(places) for variant, places in by_variant.items()}
     return out
 
@@ -406,6 +432,12 @@ def _variant_extents_from_json(raw: Mapping, variants: Mapping[str, tuple[str, .
                 raise ValueError(f"variant_extents.{set_name}.{variant}: expected [[x, y, z], [x, y, z]]")
             out.setdefault(set_name, {})[variant] = (tuple(float(v) for v in lo), tuple(float(v) for v in hi))
     return out
+
+
+def entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:
+    """One catalog entry from its JSON form (paths relative to ``folder``); the inverse of
+    :func:`entry_to_json`, without the reader's checks of the whole file."""
+    return _entry_from_json(name, raw, folder)
 
 
 def _entry_from_json(name: str, raw: Mapping, folder: Path) -> AssetEntry:

@@ -76,7 +76,7 @@ import numpy as np
 from usdscene import __version__
 from usdscene.document import stage_schema as ss
 from usdscene.bulk import paused_collection
-from usdscene.scene.catalog import Catalog
+from usdscene.scene.catalog import COMBINED_SETS, Catalog
 from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCollector
 from usdscene.files import make_folder, write_text_atomic
 from usdscene.document.output_layout import mask_ids
@@ -163,7 +163,8 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     _check_prim_names(scene)
     _check_asset_arcs(scene, catalog)
     choices = draw_looks(scene, catalog, rng)
-    placements = place_objects(scene, catalog, rng, appearances={uid: look[0] for uid, look in choices.items()})
+    placements = place_objects(_with_drawn_bodies(scene, catalog, choices), catalog, rng,
+                               appearances={uid: look[0] for uid, look in choices.items()})
     resolved = resolved_scene(scene, placements, choices, catalog)
     try:
         ids = mask_ids(scene)
@@ -194,6 +195,22 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
         stage_dir=stage_dir, root_layer=root, layers=(root, *written),
         frame_start=scene.frame_start, frame_end=scene.frame_end,
         objects_per_class=dict(sorted(counts.items())), placements=placements, resolved=resolved)
+
+
+def _with_drawn_bodies(scene: SceneSpec, catalog: Catalog, choices: dict) -> SceneSpec:
+    """``scene`` whose objects of classes with per-appearance support places (a seated
+    body's lap: ``variant_places`` ``pose+appearance``) carry their drawn appearance, so what
+    rests on them lands on that body; other objects are left as they are."""
+    objects = []
+    changed = False
+    for obj in scene.objects:
+        entry = catalog[obj.class_name] if obj.class_name in catalog else None
+        if (obj.appearance is None and entry is not None
+                and any(COMBINED_SETS in name for name in entry.variant_places)):
+            obj = replace(obj, appearance=choices[obj.uid][0])
+            changed = True
+        objects.append(obj)
+    return replace(scene, objects=tuple(objects)) if changed else scene
 
 
 # --------------------------------------------------------------------------------------------

@@ -181,6 +181,30 @@ class StageGeometry:
         return result
 
 
+    def keypoints(self, frame: int, uids: Collection[str] | None = None) -> dict[str, np.ndarray]:
+        """World-space keypoints of the visible objects that carry them (people:
+        ``stage_schema.ATTR_KEYPOINTS`` on the object's prim, from its selected variants).
+
+        Returns:
+            uid → (17, 3) float64 world metres, COCO-17 order.
+        """
+        time = Usd.TimeCode(frame)
+        xforms = UsdGeom.XformCache(time)
+        result = {}
+        for uid, (prim, _) in self._objects.items():
+            if uids is not None and uid not in uids:
+                continue
+            attr = prim.GetAttribute(stage_schema.ATTR_KEYPOINTS)
+            if not attr or not attr.HasValue():
+                continue
+            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+                continue
+            local = np.asarray(attr.Get(time), dtype=np.float64).reshape(-1, 3)
+            matrix = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
+            result[uid] = local @ matrix[:3, :3] + matrix[3, :3]  # USD: row vectors
+        return result
+
+
 def object_triangles(stage: Usd.Stage | str | os.PathLike, frame: int) -> dict[str, np.ndarray]:
     """One-shot form of :meth:`StageGeometry.triangles` (no cache kept between calls)."""
     return StageGeometry(stage).triangles(frame)
