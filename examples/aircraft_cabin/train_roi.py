@@ -128,8 +128,8 @@ def cabin_setup(cameras, place_patterns, width_px: int, samples: int, *, test_li
     import fnmatch
 
     from make_documents import cabin_scene
-    from usdscene.catalog import load_catalog
-    from usdscene.model import PlaceRef
+    from usdscene import load_catalog
+    from usdscene.document.model import PlaceRef
 
     scene = cabin_scene(frames=1, width_px=width_px, samples=samples, seed=7)
     known = [c.name for c in scene.cameras]
@@ -154,8 +154,7 @@ def cabin_setup(cameras, place_patterns, width_px: int, samples: int, *, test_li
 
 def generate_set(work: Path, name: str, setup, options) -> Path:
     """Write the setup and generate the set's document (kept when it exists)."""
-    from usdscene.converters.openlabel import write_document, write_openlabel
-    from usdscene.sequences import generate_document
+    from usdscene import generate_document, write_document, write_openlabel
 
     document = work / f"{name}.openlabel.json"
     if not document.exists():
@@ -168,7 +167,7 @@ def generate_set(work: Path, name: str, setup, options) -> Path:
 def render_set(document: Path, out: Path, workers: int, frames=None) -> Path:
     """Render and label the document (``frames`` of it; None = all), export its ROIs (a re-run
     resumes); the ROI folder."""
-    from usdscene.pipeline import run_pipeline
+    from usdscene import run_pipeline
 
     index = out / "exports" / "rois" / "index.csv"
     if not index.exists():
@@ -178,8 +177,7 @@ def render_set(document: Path, out: Path, workers: int, frames=None) -> Path:
 
 def passenger_uids(document: Path) -> set[str]:
     """Uids of the document's passenger-kind objects."""
-    from usdscene.catalog import load_catalog
-    from usdscene.converters.openlabel import read_openlabel
+    from usdscene import load_catalog, read_openlabel
 
     scene = read_openlabel(document)
     catalog = load_catalog()
@@ -596,7 +594,7 @@ def roi_classes(rules) -> tuple[str, ...]:
 
 def prepare_sets(args) -> tuple[dict[str, RoiSet], tuple[str, ...], dict]:
     """Generate and render (or take) the three training sets and the test set; equal sizes."""
-    from usdscene.sequences import GenerateOptions
+    from usdscene import GenerateOptions
 
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
@@ -628,7 +626,7 @@ def prepare_sets(args) -> tuple[dict[str, RoiSet], tuple[str, ...], dict]:
         document = generate_set(work, name, setup, options)
         rendered = None
         if name == "single-class":
-            from usdscene.converters.openlabel import read_openlabel
+            from usdscene import read_openlabel
 
             # balanced and random get as many frames as single-class renders: equal image counts.
             scene = read_openlabel(document)
@@ -775,7 +773,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
-    from usdscene.errors import UsdSceneError
+    from usdscene import UsdSceneError
 
     try:
         results = run_experiment(args)
