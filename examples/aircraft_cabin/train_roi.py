@@ -24,14 +24,15 @@ ImageNet weights a user has (torchvision's ``efficientnet_b0`` state dict: the m
 its parameter names; the classifier layer is left at random). ``--real-test DIR`` (one folder
 per label, e.g. ``DIR/correct/*.png``) adds an evaluation on real crops.
 
-Scaling (the defaults fit about 3 hours on a 2-core CPU): the paper's 224 px input costs about
-50 times the arithmetic of 32 px, and one 224 px training of 50 epochs over a few thousand ROIs
-alone would take days on 2 cores. The defaults therefore keep the protocol (model, optimiser,
-batch, epochs, 3 seeds × 3 sets) and scale the input to ``--size 48`` px and each training set
-to ``--rois-per-set 600`` crops, from 8 seat-area cameras at 320x240 with 4 samples: rendering
-about 20 minutes, 9 trainings of 50 epochs about 2 hours 20 minutes (measured step times are in
-``benchmarks/README.md``). Raise ``--size``, ``--rois-per-set``, ``--epochs`` and ``--width`` on
-a bigger machine; ``--epochs 5 --rois-per-set 200 --size 32`` is a quick look.
+Scaling (the defaults fit about 3 hours on a shared 2-core CPU): the paper's 224 px input costs
+about 50 times the arithmetic of 32 px, and one optimiser step of EfficientNet-B0 at batch 40
+took 1.5-3.7 s even at 32 px on this machine (docs/training.md). The defaults therefore keep
+the protocol (model, optimiser, batch, 50 epochs, 3 seeds × 3 sets) and scale everything else:
+32 px input, 400 crops per training set and 400 test crops, drawn from 6 frames × 4 seat-area
+cameras (rows 03-06) at 320x240 with 4 samples per set. Measured pace: rendering the four sets
+about 25 minutes; 9 trainings × 50 epochs × 10 steps at about 1.5 s, plus the test set after
+every epoch, about 2.5 hours. Raise ``--size``, ``--rois-per-set``, ``--frames``, ``--width``
+on a bigger machine; ``--epochs 8 --rois-per-set 240`` is the quick look of docs/training.md.
 
 Usage::
 
@@ -403,9 +404,9 @@ class TrainConfig:
     epochs: int = 50
     batch: int = 40
     lr: float = 1e-3
-    size_px: int = 48
+    size_px: int = 32
     weights: Path | None = None
-    threads: int = 2
+    threads: int = 1
 
 
 def predict(model, pixels: np.ndarray, batch: int) -> np.ndarray:
@@ -614,13 +615,15 @@ def prepare_sets(args) -> tuple[dict[str, RoiSet], tuple[str, ...], dict]:
             continue
         if name == TEST_SET:
             options = GenerateOptions(strategy="appearance", frames=args.test_frames, seed=args.test_seed,
-                                      place_patterns=tuple(args.places), occupancy=args.test_occupancy)
+                                      place_patterns=tuple(args.places), occupancy=args.test_occupancy,
+                                      objects_per_frame=args.objects_per_frame)
             setup = test_setup
         else:
             strategy = name
             options = GenerateOptions(strategy=strategy, frames=None if strategy == "single-class" else frames,
                                       seed=args.data_seed + TRAIN_SETS.index(name),
-                                      place_patterns=tuple(args.places), occupancy=args.occupancy)
+                                      place_patterns=tuple(args.places), occupancy=args.occupancy,
+                                      objects_per_frame=None if strategy == "single-class" else args.objects_per_frame)
             setup = train_setup
         started = time.perf_counter()
         document = generate_set(work, name, setup, options)
@@ -675,6 +678,7 @@ def run_experiment(args) -> dict:
                "data": {**data_info, "counts": {n: s.counts() for n, s in sets.items()},
                         "cameras": list(args.cameras), "places": list(args.places), "width_px": args.width,
                         "samples": args.samples, "occupancy": args.occupancy,
+                        "objects_per_frame": args.objects_per_frame,
                         "test_occupancy": args.test_occupancy},
                "trainings": {}}
     for name in args.train_sets:
@@ -735,10 +739,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--epochs", type=_positive, default=50, help="epochs per training (default 50)")
     p.add_argument("--batch", type=_positive, default=40, help="batch size (default 40)")
     p.add_argument("--lr", type=float, default=1e-3, help="RMSprop learning rate (default 0.001)")
-    p.add_argument("--size", type=_positive, default=48, help="input side in px (default 48; the paper: 224)")
+    p.add_argument("--size", type=_positive, default=32, help="input side in px (default 32; the paper: 224)")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="training seeds (default 0 1 2)")
-    p.add_argument("--rois-per-set", type=int, default=600,
-                   help="crops per training set, the same for all three (default 600; 0 = the smallest set's)")
+    p.add_argument("--rois-per-set", type=int, default=400,
+                   help="crops per training set, the same for all three (default 400; 0 = the smallest set's)")
     p.add_argument("--train-sets", nargs="+", choices=TRAIN_SETS, default=list(TRAIN_SETS),
                    help="which trainings to run (default all three)")
     p.add_argument("--weights", type=Path, default=None,
@@ -747,26 +751,28 @@ def parser() -> argparse.ArgumentParser:
                    help="real crops, one sub-folder per label (correct/, incorrect/, empty/), evaluated too")
     p.add_argument("--rois", type=_named_folder, action="append", default=[], metavar="NAME=DIR",
                    help="take a set's ROIs from an exports/rois folder instead of rendering it")
-    p.add_argument("--cameras", nargs="+", default=["seats_L02", "seats_R02", "seats_L03", "seats_R03",
-                                                    "seats_L04", "seats_R04", "seats_L05", "seats_R05"],
-                   help="cabin cameras to render (default: 8 seat-area cameras over rows 03-10)")
-    p.add_argument("--places", nargs="+", default=["seat_0[3-9]*", "seat_10*", "bin_0[3-9]*", "bin_10*",
-                                                   "aisle_0[3-9]", "aisle_10"],
-                   help="place patterns the generators use (default: rows 03-10, what the cameras see)")
+    p.add_argument("--cameras", nargs="+", default=["seats_L02", "seats_R02", "seats_L03", "seats_R03"],
+                   help="cabin cameras to render (default: the 4 seat-area cameras over rows 03-06)")
+    p.add_argument("--places", nargs="+", default=["seat_0[3-6]*", "bin_0[3-6]*", "aisle_0[3-6]"],
+                   help="place patterns the generators use (default: rows 03-06, what the cameras see)")
     p.add_argument("--width", type=_positive, default=320, help="image width in px, height 3/4 (default 320)")
     p.add_argument("--samples", type=_positive, default=4, help="Cycles samples (default 4)")
-    p.add_argument("--frames", type=_positive, default=None,
-                   help="frames of balanced and random, and at most as many of single-class's, evenly spread, "
-                        "are rendered (default: as many as single-class decides)")
+    p.add_argument("--frames", type=_positive, default=6,
+                   help="frames of balanced and random; as many of single-class's, evenly spread, are rendered "
+                        "(default 6: 24 images, about 830 crops per set with the default cameras)")
+    p.add_argument("--objects-per-frame", type=_positive, default=None,
+                   help="generated objects per frame of balanced, random and the test document (default: the "
+                        "generator's: what covering every combination in --frames needs, so few frames are full)")
     p.add_argument("--occupancy", type=float, default=0.3, help="seats taken in the training sets (default 0.3)")
-    p.add_argument("--test-frames", type=_positive, default=12, help="frames of the test document (default 12)")
+    p.add_argument("--test-frames", type=_positive, default=6, help="frames of the test document (default 6)")
     p.add_argument("--test-occupancy", type=float, default=0.6, help="seats taken in the test set (default 0.6)")
-    p.add_argument("--test-rois", type=int, default=600,
-                   help="crops of the test set, drawn from its renders (default 600; 0 = all)")
+    p.add_argument("--test-rois", type=int, default=400,
+                   help="crops of the test set, drawn from its renders (default 400; 0 = all)")
     p.add_argument("--test-seed", type=int, default=101, help="generator seed of the test document (default 101)")
     p.add_argument("--data-seed", type=int, default=11, help="generator seed of the training documents (default 11)")
     p.add_argument("--workers", type=_positive, default=2, help="render worker processes (default 2)")
-    p.add_argument("--threads", type=_positive, default=2, help="torch threads (default 2)")
+    p.add_argument("--threads", type=_positive, default=1,
+                   help="torch threads (default 1: faster than 2 on a busy 2-core machine; try 2 on an idle one)")
     p.add_argument("--quiet", dest="log", action="store_false", help="no line per finished training")
     return p
 
