@@ -551,7 +551,8 @@ def draw_curves(results: dict, path: Path) -> None:
     names = list(results["trainings"])
     rows = ["train_loss", "train_accuracy"] + [f"{e}_accuracy" for e in results["eval_sets"]]
     pw, ph, margin = 360, 200, 44
-    canvas = np.full((len(rows) * (ph + margin) + margin, len(names) * (pw + margin) + margin, 3), 255, np.uint8)
+    canvas = np.full((len(rows) * (ph + margin) + margin + 24, len(names) * (pw + margin) + margin, 3), 255,
+                     np.uint8)
     font = cv2.FONT_HERSHEY_SIMPLEX
     for r, quantity in enumerate(rows):
         series_all = [run["curves"][quantity] for name in names for run in results["trainings"][name]["runs"]]
@@ -575,12 +576,12 @@ def draw_curves(results: dict, path: Path) -> None:
             if r == len(rows) - 1:
                 cv2.putText(canvas, f"epoch 1..{results['config']['epochs']}", (x0 + pw // 2 - 40, y0 + ph + 16),
                             font, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
-    legend = "  ".join(f"seed {s}" for s in results["seeds"])
-    cv2.putText(canvas, "lines: " + legend, (margin, canvas.shape[0] - 10), font, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-    for k, seed in enumerate(results["seeds"]):
-        x = margin + 50 + k * 58
-        cv2.line(canvas, (x, canvas.shape[0] - 24), (x + 40, canvas.shape[0] - 24),
-                 CURVE_COLOURS_BGR[k % len(CURVE_COLOURS_BGR)], 3)
+    x = margin
+    for k, seed in enumerate(results["seeds"]):  # the legend: each seed's name in its line colour
+        colour = CURVE_COLOURS_BGR[k % len(CURVE_COLOURS_BGR)]
+        cv2.line(canvas, (x, canvas.shape[0] - 16), (x + 24, canvas.shape[0] - 16), colour, 3)
+        cv2.putText(canvas, f"seed {seed}", (x + 30, canvas.shape[0] - 11), font, 0.45, colour, 1, cv2.LINE_AA)
+        x += 110
     write_png_atomic(path, canvas)
 
 
