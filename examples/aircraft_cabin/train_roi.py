@@ -168,11 +168,12 @@ def generate_set(work: Path, name: str, setup, options) -> Path:
 def render_set(document: Path, out: Path, workers: int, frames=None) -> Path:
     """Render and label the document (``frames`` of it; None = all), export its ROIs (a re-run
     resumes); the ROI folder."""
-    from usdscene import run_pipeline
+    from usdscene import RunOptions, run_pipeline
 
     index = out / "exports" / "rois" / "index.csv"
     if not index.exists():
-        run_pipeline(document, out, frames=frames, exports=("rois",), workers=workers, progress=False)
+        options = RunOptions(frames=frames, exports=("rois",), workers=workers, report=False)
+        run_pipeline(document, out, options, progress=False)
     return index.parent
 
 
