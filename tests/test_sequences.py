@@ -20,8 +20,8 @@ from usdscene.scene.catalog import load_catalog
 from usdscene.cli import main
 from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.dataset.sequences import (GenerateOptions, balance_report, check_composes, fitting_combinations,
-                                generate_sequence, report_path)
+from usdscene.dataset.sequences import (Combination, GenerateOptions, balance_report, check_composes,
+                                        fitting_combinations, generate_sequence, plan_random, report_path)
 
 CLASSES = {  # class: (extent min, extent max, appearance variants)
     "crate": ((-0.3, -0.2, 0.0), (0.3, 0.2, 0.4), ("wood", "plastic")),
@@ -126,6 +126,45 @@ def test_balanced_equal_per_class_and_covers_every_combination(car_park, strateg
     assert counts == dict(per_class)
 
 
+def test_random_is_unbalanced_but_every_instance_fits_a_free_region(car_park):
+    catalog, setup, _ = car_park
+    options = GenerateOptions(strategy="random", frames=40, seed=5, objects_per_frame=3)
+    gen = generate_sequence(setup, catalog, options)
+    rows = _instances(gen.scene)
+    fitting = {(c.class_name, c.relation, c.place) for c in fitting_combinations(catalog, "car_park", sorted(CLASSES))}
+    assert rows and all((cls, rel, place) in fitting for _, cls, rel, place in rows)
+    assert len({(f, rel, place) for f, _, rel, place in rows}) == len(rows)  # one object per region and frame
+    per_class = collections.Counter(cls for _, cls, _, _ in rows)
+    assert set(per_class) == set(CLASSES)
+    # No balancing: the class counts are whatever the draws give (balanced keeps them within 1).
+    assert max(per_class.values()) - min(per_class.values()) > 1
+    assert gen.report["generator"]["strategy"] == "random"
+    again = generate_sequence(setup, catalog, options)
+    assert _instances(again.scene) == rows  # same seed, same document
+
+
+def test_random_draws_classes_then_places_uniformly():
+    """Class A fits one region, class B five regions at two places (four at p1, one at p2): a
+    uniform class draw gives A about half the instances (a uniform region draw would give 1/6),
+    and B's uniform place draw puts about half of B at p2 (a uniform region draw: 1/5)."""
+    combos = [Combination("a", "is_on", "p0")]
+    combos += [Combination("b", rel, "p1") for rel in ("is_on", "is_in", "is_below", "is_in_front_of")]
+    combos += [Combination("b", "is_on", "p2")]
+    conflicts = {c.region: frozenset({c.region}) for c in combos}
+    plan = plan_random(combos, ("a", "b"), 2000, 1, [set() for _ in range(2000)], conflicts,
+                       np.random.default_rng(3))
+    drawn = [c for frame in plan for c in frame]
+    assert len(drawn) == 2000
+    share_a = sum(c.class_name == "a" for c in drawn) / len(drawn)
+    b = [c for c in drawn if c.class_name == "b"]
+    share_p2 = sum(c.place == "p2" for c in b) / len(b)
+    assert 0.45 < share_a < 0.55 and 0.44 < share_p2 < 0.56
+    # A taken region is never drawn again in that frame: two draws per frame, A at most once.
+    plan = plan_random(combos, ("a", "b"), 200, 2, [set() for _ in range(200)], conflicts, np.random.default_rng(4))
+    assert all(sum(c.class_name == "a" for c in frame) <= 1 for frame in plan)
+    assert any(len(frame) == 1 for frame in plan)  # A drawn twice: the second draw is lost
+
+
 def test_too_few_frames_reports_uncovered_and_the_frames_that_would(car_park):
     catalog, setup, _ = car_park
     gen = generate_sequence(setup, catalog, GenerateOptions(strategy="balanced", frames=2, seed=1,
@@ -169,7 +208,7 @@ def test_generated_documents_compose_with_usd(car_park, tmp_path):
     from usdscene.scene.compose import compose_stage
 
     catalog, setup, _ = car_park
-    for strategy in ("single-class", "balanced", "appearance"):
+    for strategy in ("single-class", "balanced", "appearance", "random"):
         frames = None if strategy == "single-class" else 5
         gen = generate_sequence(setup, catalog, GenerateOptions(strategy=strategy, frames=frames, seed=4,
                                                                 objects_per_frame=None if frames is None else 4,

@@ -6,10 +6,10 @@ from __future__ import annotations
 import argparse
 
 NAME = "generate"
-HELP = "generate a sequence document (single-class, balanced, appearance, tracks) from a setup document"
+HELP = "generate a sequence document (single-class, balanced, appearance, random, tracks) from a setup document"
 ORDER = 8
 
-_STRATEGIES = ("single-class", "balanced", "appearance")  # usdscene.dataset.sequences.STRATEGIES, without its import
+_STRATEGIES = ("single-class", "balanced", "appearance", "random")  # usdscene.dataset.sequences.STRATEGIES, without its import
 _TRACKS = "tracks"  # usdscene.dataset.motion: people and vehicles that move
 
 
@@ -30,16 +30,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="single-class: one class in one relation at every place it fits, per frame; "
                              "balanced: equal instance-frames per class, every fitting (class, relation, place) "
                              "at least once; appearance: balanced with random variants and colours; "
-                             "tracks: people walking between entrances and vehicles driving into and out of "
-                             "bays, one track per object")
+                             "random: the naive ablation, uniformly random classes at uniformly random places, "
+                             "no balancing; tracks: people walking between entrances and vehicles driving into "
+                             "and out of bays, one track per object")
     parser.add_argument("--setup", metavar="SETUP_DOC", required=True,
                         help="setup document: environment, cameras, lights, render settings, fixed objects")
     parser.add_argument("-o", "--output", type=output_path, metavar="DOC", required=True,
                         help="sequence document to write; the balance report goes to DOC.report.json")
     parser.add_argument("--frames", type=positive_int, default=None,
-                        help="sequence length (balanced, appearance); default: what full coverage needs")
+                        help="sequence length (balanced, appearance, random); default: what full coverage "
+                             "needs with balanced")
     parser.add_argument("--objects-per-frame", type=positive_int, default=None,
-                        help="generated objects per frame (balanced, appearance); default: the class count, "
+                        help="generated objects per frame (balanced, appearance, random); default: the class count, "
                              "or what coverage within --frames needs")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
     parser.add_argument("--classes", nargs="+", metavar="NAME", default=(),

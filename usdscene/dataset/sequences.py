@@ -18,6 +18,9 @@ Strategies (:data:`STRATEGIES`):
   (:func:`frames_for_coverage`); the report lists those that do not.
 * ``appearance``: like ``balanced``, with a random appearance variant and a random colour per
   object, and each object used for at most :data:`APPEARANCE_LIFETIME_FRAMES` frames.
+* ``random``: the naive generator, the ablation of ``balanced`` (:func:`plan_random`): each
+  instance a uniformly random class at a uniformly random free place where it fits; no equal
+  counts, no coverage.
 
 Capacity: a support region (one relation of one place) holds at most one generated object per
 frame, and only objects that :func:`usdscene.scene.placement.fits_region` accepts; regions of fixed
@@ -64,7 +67,7 @@ from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE
 
 log = logging.getLogger(__name__)
 
-STRATEGIES = ("single-class", "balanced", "appearance")
+STRATEGIES = ("single-class", "balanced", "appearance", "random")
 APPEARANCE_LIFETIME_FRAMES = 5
 """An ``appearance`` object keeps its look for at most this many frames (fresh looks often,
 without a USD prim per instance-frame)."""
@@ -325,6 +328,53 @@ def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n
     return frames
 
 
+def plan_random(combinations: Sequence[Combination], classes: Sequence[str], n_frames: int,
+                objects_per_frame: int, taken: Sequence[set[Region]],
+                conflicts: Mapping[Region, frozenset[Region]],
+                rng: np.random.Generator) -> list[list[Combination]]:
+    """The naive generator: uniform random classes and places, no balancing.
+
+    Per frame, ``objects_per_frame`` draws: a class, uniformly; a place, uniformly among the
+    places with a free region that holds the class; a relation, uniformly among the class's
+    free regions at that place. A class with no free region left in the frame loses that
+    instance (the frame holds fewer objects). Class counts are whatever the draws give, and
+    nothing makes every combination occur: this is what :func:`plan_balanced` is measured
+    against.
+
+    Args:
+        combinations: the fitting combinations (:func:`fitting_combinations`).
+        classes: classes to draw from (each has at least one combination).
+        n_frames: sequence length.
+        objects_per_frame: draws per frame.
+        taken: per frame, regions already used (fixed objects, passengers); not changed.
+        conflicts: region → overlapping regions (:func:`region_conflicts`).
+        rng: generator (draw order per frame and draw: class, place, relation).
+
+    Returns:
+        Per frame, its combinations.
+    """
+    by_class: dict[str, list[Combination]] = collections.defaultdict(list)
+    for combo in sorted(combinations):
+        by_class[combo.class_name].append(combo)
+    frames: list[list[Combination]] = []
+    for frame in range(n_frames):
+        used = set(taken[frame])
+        row: list[Combination] = []
+        for _ in range(objects_per_frame):
+            class_name = classes[int(rng.integers(len(classes)))]
+            free = [c for c in by_class[class_name] if c.region not in used]
+            if not free:
+                continue
+            places = sorted({c.place for c in free})
+            place = places[int(rng.integers(len(places)))]
+            here = [c for c in free if c.place == place]
+            combo = here[int(rng.integers(len(here)))]
+            row.append(combo)
+            used |= conflicts.get(combo.region, {combo.region})
+        frames.append(row)
+    return frames
+
+
 def _free_frame(region: Region, frames: list[list[Combination]], used: list[set[Region]],
                 capacity: int, start: int) -> int | None:
     """First frame from ``start`` (cyclic) with room and ``region`` free."""
@@ -395,7 +445,8 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         seat_laps = _laps_by_seat(laps)
         taken = [_taken_at(fixed_taken, f) | _seated_taken(row, laps, seat_laps, conflicts)
                  for f, row in enumerate(seated)]
-        plan = plan_balanced(combos, classes, n_frames, per_frame, taken, conflicts, rng)
+        plan_strategy = plan_random if options.strategy == "random" else plan_balanced
+        plan = plan_strategy(combos, classes, n_frames, per_frame, taken, conflicts, rng)
 
     slots = _pool_indices(plan, options.strategy)
     looks = _draw_looks(plan, slots, catalog, setup.environment, options, rng)
