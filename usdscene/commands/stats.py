@@ -23,6 +23,7 @@ ORDER = 60
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene stats`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("output", metavar="OUT|DOC",
@@ -70,6 +71,7 @@ def _document_stats(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene stats``: print the label statistics of an output or a document; returns the exit status."""
     from pathlib import Path
 
     from rich.console import Console

@@ -97,6 +97,7 @@ class Combination:
 
     @property
     def region(self) -> Region:
+        """The (place uid, relation) pair of this combination."""
         return (self.place, self.relation)
 
 
