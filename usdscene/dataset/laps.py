@@ -80,8 +80,8 @@ def lap_combinations(catalog: Catalog, classes: Sequence[str], laps: Mapping[Reg
 
 def with_lap_places(catalog: Catalog, environment: str, laps: Mapping[Region, Lap]) -> Catalog:
     """``catalog`` whose environment also has one place per lap, its region the box around the
-    lap of every pose (for :func:`usdscene.dataset.combinations.region_conflicts`: whatever pose is drawn, a lap object
-    stays inside it)."""
+    lap of every pose (for :func:`usdscene.dataset.combinations.region_conflicts`: whatever pose
+    is drawn, a lap object stays inside it)."""
     entry = catalog[environment]
     places = dict(entry.places)
     for (name, relation), lap in laps.items():
