@@ -100,6 +100,7 @@ class GroundGrid:
                          self.origin_m[1] + self.cell_m * (p // self.size[0])], axis=1)
 
     def as_json(self) -> dict:
+        """The grid as recorded in the output, with the rule mapping position ids to world metres."""
         return {"origin_m": [float(v) for v in self.origin_m], "cell_m": float(self.cell_m),
                 "size": [int(v) for v in self.size],
                 "position_id": "ix + nx * iy; world = origin_m + cell_m * (ix, iy); "

@@ -97,14 +97,17 @@ def _relative_uri(path: Path, out_dir: str | os.PathLike) -> str:
 
 
 def bbox_name(camera: str) -> str:
+    """Name of the visible 2D box of ``camera``."""
     return f"{camera}{BBOX_SUFFIX}"
 
 
 def amodal_bbox_name(camera: str) -> str:
+    """Name of the amodal (full-extent) 2D box of ``camera``."""
     return f"{camera}{AMODAL_BBOX_SUFFIX}"
 
 
 def poly2d_name(camera: str, index: int) -> str:
+    """Name of polygon ``index`` of ``camera``."""
     return f"{camera}{POLY2D_INFIX}{index}"
 
 

@@ -20,8 +20,10 @@ from usdscene.scene.catalog import load_catalog
 from usdscene.cli import main
 from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.dataset.sequences import (Combination, GenerateOptions, balance_report, check_composes,
-                                        fitting_combinations, generate_sequence, plan_random, report_path)
+from usdscene.dataset.balance import balance_report
+from usdscene.dataset.combinations import Combination, fitting_combinations
+from usdscene.dataset.sequence_plans import plan_random
+from usdscene.dataset.sequences import GenerateOptions, check_composes, generate_sequence, report_path
 
 CLASSES = {  # class: (extent min, extent max, appearance variants)
     "crate": ((-0.3, -0.2, 0.0), (0.3, 0.2, 0.4), ("wood", "plastic")),

@@ -60,7 +60,7 @@ _LAZY = {
     "generate_document": ("usdscene.dataset.sequences", "generate_document"),
     "generate_sequence": ("usdscene.dataset.sequences", "generate_sequence"),
     "GenerateOptions": ("usdscene.dataset.sequences", "GenerateOptions"),
-    "balance_report": ("usdscene.dataset.sequences", "balance_report"),
+    "balance_report": ("usdscene.dataset.balance", "balance_report"),
     "plan_cameras": ("usdscene.design.camera_design", "plan_cameras"),
     "PlanRequest": ("usdscene.design.plan_request", "PlanRequest"),
     "verify_plan": ("usdscene.design.camera_design", "verify_plan"),

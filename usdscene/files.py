@@ -191,6 +191,7 @@ def write_png_atomic(path: str | os.PathLike, image) -> Path:
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` as UTF-8 to ``path`` atomically (see :func:`write_bytes_atomic`); returns the path."""
     return write_bytes_atomic(path, text.encode("utf-8"))
 
 

@@ -254,6 +254,7 @@ class Skeleton:
     tails: np.ndarray
 
     def index(self, name: str) -> int:
+        """Index of bone ``name`` in :attr:`names`; raises ValueError when there is none."""
         return self.names.index(name)
 
 

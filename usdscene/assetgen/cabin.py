@@ -117,6 +117,7 @@ def seat_y(config: CabinConfig, letter: str) -> float:
 
 
 def rear_wall_x(config: CabinConfig) -> float:
+    """x of the rear wall of the cabin (behind the last row), metres."""
     return row_front_x(config, config.rows) - 0.48 - 0.62
 
 

@@ -137,6 +137,7 @@ def set_transform(prim: Usd.Prim, matrix_row_major: np.ndarray) -> None:
 
 
 def set_translate(prim: Usd.Prim, offset_m: Sequence[float]) -> None:
+    """Add a translate op of ``offset_m`` (x, y, z metres, rounded to 6 decimals) to ``prim``."""
     xform = UsdGeom.Xformable(prim)
     xform.AddTranslateOp().Set(Gf.Vec3d(*(round(float(v), 6) + 0.0 for v in offset_m)))
 

@@ -13,6 +13,7 @@ ORDER = 40
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene annotate`` arguments and options to ``parser``."""
     parser.add_argument("output", metavar="OUT", help="output folder of a render (stage/, masks/, images/)")
     parser.add_argument("--document", metavar="DOC",
                         help="scene document to add the labels to (default: the stage's source document)")
@@ -26,6 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene annotate``: write ``OUT/annotations.openlabel.json`` from the instance masks of a rendered
+    output; returns the exit status."""
     from pathlib import Path
 
     from usdscene.dataset.annotation import write_annotations

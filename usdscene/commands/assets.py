@@ -19,6 +19,7 @@ ORDER = 60
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene assets`` arguments and options to ``parser``."""
     sub = parser.add_subparsers(dest="assets_command", metavar="ACTION")
     sub.required = True
     p_list = sub.add_parser("list", help="print the catalog as a table")
@@ -63,6 +64,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene assets``: list the catalog, add an asset or rebuild the shipped library; returns the exit
+    status."""
     if args.assets_command == "list":
         return _list(args)
     if args.assets_command == "add":

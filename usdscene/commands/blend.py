@@ -11,6 +11,7 @@ ORDER = 32
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene blend`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("input", metavar="DOC_OR_STAGE", help="scene document (.json) or composed stage (.usda)")
@@ -21,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene blend``: write a Blender project of the composed scene; returns the exit status."""
     from pathlib import Path
 
     from usdscene.errors import RenderError

@@ -10,6 +10,7 @@ ORDER = 20
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene compose`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import non_negative_int, output_path
 
     parser.add_argument("document", metavar="DOC", help="OpenLABEL/VCD scene document (.json)")
@@ -20,6 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene compose``: compose the layered USD stage of a scene document; returns the exit status."""
     from pathlib import Path
 
     from rich.console import Console

@@ -11,6 +11,7 @@ ORDER = 11
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene convert`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import add_document_check_arguments, output_path
 
     parser.add_argument("document", help="scene document (.json, root 'openlabel' or 'vcd')")
@@ -20,6 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene convert``: normalise a scene document to OpenLABEL 1.0.0; returns the exit status."""
     from usdscene.commands._arguments import validate_from_arguments
     from usdscene.converters.openlabel import write_document, write_openlabel
 

@@ -30,6 +30,7 @@ class _FormatsThenOutputs(argparse.Action):
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene export`` arguments and options to ``parser``."""
     parser.add_argument("items", nargs="+", action=_FormatsThenOutputs, metavar="FORMAT|OUT",
                         help=f"one or more formats ({', '.join(FORMATS)}), then one or more output "
                              "folders with annotations.openlabel.json")
@@ -55,6 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene export``: write training sets in the requested formats; returns the exit status."""
     from usdscene.commands._arguments import label_filter_options
     from usdscene.errors import OutputError, Problem
     from usdscene.dataset.export import ExportOptions, carried_split, export_dataset, export_formats

@@ -12,6 +12,7 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene export-openlabel`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("stage", metavar="STAGE",
@@ -20,6 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene export-openlabel``: write the OpenLABEL document of a USD stage or .blend; returns the
+    exit status."""
     import importlib
     from pathlib import Path
 

@@ -24,6 +24,7 @@ def _fraction(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene generate`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import add_split_arguments, non_negative_int, output_path, positive_int
 
     parser.add_argument("strategy", choices=(*_STRATEGIES, _TRACKS),
@@ -100,6 +101,7 @@ def _run_tracks(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene generate``: write a generated sequence document and its report; returns the exit status."""
     if args.strategy == _TRACKS:
         return _run_tracks(args)
     for flag, value in (("--fps", args.fps), ("--people", args.people), ("--standing", args.standing),

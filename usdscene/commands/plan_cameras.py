@@ -11,6 +11,7 @@ ORDER = 15
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene plan-cameras`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import non_negative_int, output_path, positive_int
 
     parser.add_argument("--setup", metavar="SETUP_DOC",
@@ -58,6 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene plan-cameras``: plan (or verify) the cameras of a setup; returns the exit status."""
     import collections
 
     from rich.console import Console

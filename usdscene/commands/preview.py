@@ -10,6 +10,7 @@ ORDER = 31
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene preview`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("input", metavar="DOC_OR_STAGE", help="scene document (.json) or composed stage (.usda)")
@@ -22,6 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene preview``: write the contact sheet of every camera view; returns the exit status."""
     import sys
     import tempfile
     from pathlib import Path

@@ -14,6 +14,7 @@ ORDER = 30
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene render`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("input", metavar="STAGE_OR_DOC",
@@ -33,6 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene render``: render every camera of every frame; returns the exit status."""
     from pathlib import Path
 
     from usdscene.commands._arguments import executor_for, parse_frames

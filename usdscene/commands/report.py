@@ -16,6 +16,7 @@ ORDER = 45
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene report`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("output", metavar="OUT", help="output folder of usdscene run (or render + annotate)")
@@ -27,6 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene report``: write the browsable report of an output folder; returns the exit status."""
     from pathlib import Path
 
     from usdscene.design.camera_design import plan_picture_for

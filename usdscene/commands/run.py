@@ -18,6 +18,7 @@ ORDER = 5
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene run`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("document", metavar="DOC", help="OpenLABEL (or VCD 4.3) scene document")
@@ -46,6 +47,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene run``: validate, compose, render, annotate and export one document; returns the exit
+    status."""
     from pathlib import Path
 
     from usdscene.commands._arguments import executor_for, parse_frames

@@ -2,7 +2,7 @@
 what a scene document will hold.
 
 Given a scene document (a file) instead of an output folder, it prints the balance report of
-:func:`usdscene.dataset.sequences.balance_report` (instance-frames per class, class × relation,
+:func:`usdscene.dataset.balance.balance_report` (instance-frames per class, class × relation,
 place kinds) and draws it at ``DOC.stats.png`` (or ``--chart``).
 
 Reads ``OUT/annotations.openlabel.json`` and prints per-class and per-camera counts and the
@@ -23,6 +23,7 @@ ORDER = 60
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene stats`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("output", metavar="OUT|DOC",
@@ -39,7 +40,7 @@ def _document_stats(args: argparse.Namespace) -> int:
 
     from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.dataset.sequences import balance_report
+    from usdscene.dataset.balance import balance_report
     from usdscene.files import write_png_atomic
     from usdscene.dataset.statistics import draw_balance_chart
 
@@ -70,6 +71,7 @@ def _document_stats(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene stats``: print the label statistics of an output or a document; returns the exit status."""
     from pathlib import Path
 
     from rich.console import Console

@@ -12,6 +12,7 @@ ORDER = 10
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``usdscene validate`` arguments and options to ``parser``."""
     from usdscene.commands._arguments import add_document_check_arguments
 
     parser.add_argument("document", help="scene document (.json, root 'openlabel' or 'vcd')")
@@ -22,6 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """``usdscene validate``: check a scene document and list every problem; returns the exit status."""
     from usdscene.commands._arguments import validate_from_arguments
 
     checked = validate_from_arguments(args)

@@ -433,6 +433,8 @@ def person_classes(catalog: Catalog) -> tuple[str, ...]:
 
 
 def vehicle_classes(catalog: Catalog) -> tuple[str, ...]:
+    """Sorted non-environment catalog classes whose name has a vehicle word (:data:`VEHICLE_WORDS`, plurals
+    too)."""
     return tuple(sorted(name for name in catalog.classes()
                         if catalog[name].kind != "environment" and _has_word(name, VEHICLE_WORDS)))
 
@@ -1003,6 +1005,7 @@ def tracks_report(scene: SceneSpec, tracks: Sequence[Track], catalog: Catalog, o
 
 
 def report_path(document: str | os.PathLike) -> Path:
+    """Where the report of generated document ``document`` goes: ``DOC.report.json`` beside it."""
     path = Path(document)
     return path.with_name(path.name + ".report.json")
 

@@ -15,12 +15,18 @@ Strategies (:data:`STRATEGIES`):
   has the same number of instance-frames (within 1); each class first takes every combination
   it fits, in random order, then random extra ones (relation first, uniform, then place), so
   every fitting combination occurs at least once when the frame count allows
-  (:func:`frames_for_coverage`); the report lists those that do not.
+  (:func:`usdscene.dataset.combinations.frames_for_coverage`); the report lists those that do
+  not.
 * ``appearance``: like ``balanced``, with a random appearance variant and a random colour per
   object, and each object used for at most :data:`APPEARANCE_LIFETIME_FRAMES` frames.
-* ``random``: the naive generator, the ablation of ``balanced`` (:func:`plan_random`): each
-  instance a uniformly random class at a uniformly random free place where it fits; no equal
-  counts, no coverage.
+* ``random``: the naive generator, the ablation of ``balanced``
+  (:func:`usdscene.dataset.sequence_plans.plan_random`): each instance a uniformly random class
+  at a uniformly random free place where it fits; no equal counts, no coverage.
+
+The modules beside this one hold the parts: :mod:`usdscene.dataset.combinations` (what fits
+where), :mod:`usdscene.dataset.sequence_plans` (the per-frame plan of each strategy),
+:mod:`usdscene.dataset.laps` (seated passengers' laps) and :mod:`usdscene.dataset.balance` (the
+balance report).
 
 Capacity: a support region (one relation of one place) holds at most one generated object per
 frame, and only objects that :func:`usdscene.scene.placement.fits_region` accepts; regions of fixed
@@ -47,8 +53,6 @@ pose: :func:`lap_regions`) is a *lap place* ``<seat>/lap`` that ``balanced`` and
 from __future__ import annotations
 
 import collections
-import dataclasses
-import fnmatch
 import hashlib
 import logging
 import math
@@ -59,9 +63,15 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from usdscene.scene.catalog import COMBINED_SETS, Catalog, Place, PlaceRegion, place_items
+from usdscene.dataset.balance import balance_report
+from usdscene.dataset.combinations import (Combination, Region, fitting_combinations, frames_for_coverage,
+                                           most_combinations, region_conflicts, selected_places)
+from usdscene.dataset.laps import (PASSENGER_RELATION, Lap, lap_combinations, lap_place_name, passenger_seats,
+                                   with_lap_places)
+from usdscene.dataset.sequence_plans import plan_balanced, plan_random, plan_single_class
+from usdscene.scene.catalog import COMBINED_SETS, Catalog, PlaceRegion
 from usdscene.errors import DocumentError, ProblemCollector
-from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Pose, Randomization, Relation, SceneObject, SceneSpec
+from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec
 from usdscene.scene.placement import fits_region
 from usdscene.document.stage_schema import VARIANT_SET_APPEARANCE
 
@@ -71,33 +81,10 @@ STRATEGIES = ("single-class", "balanced", "appearance", "random")
 APPEARANCE_LIFETIME_FRAMES = 5
 """An ``appearance`` object keeps its look for at most this many frames (fresh looks often,
 without a USD prim per instance-frame)."""
-PASSENGER_RELATION = "is_on"
-REPORT_FORMAT = "usdscene-sequence-report"
-OPEN_HEIGHT_M = 3.0
-REGION_TOUCH_M = 1e-3
-"""Regions that overlap by less than this (neighbours sharing a face) do not conflict."""
-SEAT_HEIGHT_TOLERANCE_M = 0.05
-"""How much shorter than a seated asset's legs a seat may be."""
 COLOR_DECIMALS = 4
 # Second entropy word of the generator that draws world and sensor ranges (seeded with the
 # generator seed and this), apart from the one that draws objects.
 DOMAIN_STREAM = 28
-
-Region = tuple[str, str]
-"""(place name, relation): one support region of the environment."""
-
-
-@dataclass(frozen=True, order=True)
-class Combination:
-    """One class at one configuration and place: ``backpack is_below seat_03A``."""
-
-    class_name: str
-    relation: str
-    place: str
-
-    @property
-    def region(self) -> Region:
-        return (self.place, self.relation)
 
 
 @dataclass(frozen=True)
@@ -150,243 +137,6 @@ class GeneratedSequence:
 
 
 # --------------------------------------------------------------------------------------------
-# What fits where
-
-
-def fitting_combinations(catalog: Catalog, environment: str, classes: Sequence[str],
-                         place_patterns: Sequence[str] = ()) -> tuple[Combination, ...]:
-    """Every (class, relation, place) whose region holds one object of the class.
-
-    Args:
-        catalog: asset catalog (class extents and relations, the environment's places).
-        environment: environment class.
-        classes: classes to consider.
-        place_patterns: shell-style place name patterns; empty = every place.
-
-    Returns:
-        Sorted combinations.
-    """
-    out = []
-    fits: dict[tuple, bool] = {}  # places of one kind share region sizes
-    for name, place in _selected_places(catalog, environment, place_patterns):
-        for relation, region in sorted(place.regions.items()):
-            for class_name in classes:
-                entry = catalog[class_name]
-                key = (class_name, tuple(region.size_m))
-                if key not in fits:
-                    fits[key] = fits_region(entry, region.size_m)
-                if relation in entry.relations and fits[key]:
-                    out.append(Combination(class_name, relation, name))
-    return tuple(sorted(out))
-
-
-def region_conflicts(catalog: Catalog, environment: str,
-                     regions: Iterable[Region]) -> dict[Region, frozenset[Region]]:
-    """Regions whose boxes overlap (each region conflicts with itself).
-
-    An object stays inside its region's box (footprint inside, height within the clearance),
-    so objects in regions that do not overlap never collide; regions that do overlap (the
-    legroom in front of one seat and the floor below the next) take one object between them
-    per frame. Unlimited heights count as :data:`OPEN_HEIGHT_M`.
-
-    Returns:
-        region → the regions it overlaps, itself included.
-    """
-    from usdscene.scene.placement import boxes_overlap
-
-    places = catalog.places(environment)
-    regions = sorted(set(regions))
-    centres, axes, halves = [], [], []
-    for name, relation in regions:
-        region = places[name].regions[relation]
-        pose = region.pose.as_array()
-        height = min(float(region.size_m[2]), OPEN_HEIGHT_M)
-        centres.append(pose[:3, :3] @ np.array([0.0, 0.0, height / 2.0]) + pose[:3, 3])
-        axes.append(pose[:3, :3])
-        halves.append(np.array([region.size_m[0] / 2.0, region.size_m[1] / 2.0, height / 2.0]))
-    centres_a, axes_a, halves_a = np.asarray(centres), np.asarray(axes), np.asarray(halves)
-    out = {}
-    for i, region in enumerate(regions):
-        hits = boxes_overlap(centres_a[i], axes_a[i], halves_a[i], centres_a, axes_a, halves_a,
-                             tolerance_m=REGION_TOUCH_M)
-        out[region] = frozenset({regions[j] for j in np.flatnonzero(hits)} | {region})
-    return out
-
-
-def frames_for_coverage(combinations: Iterable[Combination], classes: Sequence[str],
-                        objects_per_frame: int) -> int:
-    """Frames that ``balanced`` needs for every combination to occur once: the class with the
-    most combinations needs that many instance-frames, and so does every other class."""
-    most = _most_combinations(list(combinations), classes)
-    return max(1, math.ceil(len(classes) * most / max(objects_per_frame, 1)))
-
-
-def _selected_places(catalog: Catalog, environment: str, patterns: Sequence[str]):
-    return [(name, place) for name, place in place_items(catalog.places(environment))
-            if not patterns or any(fnmatch.fnmatchcase(name, p) for p in patterns)]
-
-
-# --------------------------------------------------------------------------------------------
-# Plans: per frame, the combinations it holds
-
-
-def plan_single_class(combinations: Sequence[Combination], conflicts: Mapping[Region, frozenset[Region]],
-                      blocked: Iterable[Region] = ()) -> list[list[Combination]]:
-    """One frame per (class, relation), holding every fitting place (sorted); places whose
-    regions overlap (:func:`region_conflicts`) go to a further frame of the same group.
-    ``blocked`` regions (those of the setup's fixed objects) are left out."""
-    blocked = set(blocked)
-    groups: dict[tuple[str, str], list[Combination]] = collections.defaultdict(list)
-    for combo in sorted(combinations):
-        if combo.region not in blocked:
-            groups[(combo.class_name, combo.relation)].append(combo)
-    frames = []
-    for key in sorted(groups):
-        pending = groups[key]
-        while pending:
-            used: set[Region] = set()
-            frame, later = [], []
-            for combo in pending:
-                if combo.region in used:
-                    later.append(combo)
-                else:
-                    frame.append(combo)
-                    used |= conflicts.get(combo.region, {combo.region})
-            frames.append(frame)
-            pending = later
-    return frames
-
-
-def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n_frames: int,
-                  objects_per_frame: int, taken: Sequence[set[Region]],
-                  conflicts: Mapping[Region, frozenset[Region]],
-                  rng: np.random.Generator) -> list[list[Combination]]:
-    """Share ``n_frames × objects_per_frame`` instance-frames equally among the classes.
-
-    Args:
-        combinations: the fitting combinations (:func:`fitting_combinations`).
-        classes: classes to balance (each has at least one combination).
-        n_frames: sequence length.
-        objects_per_frame: instance-frames per frame.
-        taken: per frame, regions already used (fixed objects); not changed.
-        conflicts: region → overlapping regions (:func:`region_conflicts`); one object
-            among them per frame.
-        rng: generator (draw order: class shares, per-class orders and extras, the shuffle).
-
-    Returns:
-        Per frame, its combinations. A class that cannot get a free region in any frame with
-        room loses that instance (logged; the report shows the counts).
-    """
-    by_class: dict[str, list[Combination]] = collections.defaultdict(list)
-    for combo in sorted(combinations):
-        by_class[combo.class_name].append(combo)
-    total = n_frames * objects_per_frame
-    base, extra = divmod(total, len(classes))
-    lucky = set(int(i) for i in rng.permutation(len(classes))[:extra])
-    instances: list[Combination] = []
-    firsts: set[int] = set()  # positions of each class's first pass over its combinations
-    for index, class_name in enumerate(classes):
-        want = base + (1 if index in lucky else 0)
-        own = by_class[class_name]
-        order = [own[int(i)] for i in rng.permutation(len(own))]
-        chosen = order[:want]
-        firsts.update(range(len(instances), len(instances) + len(chosen)))
-        relations = sorted({c.relation for c in own})
-        by_relation = {r: [c for c in own if c.relation == r] for r in relations}
-        for _ in range(want - len(chosen)):
-            pool = by_relation[relations[int(rng.integers(len(relations)))]]
-            chosen.append(pool[int(rng.integers(len(pool)))])
-        instances.extend(chosen)
-    # Random order, but coverage first, and within it classes with the fewest combinations
-    # first: they have the fewest regions to choose from once frames fill up.
-    shuffled = [int(i) for i in rng.permutation(len(instances))]
-    shuffled.sort(key=lambda i: (i not in firsts, len(by_class[instances[i].class_name])))
-    instances = [instances[i] for i in shuffled]
-
-    frames: list[list[Combination]] = [[] for _ in range(n_frames)]
-    used = [set(t) for t in taken]
-    cursor = 0
-    dropped: collections.Counter = collections.Counter()
-    for combo in instances:
-        frame = _free_frame(combo.region, frames, used, objects_per_frame, cursor)
-        if frame is None:
-            # Its own region is busy wherever there is room: any other region of the class.
-            for alt in (by_class[combo.class_name][int(i)] for i in rng.permutation(len(by_class[combo.class_name]))):
-                frame = _free_frame(alt.region, frames, used, objects_per_frame, cursor)
-                if frame is not None:
-                    combo = alt
-                    break
-        if frame is None:
-            dropped[combo.class_name] += 1
-            continue
-        frames[frame].append(combo)
-        used[frame] |= conflicts.get(combo.region, {combo.region})
-        cursor = (frame + 1) % n_frames
-    for class_name, count in sorted(dropped.items()):
-        log.warning("no frame had a free region for %d %s instance(s); fewer objects per frame "
-                    "(or more frames) keep the classes balanced", count, class_name)
-    return frames
-
-
-def plan_random(combinations: Sequence[Combination], classes: Sequence[str], n_frames: int,
-                objects_per_frame: int, taken: Sequence[set[Region]],
-                conflicts: Mapping[Region, frozenset[Region]],
-                rng: np.random.Generator) -> list[list[Combination]]:
-    """The naive generator: uniform random classes and places, no balancing.
-
-    Per frame, ``objects_per_frame`` draws: a class, uniformly; a place, uniformly among the
-    places with a free region that holds the class; a relation, uniformly among the class's
-    free regions at that place. A class with no free region left in the frame loses that
-    instance (the frame holds fewer objects). Class counts are whatever the draws give, and
-    nothing makes every combination occur: this is what :func:`plan_balanced` is measured
-    against.
-
-    Args:
-        combinations: the fitting combinations (:func:`fitting_combinations`).
-        classes: classes to draw from (each has at least one combination).
-        n_frames: sequence length.
-        objects_per_frame: draws per frame.
-        taken: per frame, regions already used (fixed objects, passengers); not changed.
-        conflicts: region → overlapping regions (:func:`region_conflicts`).
-        rng: generator (draw order per frame and draw: class, place, relation).
-
-    Returns:
-        Per frame, its combinations.
-    """
-    by_class: dict[str, list[Combination]] = collections.defaultdict(list)
-    for combo in sorted(combinations):
-        by_class[combo.class_name].append(combo)
-    frames: list[list[Combination]] = []
-    for frame in range(n_frames):
-        used = set(taken[frame])
-        row: list[Combination] = []
-        for _ in range(objects_per_frame):
-            class_name = classes[int(rng.integers(len(classes)))]
-            free = [c for c in by_class[class_name] if c.region not in used]
-            if not free:
-                continue
-            places = sorted({c.place for c in free})
-            place = places[int(rng.integers(len(places)))]
-            here = [c for c in free if c.place == place]
-            combo = here[int(rng.integers(len(here)))]
-            row.append(combo)
-            used |= conflicts.get(combo.region, {combo.region})
-        frames.append(row)
-    return frames
-
-
-def _free_frame(region: Region, frames: list[list[Combination]], used: list[set[Region]],
-                capacity: int, start: int) -> int | None:
-    """First frame from ``start`` (cyclic) with room and ``region`` free."""
-    n = len(frames)
-    for k in range(n):
-        f = (start + k) % n
-        if len(frames[f]) < capacity and region not in used[f]:
-            return f
-    return None
-
-
-# --------------------------------------------------------------------------------------------
 # The generator
 
 
@@ -421,7 +171,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
 
     laps = lap_regions(catalog, setup.environment, passenger_classes, options)
     if laps:
-        conflicts = region_conflicts(_with_lap_places(catalog, setup.environment, laps), setup.environment,
+        conflicts = region_conflicts(with_lap_places(catalog, setup.environment, laps), setup.environment,
                                      all_regions + sorted(laps))
     if options.strategy == "single-class":
         plan = plan_single_class(combos, conflicts, (region for region, _ in fixed_taken))
@@ -437,7 +187,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         per_frame = options.objects_per_frame
         if per_frame is None:
             per_frame = len(classes) if options.frames is None else math.ceil(
-                len(classes) * _most_combinations(combos, classes) / options.frames)
+                len(classes) * most_combinations(combos, classes) / options.frames)
         per_frame = max(1, min(per_frame, len(n_places_regions)))
         n_frames = options.frames or frames_for_coverage(combos, classes, per_frame)
         seated = _draw_seats([_taken_at(fixed_taken, f) for f in range(n_frames)], setup, catalog,
@@ -496,11 +246,6 @@ def _without_variants(catalog: Catalog, classes: Sequence[str], options: Generat
     return single
 
 
-def _most_combinations(combos: Sequence[Combination], classes: Sequence[str]) -> int:
-    per_class = collections.Counter(c.class_name for c in combos)
-    return max((per_class[c] for c in classes), default=1)
-
-
 def _check_options(setup: SceneSpec, catalog: Catalog, options: GenerateOptions):
     problems = ProblemCollector()
     if options.strategy not in STRATEGIES:
@@ -536,7 +281,7 @@ def _check_options(setup: SceneSpec, catalog: Catalog, options: GenerateOptions)
         if name not in catalog or catalog[name].kind != "object":
             problems.add("--classes", f"unknown object class {name!r} (known: {', '.join(known)})")
     problems.raise_if_any(DocumentError)
-    places = _selected_places(catalog, setup.environment, options.place_patterns)
+    places = selected_places(catalog, setup.environment, options.place_patterns)
     if options.place_patterns and not places:
         problems.add("--places", f"no place of {setup.environment!r} matches "
                                  f"{', '.join(repr(p) for p in options.place_patterns)}")
@@ -645,45 +390,6 @@ def _pool_indices(plan: list[list[Combination]], strategy: str) -> list[list[int
     return out
 
 
-def passenger_seats(catalog: Catalog, environment: str, class_name: str,
-                    place_patterns: Sequence[str] = ()) -> tuple[str, ...]:
-    """Places whose ``is_on`` region seats a passenger-kind class: the region holds it and its
-    support is high enough above the floor (world z = 0) for the legs, which reach
-    ``-extent_min_m[2]`` below the origin (an aisle floor does not seat anybody)."""
-    entry = catalog[class_name]
-    legs_m = max(-entry.extent_min_m[2], 0.0)
-    out = []
-    for name, place in _selected_places(catalog, environment, place_patterns):
-        region = place.regions.get(PASSENGER_RELATION)
-        if (region is not None and PASSENGER_RELATION in entry.relations and fits_region(entry, region.size_m)
-                and float(region.pose.translation_m[2]) >= legs_m - SEAT_HEIGHT_TOLERANCE_M):
-            out.append(name)
-    return tuple(out)
-
-
-@dataclass(frozen=True)
-class Lap:
-    """A support place a seated passenger offers (its ``lap``), on one seat.
-
-    Attributes:
-        passenger_class: the passenger class offering it.
-        place: the passenger asset's place name (``lap``).
-        by_variant: variant of the passenger's pose variant set → the region in world
-            coordinates when seated on this seat; variants without one are left out.
-        variant_set: the variant set that decides it (``pose``); "" when it does not vary.
-    """
-
-    passenger_class: str
-    place: str
-    by_variant: Mapping[str, PlaceRegion]
-    variant_set: str = ""
-
-
-def lap_place_name(seat: str, place: str) -> str:
-    """Name of a passenger's support place on a seat in plans and reports: ``seat_03A/lap``."""
-    return f"{seat}/{place}"
-
-
 def lap_regions(catalog: Catalog, environment: str, passenger_classes: Sequence[str],
                 options: GenerateOptions) -> dict[Region, Lap]:
     """The support regions seated passengers offer, per seat: ``(seat_03A/lap, is_on)`` → :class:`Lap`.
@@ -718,46 +424,6 @@ def lap_regions(catalog: Catalog, environment: str, passenger_classes: Sequence[
                 out.setdefault((lap_place_name(seat, name), PASSENGER_RELATION),
                                Lap(class_name, name, dict(by_variant), variant_set))
     return out
-
-
-def lap_combinations(catalog: Catalog, classes: Sequence[str], laps: Mapping[Region, Lap]) -> tuple[Combination, ...]:
-    """(class, ``is_on``, ``seat/lap``) for every class that fits the lap of at least one pose
-    (:func:`usdscene.scene.placement.fits_region`, as for places); the passenger then takes a pose
-    whose lap holds it (:func:`_dress_passengers`)."""
-    out = []
-    for (place, relation), lap in sorted(laps.items()):
-        for class_name in classes:
-            entry = catalog[class_name]
-            if relation in entry.relations and any(fits_region(entry, r.size_m, upright_only=True)
-                                                     for r in lap.by_variant.values()):
-                out.append(Combination(class_name, relation, place))
-    return tuple(out)
-
-
-def _with_lap_places(catalog: Catalog, environment: str, laps: Mapping[Region, Lap]) -> Catalog:
-    """``catalog`` whose environment also has one place per lap, its region the box around the
-    lap of every pose (for :func:`region_conflicts`: whatever pose is drawn, a lap object
-    stays inside it)."""
-    entry = catalog[environment]
-    places = dict(entry.places)
-    for (name, relation), lap in laps.items():
-        regions = list(lap.by_variant.values())
-        base = regions[0].pose.as_array()
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for region in regions:
-            local = np.linalg.inv(base) @ region.pose.as_array()
-            half = np.array([region.size_m[0] / 2.0, region.size_m[1] / 2.0, 0.0])
-            for corner in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-                for z in (0.0, min(float(region.size_m[2]), OPEN_HEIGHT_M)):
-                    point = local[:3, :3] @ np.array([corner[0] * half[0], corner[1] * half[1], z]) + local[:3, 3]
-                    lo, hi = np.minimum(lo, point), np.maximum(hi, point)
-        centre = base.copy()
-        centre[:3, 3] = base[:3, :3] @ np.array([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]]) + base[:3, 3]
-        places[name] = Place(name, "lap", {relation: PlaceRegion(relation, Pose.from_matrix(centre),
-                                                                 tuple(float(v) for v in hi - lo))})
-    entries = dict(catalog.entries)
-    entries[environment] = dataclasses.replace(entry, places=places)
-    return dataclasses.replace(catalog, entries=entries)
 
 
 def _draw_seats(busy: Sequence[set[Region]], setup: SceneSpec, catalog: Catalog,
@@ -941,7 +607,7 @@ def _intervals(frames: Iterable[int]) -> tuple[FrameInterval, ...]:
 
 
 # --------------------------------------------------------------------------------------------
-# Checks and reports
+# Checks and the written document
 
 
 def check_composes(scene: SceneSpec, catalog: Catalog) -> None:
@@ -956,106 +622,6 @@ def check_composes(scene: SceneSpec, catalog: Catalog) -> None:
     rng = np.random.default_rng(scene.seed)
     looks = draw_looks(scene, catalog, rng)
     place_objects(scene, catalog, rng, appearances={uid: look[0] for uid, look in looks.items()})
-
-
-def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
-    """Counts of a scene document: what a dataset built from it holds.
-
-    An *instance-frame* is one object present in one frame. Objects placed on another object
-    count at the place and relation their chain of relations ends at; with a catalog, an object
-    on another object's declared support place (a magazine on a passenger's lap) counts with
-    its own relation at ``<place>/<support place>`` (``seat_03A/lap``, kind ``lap``).
-
-    Args:
-        scene: the scene.
-        catalog: when given, per place *kind* counts too (``seat``, ``bin``, ...).
-
-    Returns:
-        ``{"format", "frames", "cameras", "images", "objects", "instance_frames",
-        "classes": {class: {"objects", "instance_frames"}},
-        "class_relation": {class: {relation: instance-frames}}, "relations": {relation: n},
-        "places": {place: n}, "place_kinds": {kind: n}}``, every mapping sorted by key.
-        ``relation`` is ``"none"`` for objects without a placement relation in that frame.
-    """
-    from usdscene.converters.openlabel_annotations import resolve_places_over
-
-    place_names = {p.uid: p.name for p in scene.places}
-    kinds: Mapping[str, str] = {}
-    if catalog is not None and scene.environment in catalog:
-        kinds = {name: place.kind for name, place in catalog.places(scene.environment).items()}
-    classes: dict[str, dict[str, int]] = {}
-    matrix: dict[str, collections.Counter] = {}
-    places: collections.Counter = collections.Counter()
-    place_kinds: collections.Counter = collections.Counter()
-    relations: collections.Counter = collections.Counter()
-    total = 0
-    for obj in scene.objects:
-        classes.setdefault(obj.class_name, {"objects": 0, "instance_frames": 0})["objects"] += 1
-    resolved_at = resolve_places_over(scene, scene.frames)
-    on_support = _declared_supports(scene, catalog) if catalog is not None else {}
-    for obj in scene.objects:
-        intervals = obj.frame_intervals or (FrameInterval(scene.frame_start, scene.frame_end),)
-        frames = sorted({f for iv in intervals for f in iv.frames() if f in resolved_at})
-        for frame in frames:
-            resolved = resolved_at[frame]
-            total += 1
-            classes[obj.class_name]["instance_frames"] += 1
-            place_uid, relation = resolved.get(obj.uid, (None, "none"))
-            support = on_support.get((frame, obj.uid))
-            if support is not None and place_uid is not None:
-                relation = support[0]
-            matrix.setdefault(obj.class_name, collections.Counter())[relation] += 1
-            relations[relation] += 1
-            if place_uid is not None:
-                name = place_names.get(place_uid, place_uid)
-                kind = kinds.get(name)
-                if support is not None:
-                    name, kind = lap_place_name(name, support[1]), support[2]
-                places[name] += 1
-                if kind is not None:
-                    place_kinds[kind] += 1
-    n_frames = len(scene.frames)
-    return {
-        "format": REPORT_FORMAT, "version": 1, "scene": scene.name,
-        "frames": n_frames, "cameras": len(scene.cameras), "images": n_frames * len(scene.cameras),
-        "objects": len(scene.objects), "instance_frames": total,
-        "classes": dict(sorted(classes.items())),
-        "class_relation": {c: dict(sorted(matrix.get(c, {}).items())) for c in sorted(classes)},
-        "relations": dict(sorted(relations.items())),
-        "places": dict(sorted(places.items())),
-        "place_kinds": dict(sorted(place_kinds.items())),
-    }
-
-
-def _declared_supports(scene: SceneSpec, catalog: Catalog) -> dict[tuple[int, str], tuple[str, str, str]]:
-    """(frame, uid) → (relation, support place name, its kind) for objects whose first
-    placement relation in that frame relates them to an object that declares a support place
-    for it (:meth:`usdscene.scene.catalog.AssetEntry.support_region`)."""
-    from usdscene.scene.placement import object_variants
-
-    objects = scene.object_by_uid()
-    out: dict[tuple[int, str], tuple[str, str, str]] = {}
-    first: set[tuple[int, str]] = set()
-    every = set(scene.frames)
-    for rel in scene.relations:
-        subject = objects.get(rel.subject_uid)
-        if rel.type not in PLACEMENT_RELATIONS or subject is None:
-            continue
-        intervals = rel.frame_intervals or subject.frame_intervals
-        frames = {f for iv in intervals for f in iv.frames()} & every if intervals else every
-        target = objects.get(rel.object_uid)
-        found = None
-        if target is not None and target.class_name in catalog:
-            entry = catalog[target.class_name]
-            found = entry.support_region(rel.type, object_variants(target))
-        for frame in frames:
-            if (frame, rel.subject_uid) in first:
-                continue
-            first.add((frame, rel.subject_uid))
-            if found is not None:
-                name = found[0]
-                out[(frame, rel.subject_uid)] = (rel.type, name, entry.places_for(object_variants(target))[name].kind)
-    return out
 
 
 def report_path(document: str | os.PathLike) -> Path:

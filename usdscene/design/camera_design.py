@@ -400,6 +400,7 @@ class VerifyResult:
 
     @property
     def agreement(self) -> float:
+        """Fraction of the checked pairs that agree, in [0, 1]; 1.0 when no pair was checked."""
         return self.agreeing / self.pairs if self.pairs else 1.0
 
 

@@ -42,6 +42,7 @@ class Pose:
 
     @staticmethod
     def identity() -> "Pose":
+        """The identity pose (no rotation, no translation)."""
         return Pose()
 
     @staticmethod
@@ -78,6 +79,7 @@ class Pose:
         return self.as_array()[:3, 3]
 
     def inverse(self) -> "Pose":
+        """The inverse rigid transform: ``self.inverse().compose(self)`` is the identity."""
         m = self.as_array()
         r = m[:3, :3].T
         return Pose.from_rotation_translation(r, -r @ m[:3, 3])
@@ -192,6 +194,7 @@ class FrameInterval:
         return self.frame_start <= frame <= self.frame_end
 
     def frames(self) -> range:
+        """The frames of the interval, both ends included."""
         return range(self.frame_start, self.frame_end + 1)
 
 
@@ -208,6 +211,7 @@ def union_intervals(intervals: Iterable[FrameInterval]) -> tuple[FrameInterval, 
 
 
 def in_intervals(frame: int, intervals: Iterable[FrameInterval]) -> bool:
+    """Whether ``frame`` lies in any of the closed ``intervals``."""
     return any(frame in iv for iv in intervals)
 
 
@@ -268,6 +272,7 @@ class Intrinsics:
 
     @property
     def focal_length_mm(self) -> float:
+        """Focal length in millimetres, from ``fx_px`` and the sensor width."""
         return self.fx_px * self.sensor_width_mm / self.width_px
 
     @property
@@ -331,6 +336,7 @@ class Camera:
     sensor: Any = None
 
     def pose_at(self, frame: int) -> Pose:
+        """Camera-to-world pose at ``frame``: its per-frame pose when it has one, else :attr:`pose`."""
         for f, p in self.frame_poses:
             if f == frame:
                 return p
@@ -342,6 +348,8 @@ class Camera:
 
 
 class LightKind(str, enum.Enum):
+    """Light types, as spelled in the document."""
+
     POINT = "point"
     SPOT = "spot"
     SUN = "sun"
@@ -726,18 +734,22 @@ class SceneSpec:
 
     @property
     def frames(self) -> range:
+        """The frames of the scene, ``frame_start`` to ``frame_end`` included."""
         return range(self.frame_start, self.frame_end + 1)
 
     def camera(self, name: str) -> Camera:
+        """The camera called ``name``; raises KeyError when there is none."""
         for cam in self.cameras:
             if cam.name == name:
                 return cam
         raise KeyError(name)
 
     def object_by_uid(self) -> dict[str, SceneObject]:
+        """uid → object, in document order."""
         return {o.uid: o for o in self.objects}
 
     def place_by_uid(self) -> dict[str, PlaceRef]:
+        """uid → place reference, in document order."""
         return {p.uid: p for p in self.places}
 
     def objects_present(self, frame: int) -> tuple[SceneObject, ...]:

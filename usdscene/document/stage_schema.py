@@ -152,12 +152,15 @@ def prim_name(text: str) -> str:
 
 
 def object_prim_path(class_name: str, uid: str) -> str:
+    """Prim path of object ``uid`` of class ``class_name`` under ``/World/Objects``."""
     return f"{OBJECTS}/{prim_name(f'{class_name}_{uid}')}"
 
 
 def camera_prim_path(camera_name: str) -> str:
+    """Prim path of camera ``camera_name`` under the cameras scope."""
     return f"{CAMERAS}/{prim_name(camera_name)}"
 
 
 def light_prim_path(light_name: str) -> str:
+    """Prim path of light ``light_name`` under the lights scope."""
     return f"{LIGHTS}/{prim_name(light_name)}"

@@ -76,6 +76,7 @@ class CrossCameraRow:
 
     @property
     def camera_count(self) -> int:
+        """How many cameras see the object."""
         return len(self.sightings)
 
     def best(self) -> Sighting | None:
@@ -88,7 +89,9 @@ class CrossCameraRow:
 class TriangleSource(Protocol):
     """What :func:`object_densities` needs from the stage (e.g. :class:`usdscene.scene.stage_geometry.StageGeometry`)."""
 
-    def triangles(self, frame: int, uids=None) -> dict[str, np.ndarray]: ...
+    def triangles(self, frame: int, uids=None) -> dict[str, np.ndarray]:
+        """uid → (T, 3, 3) world triangles (metres) of the objects visible at ``frame``, restricted to
+        ``uids`` when given."""
 
 
 def _by_frame(annotations: Annotations) -> dict[int, list]:

@@ -116,6 +116,7 @@ class ObjectLabel:
 
     @property
     def visible(self) -> bool:
+        """Whether at least one pixel of the object is visible."""
         return self.pixel_count > 0
 
 
@@ -152,9 +153,11 @@ class Annotations:
     min_visible_fraction: float = 0.0
 
     def frames(self) -> tuple[int, ...]:
+        """The frames that have images, ascending."""
         return tuple(sorted({image.frame for image in self.images}))
 
     def for_frame(self, frame: int) -> tuple[ImageLabels, ...]:
+        """The images of ``frame`` (one per camera), in stored order."""
         return tuple(image for image in self.images if image.frame == frame)
 
     def __iter__(self) -> Iterator[ImageLabels]:

@@ -71,6 +71,7 @@ class StagePlan:
 
     @property
     def frames(self) -> range:
+        """The frames to render, ``frame_start`` to ``frame_end`` included."""
         return range(self.frame_start, self.frame_end + 1)
 
 

@@ -64,6 +64,9 @@ class BoxSpec:
 
 @dataclass(frozen=True)
 class PointLightSpec:
+    """A point light of a synthetic test scene: position in metres, intensity as UsdLux
+    ``inputs:intensity``, radius in metres."""
+
     name: str
     position_m: tuple[float, float, float]
     intensity: float = 50.0
@@ -72,6 +75,9 @@ class PointLightSpec:
 
 @dataclass(frozen=True)
 class SyntheticScene:
+    """A small scene built in code for tests: cameras, emissive spheres, boxes, point lights and render
+    settings."""
+
     cameras: tuple[Camera, ...]
     spheres: tuple[SphereSpec, ...]
     frame_start: int = 0
@@ -180,6 +186,8 @@ def write_camera(stage, camera: Camera, frames: Sequence[int] = ()) -> None:
 
 
 def write_render_settings(stage, settings: RenderSettings) -> None:
+    """Author ``settings`` as the render settings prim of ``stage`` (the attributes the stage reader reads
+    back)."""
     from pxr import Gf, Sdf, UsdRender
 
     prim = UsdRender.Settings.Define(stage, names.RENDER_SETTINGS).GetPrim()

@@ -381,6 +381,7 @@ class Session:
 
     # ---------------------------------------------------------------------------------------
     def set_frame(self, frame: int) -> None:
+        """Go to ``frame`` and hide the objects absent from it (only what changed is touched)."""
         if frame == self.current_frame:
             return
         self.scene.frame_set(frame)
@@ -399,6 +400,7 @@ class Session:
         self.current_frame = frame
 
     def set_camera(self, name: str, frame: int) -> None:
+        """Point the render camera at camera ``name``'s pose and lens for ``frame``."""
         from usdscene.render.job import intrinsics_from_json, usd_camera_matrix
 
         cam_job = self.job["cameras"][name]
@@ -838,6 +840,8 @@ def _die_with_parent(parent_pid: int | None) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of the Blender worker process (``JOB.json`` or ``--wait-for-job``); returns the exit
+    status (2 bad usage, 1 on a reported error)."""
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
         sys.stderr.write("usage: python -m usdscene.render.worker JOB.json | --wait-for-job\n")

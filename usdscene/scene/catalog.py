@@ -219,6 +219,7 @@ class AssetEntry:
 
     @property
     def size_m(self) -> tuple[float, float, float]:
+        """Extent of the asset along x, y, z, metres."""
         return tuple(hi - lo for lo, hi in zip(self.extent_min_m, self.extent_max_m))  # type: ignore[return-value]
 
     @property
@@ -259,9 +260,11 @@ class Catalog:
         return self.entries[class_name]
 
     def classes(self, kind: str | None = None) -> tuple[str, ...]:
+        """Sorted class names, only those of ``kind`` when given."""
         return tuple(sorted(k for k, e in self.entries.items() if kind is None or e.kind == kind))
 
     def places(self, environment: str) -> Mapping[str, Place]:
+        """Place name → place of environment ``environment``; raises KeyError for an unknown class."""
         return self.entries[environment].places
 
 

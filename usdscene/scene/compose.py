@@ -118,6 +118,7 @@ class ComposeResult:
 
     @property
     def frame_count(self) -> int:
+        """Number of frames of the composed stage."""
         return self.frame_end - self.frame_start + 1
 
 

@@ -113,6 +113,7 @@ class PoseSpan:
     support_size_m: tuple[float, float, float] | None = None
 
     def frames(self) -> range:
+        """The frames of the span, both ends included."""
         return range(self.frame_start, self.frame_end + 1)
 
 
@@ -131,6 +132,7 @@ class ObjectPlacement:
     spans: tuple[PoseSpan, ...] = ()
 
     def span_at(self, frame: int) -> PoseSpan | None:
+        """The span holding ``frame``; None when the object is absent."""
         for span in self.spans:
             if span.frame_start <= frame <= span.frame_end:
                 return span

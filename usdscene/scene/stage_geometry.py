@@ -94,6 +94,7 @@ class StageGeometry:
 
     @property
     def uids(self) -> tuple[str, ...]:
+        """uids of the objects read from the stage."""
         return tuple(self._objects)
 
     @staticmethod
