@@ -137,3 +137,16 @@ def test_render_draws_the_pose_of_each_frame(rendered):
                 col, row = int(np.floor(x + 0.5)), int(np.floor(y + 0.5))
                 assert 1 in mask[max(row - 1, 0):row + 2, max(col - 1, 0):col + 2], (f, x, y)
     assert seen[0].shape == seen[1].shape and np.abs(seen[0][:, :2] - seen[1][:, :2]).max() > 3.0
+
+
+@pytest.mark.usd
+def test_stage_to_document_keeps_the_pose_per_frame(stage, tmp_path):
+    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.scene.compose import compose_stage, frame_pose_data
+
+    back = {o.uid: o for o in scene_from_stage(stage.root_layer).objects}
+    assert frame_pose_data(back["1"]) == POSES and back["1"].appearance == "m_35_192_average_tone1"
+    assert back["2"].frame_extra == () and back["2"].pose_variant == "standing"
+    again = compose_stage(scene_from_stage(stage.root_layer), load_catalog(), tmp_path / "stage")
+    assert (again.stage_dir / "objects.usda").read_bytes() == (stage.stage_dir / "objects.usda").read_bytes()

@@ -11,7 +11,10 @@
     cameras.usda      /World/Cameras/<camera>: UsdGeom.Camera + usdscene:lens:* attributes
     lights.usda       /World/Lights/<light>: UsdLux lights + usdscene:light:* attributes
     objects.usda      /World/Objects/<class>_<uid>: reference to the asset, time-sampled
-                      transform and visibility, appearance variant, colour opinion, identity
+                      transform and visibility, appearance variant, colour opinion, identity;
+                      an object whose pose changes per frame (a walker) instead holds one
+                      child pose_<variant> per pose it shows, each referencing the asset with
+                      that variant and visible on its frames
     environment.usda  /World/Environment: reference to the environment asset (and its places)
 
 Conventions of the authored stage:
