@@ -150,3 +150,42 @@ def test_stage_to_document_keeps_the_pose_per_frame(stage, tmp_path):
     assert back["2"].frame_extra == () and back["2"].pose_variant == "standing"
     again = compose_stage(scene_from_stage(stage.root_layer), load_catalog(), tmp_path / "stage")
     assert (again.stage_dir / "objects.usda").read_bytes() == (stage.stage_dir / "objects.usda").read_bytes()
+
+
+_SHOWN_POSES = """
+import json, sys
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+scene = bpy.context.scene
+shown = {}
+for f in (0, 1):
+    scene.frame_set(f)
+    poses = set()
+    for ob in scene.objects:
+        if ob.type != "MESH" or ob.hide_render:
+            continue
+        while ob.parent is not None and ob.get("usdscene_pose") is None:
+            ob = ob.parent
+        poses.add(ob.get("usdscene_pose", "-"))
+    shown[f] = sorted(poses)
+print(json.dumps(shown))
+"""
+
+
+@pytest.mark.usd
+@pytest.mark.blender
+def test_blender_project_keyframes_the_pose_of_each_frame(tmp_path):
+    import subprocess
+    import sys
+
+    from usdscene.cli import main
+    from usdscene.converters.openlabel import write_openlabel
+
+    doc = tmp_path / "walk.openlabel.json"
+    doc.write_text(json.dumps(write_openlabel(_scene())))
+    assert main(["blend", str(doc), "-o", str(tmp_path / "walk.blend")]) == 0
+    done = subprocess.run([sys.executable, "-c", _SHOWN_POSES, str(tmp_path / "walk.blend")],
+                          capture_output=True, text=True, check=True)
+    shown = json.loads(done.stdout.strip().splitlines()[-1])
+    # "-": the standing person's body, one referenced prim without pose children.
+    assert shown == {"0": ["-", "walk_0"], "1": ["-", "walk_4"]}
