@@ -11,6 +11,7 @@ stage shows, the renderer draws and the labels follow.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -189,3 +190,22 @@ def test_blender_project_keyframes_the_pose_of_each_frame(tmp_path):
     shown = json.loads(done.stdout.strip().splitlines()[-1])
     # "-": the standing person's body, one referenced prim without pose children.
     assert shown == {"0": ["-", "walk_0"], "1": ["-", "walk_4"]}
+
+
+@pytest.mark.usd
+def test_a_late_walker_gets_children_only_for_the_poses_it_shows(tmp_path):
+    from usdscene.render.stage_reader import read_stage_plan
+    from usdscene.scene.catalog import load_catalog
+    from usdscene.scene.compose import compose_stage
+
+    scene = _scene({1: "walk_2", 2: "walk_6"})
+    walker = dataclasses.replace(scene.objects[0], frame_intervals=(m.FrameInterval(1, 2),))
+    scene = dataclasses.replace(scene, frame_end=2, objects=(walker, *scene.objects[1:]))
+    result = compose_stage(scene, load_catalog(), tmp_path / "stage")
+    plan = {o.uid: o for o in read_stage_plan(result.root_layer).objects}
+    assert plan["1"].visible_frames == (1, 2)
+    assert plan["1"].pose_frames == (("walk_2", (1,)), ("walk_6", (2,)))
+    # One pose all along, other than the object's own: one child, still that pose.
+    result = compose_stage(_scene({0: "walk_3", 1: "walk_3"}), load_catalog(), tmp_path / "one")
+    assert {o.uid: o.pose_frames for o in read_stage_plan(result.root_layer).objects}["1"] == (
+        ("walk_3", (0, 1)),)

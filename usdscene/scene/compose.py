@@ -466,19 +466,21 @@ def _check_frame_poses(scene: SceneSpec, catalog: Catalog) -> None:
 
 def frame_pose_variants(obj, frames: range, present: list[bool]) -> list[str] | None:
     """The pose variant shown per frame of ``frames`` when the document gives ``obj`` one per
-    frame (text object data ``stage_schema.FRAME_POSE_DATA``, a walker's walk cycle) and it
-    changes; None otherwise (the object's one ``pose_variant`` holds). Frames without the data
+    frame (text object data ``stage_schema.FRAME_POSE_DATA``, a walker's walk cycle) other than
+    its ``pose_variant``; None otherwise (the object's one ``pose_variant`` holds). Frames without the data
     show ``obj.pose_variant``; absent frames hold the previous variant (no extra samples)."""
     by_frame = frame_pose_data(obj)
     if not by_frame:
         return None
     shown: list[str] = []
-    held = obj.pose_variant
+    # Frames before the first present one show its pose: no child for a pose never seen.
+    held = next((by_frame.get(f, obj.pose_variant) for i, f in enumerate(frames) if present[i]),
+                obj.pose_variant)
     for i, f in enumerate(frames):
         if present[i]:
             held = by_frame.get(f, obj.pose_variant)
         shown.append(held)
-    if len({v for v in shown if v is not None}) < 2 or None in shown:
+    if None in shown or set(shown) == {obj.pose_variant}:
         return None
     return shown
 
