@@ -45,7 +45,8 @@ from usdscene import __version__
 from usdscene.document import stage_schema as ss
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
-                            Provenance, Relation, RenderSettings, SceneObject, SceneSpec, usd_pose_to_cv_pose)
+                            Provenance, Relation, RenderSettings, SceneObject, SceneSpec, canonical_json,
+                            usd_pose_to_cv_pose)
 
 log = logging.getLogger(__name__)
 
@@ -489,18 +490,34 @@ class _StageReader:
             pose = self._to_pose(base)
             frame_poses = tuple((f, self._to_pose(per_frame[f]))
                                 for f in present if per_frame[f] != base)
+            # A pose changing per frame: one child per pose (compose), visible on its frames.
+            posed = [child for child in prim.GetChildren() if child.HasAttribute(ss.ATTR_USER_POSE)]
+            sets = (posed[0] if posed else prim).GetVariantSets()
             appearance = None
-            sets = prim.GetVariantSets()
             if sets.HasVariantSet(ss.VARIANT_SET_APPEARANCE):
                 appearance = sets.GetVariantSet(ss.VARIANT_SET_APPEARANCE).GetVariantSelection() or None
             pose_variant = None
             if sets.HasVariantSet(ss.VARIANT_SET_POSE):
                 pose_variant = sets.GetVariantSet(ss.VARIANT_SET_POSE).GetVariantSelection() or None
+            frame_extra = self._frame_poses(posed, present) if posed else ()
+            if frame_extra:
+                pose_variant = _json_pose(frame_extra[0][1])
             objects.append(SceneObject(
                 uid=uid, name=name or uid, class_name=cls, frame_intervals=_intervals(visible, self.frame_start),
                 pose=pose, frame_poses=frame_poses, appearance=appearance, pose_variant=pose_variant,
-                color_rgb=self._color(prim)))
+                color_rgb=self._color(prim), frame_extra=frame_extra))
         return tuple(objects)
+
+    def _frame_poses(self, posed: list, present: list[int]) -> tuple[tuple[int, str], ...]:
+        """``(frame, text)`` object data naming the pose child shown on each present frame."""
+        shown: dict[int, str] = {}
+        for child in posed:
+            variant = str(_value(child, ss.ATTR_USER_POSE))
+            for f, here in zip(self.frames, self._visible(child)):
+                if here:
+                    shown[f] = variant
+        return tuple((f, canonical_json({"object_data": {"text": [{"name": ss.FRAME_POSE_DATA, "val": shown[f]}]}}))
+                     for f in present if f in shown)
 
     def _color(self, prim) -> tuple[float, float, float] | None:
         exact = _value(prim, ss.ATTR_USER_COLOR)
@@ -614,3 +631,8 @@ def _derive_intrinsics(usd: dict, ortho: bool, width: int, height: int, mpu: flo
     return Intrinsics(LensModel.PERSPECTIVE, width, height, fx, fy,
                       (width - 1) / 2.0 - h_off / h_ap * width, (height - 1) / 2.0 + v_off / v_ap * height,
                       sensor_width_mm=h_ap * tenth_m * 1000.0)
+
+
+def _json_pose(text: str) -> str:
+    """The pose variant named by one ``(frame, text)`` of :meth:`_frame_poses`."""
+    return json.loads(text)["object_data"]["text"][0]["val"]

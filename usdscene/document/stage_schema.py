@@ -118,6 +118,12 @@ ATTR_PLACE_SIZE = "usdscene:place:size"        # double3 on the region prim, met
 ATTR_USER_NAME = "userProperties:usdscene_name"            # string
 ATTR_USER_MASK_ID = "userProperties:usdscene_mask_id"      # int, same as ATTR_MASK_ID
 ATTR_USER_COLOR = "userProperties:usdscene_color"          # double3, exact linear RGB override
+# Objects whose pose variant changes per frame (a walker's walk cycle, the per-frame text object
+# data FRAME_POSE_DATA) get one child prim per shown variant, each referencing the asset with that
+# variant selected and visible on the frames that show it; the child carries the variant's name.
+FRAME_POSE_DATA = "walk_pose_variant"
+POSE_CHILD_PREFIX = "pose_"
+ATTR_USER_POSE = "userProperties:usdscene_pose"            # string, on a pose child prim
 ATTR_CAMERA_DESCRIPTION = "usdscene:camera:description"     # string
 ATTR_CAMERA_CUSTOM = "usdscene:camera:customJson"           # string, JSON of Camera.custom
 # string, JSON {"sensor": <stream_properties.usdscene.sensor>, "seed": <document seed>}; only

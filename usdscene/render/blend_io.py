@@ -54,7 +54,9 @@ def write_blend(stage_path: str | Path, blend_path: str | Path) -> Path:
                           or "/World/__nothing__",
         "settings": resolve_settings(plan.settings, None),
         "objects": [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                     "visible_frames": list(o.visible_frames)} for o in plan.objects],
+                     "visible_frames": list(o.visible_frames),
+                     **({"pose_frames": {v: list(fs) for v, fs in o.pose_frames}} if o.pose_frames else {})}
+                    for o in plan.objects],
         "cameras": camera_jobs(plan, [c.name for c in plan.cameras], frames),
         "frame_start": plan.frame_start,
         "frame_end": plan.frame_end,

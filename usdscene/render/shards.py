@@ -36,7 +36,10 @@ def shard_job(plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], t
     ``keep_clean`` asks sensor cameras' workers for the image before the sensor too."""
     frame_set = {f for f, _ in pairs}
     objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                "visible_frames": [f for f in o.visible_frames if f in frame_set]}
+                "visible_frames": [f for f in o.visible_frames if f in frame_set],
+                # only objects whose pose changes per frame add the key: other jobs stay as they were
+                **({"pose_frames": {v: [f for f in fs if f in frame_set] for v, fs in o.pose_frames}}
+                   if o.pose_frames else {})}
                for o in plan.objects if frame_set.intersection(o.visible_frames)]
     mask = list(plan.shared_prims) + [o["prim"] for o in objects]
     return {

@@ -32,6 +32,9 @@ class ObjectEntry:
         prim_path: prim path under ``/World/Objects``.
         mask_id: value in the masks (``usdscene:maskId``), 1..65535.
         visible_frames: frames of the stage range where the prim is visible, ascending.
+        pose_frames: for an object whose pose changes per frame (a walker), ``(variant,
+            frames)`` per pose child prim (``stage_schema.POSE_CHILD_PREFIX``): the frames of
+            ``visible_frames`` that show that pose; empty for every other object.
     """
 
     uid: str
@@ -39,6 +42,7 @@ class ObjectEntry:
     prim_path: str
     mask_id: int
     visible_frames: tuple[int, ...]
+    pose_frames: tuple[tuple[str, tuple[int, ...]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -346,9 +350,14 @@ def _read_objects(stage, frames, problems) -> list[ObjectEntry]:
             problems.append(Problem(where, f"{names.ATTR_MASK_ID} {mask_id} is also used by {seen_ids[mask_id]}"))
             continue
         seen_ids[mask_id] = where
-        visible = _visible_frames(prim, frames)
-        entries.append(ObjectEntry(str(uid), str(cls), where, mask_id,
-                                   tuple(f for f in visible if parent_visible[f])))
+        visible = tuple(f for f in _visible_frames(prim, frames) if parent_visible[f])
+        pose_frames = []
+        for child in prim.GetChildren():
+            variant = _attr(child, names.ATTR_USER_POSE)
+            if variant is not None:
+                shows = set(_visible_frames(child, frames))
+                pose_frames.append((str(variant), tuple(f for f in visible if f in shows)))
+        entries.append(ObjectEntry(str(uid), str(cls), where, mask_id, visible, tuple(pose_frames)))
     return entries
 
 

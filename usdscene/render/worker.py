@@ -142,6 +142,14 @@ class Session:
                 continue
             members = [ob, *ob.children_recursive]
             self.objects.setdefault(str(uid), []).extend(members)
+        # uid → pose variant → the Blender objects of that pose child (objects whose pose
+        # changes per frame, stage_schema.POSE_CHILD_PREFIX); only those show per frame.
+        self.poses: dict[str, dict[str, list]] = {}
+        for uid, members in self.objects.items():
+            for ob in members:
+                variant = ob.get("usdscene_pose")
+                if variant is not None and "pose_frames" in wanted[uid]:
+                    self.poses.setdefault(uid, {})[str(variant)] = [ob, *ob.children_recursive]
         for uid, members in self.objects.items():
             mask_id = int(wanted[uid]["mask_id"])
             for ob in members:
@@ -388,6 +396,11 @@ class Session:
         for o in self.job["objects"]:
             members = self.objects.get(o["uid"])
             if not members:
+                continue
+            poses = self.poses.get(o["uid"])
+            if poses:
+                for ob, hide in member_hides(o, members, poses, frame):
+                    ob.hide_render = hide
                 continue
             hide = frame not in o["_visible"]
             if self.hidden.get(o["uid"]) == hide:
@@ -653,11 +666,13 @@ def build_blend(job: dict) -> None:
     frames = range(int(job["frame_start"]), int(job["frame_end"]) + 1)
     scene.frame_start, scene.frame_end = frames[0], frames[-1]
     for o in job["objects"]:
-        visible = set(o["visible_frames"])
-        for ob in session.objects.get(o["uid"], []):
+        members = session.objects.get(o["uid"], [])
+        poses = session.poses.get(o["uid"])
+        hides = [dict((ob.name, h) for ob, h in member_hides(o, members, poses or {}, f)) for f in frames]
+        for ob in members:
             previous = None
-            for f in frames:
-                hide = f not in visible
+            for f, hidden in zip(frames, hides):
+                hide = hidden[ob.name]
                 if hide != previous:
                     # Render visibility only: an object hidden in the viewport leaves the
                     # depsgraph and its matrix goes stale (the USD exporter would write it).
@@ -694,6 +709,19 @@ def build_blend(job: dict) -> None:
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp), relative_remap=True)
     os.replace(tmp, out)
     _emit({"event": "blend_written", "path": str(out)})
+
+
+def member_hides(o: dict, members: list, poses: dict[str, list], frame: int) -> list[tuple]:
+    """``(Blender object, hide_render)`` for every member of job object ``o`` at ``frame``:
+    hidden when the object is absent; with pose children (``poses``: variant → its objects),
+    also the members of every pose but the one ``o["pose_frames"]`` shows at ``frame``."""
+    hide = frame not in o["_visible"]
+    if not poses:
+        return [(ob, hide) for ob in members]
+    shown = set() if hide else {ob.name for variant, obs in poses.items()
+                                if frame in o["pose_frames"].get(variant, ()) for ob in obs}
+    posed = {ob.name for obs in poses.values() for ob in obs}
+    return [(ob, hide or (ob.name in posed and ob.name not in shown)) for ob in members]
 
 
 def camera_data_json(data) -> dict:
@@ -856,6 +884,8 @@ def main(argv: list[str] | None = None) -> int:
     _die_with_parent(job.get("parent_pid"))
     for o in job.get("objects", ()):
         o["_visible"] = set(o["visible_frames"])
+        if "pose_frames" in o:
+            o["pose_frames"] = {v: set(fs) for v, fs in o["pose_frames"].items()}
     mode = job.get("mode", "render")
     if mode in ("blend", "inspect_blend", "export_usd"):
         try:

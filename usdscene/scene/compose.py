@@ -11,7 +11,10 @@
     cameras.usda      /World/Cameras/<camera>: UsdGeom.Camera + usdscene:lens:* attributes
     lights.usda       /World/Lights/<light>: UsdLux lights + usdscene:light:* attributes
     objects.usda      /World/Objects/<class>_<uid>: reference to the asset, time-sampled
-                      transform and visibility, appearance variant, colour opinion, identity
+                      transform and visibility, appearance variant, colour opinion, identity;
+                      an object whose pose changes per frame (a walker) instead holds one
+                      child pose_<variant> per pose it shows, each referencing the asset with
+                      that variant and visible on its frames
     environment.usda  /World/Environment: reference to the environment asset (and its places)
 
 Conventions of the authored stage:
@@ -82,7 +85,7 @@ from usdscene.files import make_folder, write_text_atomic
 from usdscene.document.output_layout import mask_ids
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
                             Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
-                            union_intervals)
+                            extra_data, union_intervals)
 from usdscene.scene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
@@ -161,6 +164,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
         raise CompositionError(f"frame range [{scene.frame_start}, {scene.frame_end}] is empty",
                                where="frame_end")
     check_placement_inputs(scene, catalog)
+    _check_frame_poses(scene, catalog)
     _check_prim_names(scene)
     _check_asset_arcs(scene, catalog)
     choices = draw_looks(scene, catalog, rng)
@@ -429,6 +433,59 @@ def _author_visibility(layer, prim, present: list[bool], frame_start: int) -> No
             previous = here
 
 
+def frame_pose_data(obj) -> dict[int, str]:
+    """Frame → pose variant named by the object's per-frame text object data
+    ``stage_schema.FRAME_POSE_DATA`` (empty for almost every object)."""
+    by_frame: dict[int, str] = {}
+    for frame, text in obj.frame_extra:
+        if ss.FRAME_POSE_DATA not in text:  # cheap: most frame data is about something else
+            continue
+        for item in extra_data(text).get("object_data", {}).get("text", ()):
+            if item.get("name") == ss.FRAME_POSE_DATA and isinstance(item.get("val"), str):
+                by_frame[int(frame)] = item["val"]
+    return by_frame
+
+
+def _check_frame_poses(scene: SceneSpec, catalog: Catalog) -> None:
+    """Per-frame pose variants must be variants of the object's class.
+
+    Raises:
+        CompositionError: every unknown one, naming the object and the frame.
+    """
+    problems = ProblemCollector()
+    for obj in scene.objects:
+        if obj.class_name not in catalog:
+            continue  # reported by check_placement_inputs
+        choices = catalog[obj.class_name].variants.get(ss.VARIANT_SET_POSE, ())
+        for frame, variant in sorted(frame_pose_data(obj).items()):
+            if variant not in choices:
+                problems.add(f"frames.{frame}.objects.{obj.uid}.object_data.text.{ss.FRAME_POSE_DATA}",
+                             f"object {obj.uid!r}: pose {variant!r} is not a variant of class "
+                             f"{obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+    problems.raise_if_any(CompositionError)
+
+
+def frame_pose_variants(obj, frames: range, present: list[bool]) -> list[str] | None:
+    """The pose variant shown per frame of ``frames`` when the document gives ``obj`` one per
+    frame (text object data ``stage_schema.FRAME_POSE_DATA``, a walker's walk cycle) other than
+    its ``pose_variant``; None otherwise (the object's one ``pose_variant`` holds). Frames without the data
+    show ``obj.pose_variant``; absent frames hold the previous variant (no extra samples)."""
+    by_frame = frame_pose_data(obj)
+    if not by_frame:
+        return None
+    shown: list[str] = []
+    # Frames before the first present one show its pose: no child for a pose never seen.
+    held = next((by_frame.get(f, obj.pose_variant) for i, f in enumerate(frames) if present[i]),
+                obj.pose_variant)
+    for i, f in enumerate(frames):
+        if present[i]:
+            held = by_frame.get(f, obj.pose_variant)
+        shown.append(held)
+    if None in shown or set(shown) == {obj.pose_variant}:
+        return None
+    return shown
+
+
 def _presence(intervals, frames: range) -> list[bool]:
     return [any(iv.frame_start <= f <= iv.frame_end for iv in intervals) for f in frames]
 
@@ -689,11 +746,13 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
     for obj in scene.objects:
         entry = catalog[obj.class_name]
         prim = _prim(parent, ss.object_prim_path(obj.class_name, obj.uid).rsplit("/", 1)[1], "Xform")
-        prim.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
+        present = _presence(obj.frame_intervals, frames)
+        shown = frame_pose_variants(obj, frames, present)
+        if shown is None:
+            prim.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
         _identity(prim, obj.uid, obj.class_name, obj.name)
         _attr(prim, ss.ATTR_MASK_ID, T.Int, ids[obj.uid], custom=True)
         _attr(prim, ss.ATTR_USER_MASK_ID, T.Int, ids[obj.uid], custom=True)
-        present = _presence(obj.frame_intervals, frames)
         base = (obj.pose or Pose()).matrix
         per_frame: list[tuple[float, ...]] = []
         if obj.frame_poses:
@@ -706,20 +765,44 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
                 per_frame.append(held)
         _author_transform(layer, prim, base, per_frame, scene.frame_start)
         _author_visibility(layer, prim, present, scene.frame_start)
-        if obj.appearance is not None:
-            prim.variantSelections[ss.VARIANT_SET_APPEARANCE] = obj.appearance
-        if obj.pose_variant is not None:
-            prim.variantSelections[ss.VARIANT_SET_POSE] = obj.pose_variant
-        if obj.color_rgb is not None:
-            rgb = tuple(float(c) for c in obj.color_rgb)
-            color = _attr(prim, ss.ATTR_COLOR, T.Color3fArray, Vt.Vec3fArray([Gf.Vec3f(*rgb)]))
-            color.SetInfo("interpolation", "constant")
-            _attr(prim, ss.ATTR_USER_COLOR, T.Double3, Gf.Vec3d(*rgb), custom=True)
-            shader = prim
-            for part in entry.color_shader.split("/"):
-                shader = _prim(shader, part, specifier=Sdf.SpecifierOver)
-            _attr(shader, ss.ATTR_ASSET_COLOR, T.Color3f, Gf.Vec3f(*rgb))
+        if shown is None:
+            _author_look(prim, entry, obj.appearance, obj.pose_variant, obj.color_rgb, record_color=True)
+            continue
+        if obj.color_rgb is not None:  # the object's recorded colour, on the object prim
+            _attr(prim, ss.ATTR_USER_COLOR, T.Double3, Gf.Vec3d(*(float(c) for c in obj.color_rgb)), custom=True)
+        # One child per shown pose, visible on its frames: a stage cannot switch variants per
+        # frame, and geometry, keypoints and the renderer all follow visibility.
+        for variant in sorted(set(shown)):
+            child = _prim(prim, ss.POSE_CHILD_PREFIX + variant, "Xform")
+            child.referenceList.prependedItems.append(
+                Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
+            _attr(child, ss.ATTR_USER_POSE, T.String, variant, custom=True)
+            _author_visibility(layer, child, [v == variant for v in shown], scene.frame_start)
+            _author_look(child, entry, obj.appearance, variant, obj.color_rgb, record_color=False)
     return layer.ExportToString()
+
+
+def _author_look(prim, entry, appearance: str | None, pose_variant: str | None, color_rgb, *,
+                 record_color: bool) -> None:
+    """Variant selections and the colour opinion on a prim referencing the asset ``entry``;
+    ``record_color`` also records the colour as a user property (once per object)."""
+    from pxr import Gf, Sdf, Vt
+
+    T = Sdf.ValueTypeNames
+    if appearance is not None:
+        prim.variantSelections[ss.VARIANT_SET_APPEARANCE] = appearance
+    if pose_variant is not None:
+        prim.variantSelections[ss.VARIANT_SET_POSE] = pose_variant
+    if color_rgb is not None:
+        rgb = tuple(float(c) for c in color_rgb)
+        color = _attr(prim, ss.ATTR_COLOR, T.Color3fArray, Vt.Vec3fArray([Gf.Vec3f(*rgb)]))
+        color.SetInfo("interpolation", "constant")
+        if record_color:
+            _attr(prim, ss.ATTR_USER_COLOR, T.Double3, Gf.Vec3d(*rgb), custom=True)
+        shader = prim
+        for part in entry.color_shader.split("/"):
+            shader = _prim(shader, part, specifier=Sdf.SpecifierOver)
+        _attr(shader, ss.ATTR_ASSET_COLOR, T.Color3f, Gf.Vec3f(*rgb))
 
 
 def _environment_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path) -> str:

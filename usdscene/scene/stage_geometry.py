@@ -195,11 +195,18 @@ class StageGeometry:
         for uid, (prim, _) in self._objects.items():
             if uids is not None and uid not in uids:
                 continue
-            attr = prim.GetAttribute(stage_schema.ATTR_KEYPOINTS)
-            if not attr or not attr.HasValue():
-                continue
             if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
                 continue
+            attr = prim.GetAttribute(stage_schema.ATTR_KEYPOINTS)
+            if not attr or not attr.HasValue():
+                # A pose changing per frame: the keypoints of the pose child shown at this frame.
+                shown = [child for child in prim.GetChildren()
+                         if child.HasAttribute(stage_schema.ATTR_USER_POSE)
+                         and UsdGeom.Imageable(child).ComputeVisibility(time) != UsdGeom.Tokens.invisible]
+                attr = shown[0].GetAttribute(stage_schema.ATTR_KEYPOINTS) if len(shown) == 1 else None
+                if not attr or not attr.HasValue():
+                    continue
+                prim = shown[0]
             local = np.asarray(attr.Get(time), dtype=np.float64).reshape(-1, 3)
             matrix = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
             result[uid] = local @ matrix[:3, :3] + matrix[3, :3]  # USD: row vectors
