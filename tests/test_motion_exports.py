@@ -38,6 +38,18 @@ def run(tmp_path_factory):
     return out
 
 
+def _mover_classes() -> set[str]:
+    """The classes ``generate tracks`` draws movers from (no ``--person-classes`` or
+    ``--vehicle-classes`` given): the code's own rule over the setup's catalog."""
+    from usdscene.converters.openlabel import read_openlabel
+    from usdscene.dataset.motion import person_classes, vehicle_classes
+    from usdscene.scene.catalog import load_catalog
+
+    scene = read_openlabel(CAR_PARK / "setup_moving.openlabel.json")
+    catalog = load_catalog(scene.asset_paths, base_dir=CAR_PARK)
+    return {*person_classes(catalog), *vehicle_classes(catalog)}
+
+
 def _document(out: Path) -> dict:
     return json.loads((out / "annotations.openlabel.json").read_text())
 
@@ -49,7 +61,7 @@ def test_mot_layout_and_one_id_per_uid_in_every_camera(run):
     tracks = json.loads((run / "exports" / "mot" / "tracks.json").read_text())
     assert tracks["ids"] == track_ids(document)
     objects = document["openlabel"]["objects"]
-    movers = {uid for uid, o in objects.items() if o["type"] in ("pedestrian", "vehicle")}
+    movers = {uid for uid, o in objects.items() if o["type"] in _mover_classes()}
     assert set(tracks["ids"]) == movers and sorted(tracks["ids"].values()) == list(range(1, len(movers) + 1))
     seen_ids = set()
     for camera in CAMERAS:
