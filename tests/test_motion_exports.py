@@ -229,3 +229,15 @@ def test_export_mot_without_tracks_is_one_error_and_writes_nothing(run, tmp_path
     assert not (out / "exports").exists()
     assert main(["export", "coco", "multiview", str(out)]) == 1
     assert not (out / "exports").exists()  # not even the COCO part
+
+
+def test_projection_through_a_calibration_reads_strided_points():
+    """The first three columns of homogeneous points (a strided view) project like a copy."""
+    from usdscene.converters.multiview import project_with_calibration
+
+    K = np.array([[40.0, 0.0, 63.5], [0.0, 40.0, 47.5], [0.0, 0.0, 1.0]])
+    rvec, tvec = np.array([0.1, 0.2, 0.3]), np.array([0.0, 0.0, 5.0])
+    homogeneous = np.c_[np.random.default_rng(0).normal(size=(50, 3)), np.ones(50)]
+    for model, D in (("fisheye", np.array([0.01, -0.002, 0.0, 0.0])), ("pinhole", np.zeros(5))):
+        packed = project_with_calibration(model, K, D, rvec, tvec, homogeneous[:, :3].copy())
+        assert np.array_equal(project_with_calibration(model, K, D, rvec, tvec, homogeneous[:, :3]), packed)
