@@ -162,7 +162,9 @@ def project_with_calibration(model: str, K: np.ndarray, D: np.ndarray, rvec: np.
     """(N, 2) pixels of (N, 3) world points through an OpenCV calibration (as written)."""
     import cv2
 
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 1, 3)
+    # Contiguous: cv2.fisheye.projectPoints reads a strided view (the first 3 columns of an
+    # (N, 4) array) as if it were packed and returns wrong pixels without an error.
+    pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 1, 3))
     if model == "fisheye":
         uv, _ = cv2.fisheye.projectPoints(pts, rvec.reshape(3, 1), tvec.reshape(3, 1), K, D.reshape(4))
     else:

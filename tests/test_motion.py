@@ -167,8 +167,9 @@ def test_cabin_walker_walks_the_aisle():
     idx = np.flatnonzero(track.present)
     assert np.all(np.abs(track.position[idx, 1]) <= 0.26)  # within the 0.5 m aisle
     assert track.position[idx, 0].min() < -3.0  # walked down the aisle
-    # Nobody passes anybody in a 0.44 m aisle: a second walker fits only where it never meets the first.
-    with pytest.raises(DocumentError, match="--people: only 1 of 8 walkers fit"):
+    # Nobody passes anybody in a 0.44 m aisle: a walker fits only where it never meets the others
+    # (one following another the same way, 0.32 m deep along the aisle, may), so 8 never fit.
+    with pytest.raises(DocumentError, match=r"--people: only [12] of 8 walkers fit"):
         generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=8, seed=0, person_classes=("pedestrian",)))
 
 
@@ -215,3 +216,38 @@ def test_cli_writes_nothing_on_error(tmp_path, capsys):
     assert "--people" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
     assert main(["generate", "tracks", "--setup", "x.json", "-o", str(out), "--fps", "-1"]) == 2
+
+
+def test_walkers_face_where_they_walk(setup, generated):
+    """People face -Y whatever their footprint (the person is wider across the shoulders than
+    deep, which the vehicles' long-axis rule would take for a front along X): the rotated -Y
+    axis points along the walked direction; vehicles drive along their long (x) axis."""
+    scene, catalog = setup
+    size = np.subtract(catalog["person"].extent_max_m, catalog["person"].extent_min_m)
+    assert size[0] > 1.5 * size[1]  # the case the footprint rule got wrong
+    seen = set()
+    for t in generated.tracks:
+        if t.kind not in ("walking", "arriving", "leaving"):
+            continue
+        idx = np.flatnonzero(t.present)
+        step = np.diff(t.position[idx, :2], axis=0)
+        moving = np.linalg.norm(step, axis=1) > 1e-6
+        direction = step[moving] / np.linalg.norm(step[moving], axis=1)[:, None]
+        yaw = t.yaw[idx[1:]][moving]
+        if t.kind == "walking":
+            front = np.stack([np.sin(yaw), -np.cos(yaw)], axis=1)  # the asset's -Y turned by the yaw
+            assert np.median(np.sum(front * direction, axis=1)) > 0.95, t.class_name
+        else:
+            along = np.abs(np.sum(np.stack([np.cos(yaw), np.sin(yaw)], axis=1) * direction, axis=1))
+            assert np.median(along) > 0.95, t.class_name  # forward or reversing, along the long axis
+        seen.add((t.kind, t.class_name))
+    assert ("walking", "person") in seen and any(k != "walking" for k, _ in seen)
+
+
+def test_standing_people_take_an_idle_pose_of_their_class(setup):
+    scene, catalog = setup
+    generated = generate_tracks(scene, catalog, TrackOptions(frames=10, fps=5, standing=12, seed=3,
+                                                             person_classes=("person",)))
+    poses = {t.pose_variant for t in generated.tracks}
+    assert poses <= {"standing", "idle", "phone"} and len(poses) >= 2
+    assert set(catalog["person"].variants["pose"]) >= poses

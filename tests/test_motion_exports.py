@@ -38,6 +38,18 @@ def run(tmp_path_factory):
     return out
 
 
+def _mover_classes() -> set[str]:
+    """The classes ``generate tracks`` draws movers from (no ``--person-classes`` or
+    ``--vehicle-classes`` given): the code's own rule over the setup's catalog."""
+    from usdscene.converters.openlabel import read_openlabel
+    from usdscene.dataset.motion import person_classes, vehicle_classes
+    from usdscene.scene.catalog import load_catalog
+
+    scene = read_openlabel(CAR_PARK / "setup_moving.openlabel.json")
+    catalog = load_catalog(scene.asset_paths, base_dir=CAR_PARK)
+    return {*person_classes(catalog), *vehicle_classes(catalog)}
+
+
 def _document(out: Path) -> dict:
     return json.loads((out / "annotations.openlabel.json").read_text())
 
@@ -49,7 +61,7 @@ def test_mot_layout_and_one_id_per_uid_in_every_camera(run):
     tracks = json.loads((run / "exports" / "mot" / "tracks.json").read_text())
     assert tracks["ids"] == track_ids(document)
     objects = document["openlabel"]["objects"]
-    movers = {uid for uid, o in objects.items() if o["type"] in ("pedestrian", "vehicle")}
+    movers = {uid for uid, o in objects.items() if o["type"] in _mover_classes()}
     assert set(tracks["ids"]) == movers and sorted(tracks["ids"].values()) == list(range(1, len(movers) + 1))
     seen_ids = set()
     for camera in CAMERAS:
@@ -182,10 +194,14 @@ def test_every_position_projects_into_its_boxes_through_the_written_calibration(
                 u, v = project_with_calibration(model, K, D, rvec, tvec, point)[0]
                 if not (-0.5 <= u < width - 0.5 and -0.5 <= v < height - 0.5):
                     continue  # feet outside the image (a truncated person)
-                # The box holds the pixels whose centres the projection covers: a point of the
-                # projection lies at most one pixel beyond its edges.
-                assert view["xmin"] - 1.0 <= u + 0.5 <= view["xmax"] + 1.0, (path.name, person, u)
-                assert view["ymin"] - 1.0 <= v + 0.5 <= view["ymax"] + 1.0, (path.name, person, v)
+                # The box holds the pixels whose centres the projection covers. A part at least a
+                # pixel thick reaches at most one pixel beyond its edges, but a part thinner than
+                # a pixel can fall between the pixel centres and be left out whole: legs (about
+                # 0.1 m across, under a pixel at 128x96 beyond a few metres) end at the feet and
+                # are up to half a body's length (2.2 px beyond a 5 px box seen here).
+                slack = 1.0 + 0.5 * max(view["xmax"] - view["xmin"], view["ymax"] - view["ymin"])
+                assert view["xmin"] - slack <= u + 0.5 <= view["xmax"] + slack, (path.name, person, u)
+                assert view["ymin"] - slack <= v + 0.5 <= view["ymax"] + slack, (path.name, person, v)
                 checked += 1
     assert checked >= 15
 
@@ -213,3 +229,15 @@ def test_export_mot_without_tracks_is_one_error_and_writes_nothing(run, tmp_path
     assert not (out / "exports").exists()
     assert main(["export", "coco", "multiview", str(out)]) == 1
     assert not (out / "exports").exists()  # not even the COCO part
+
+
+def test_projection_through_a_calibration_reads_strided_points():
+    """The first three columns of homogeneous points (a strided view) project like a copy."""
+    from usdscene.converters.multiview import project_with_calibration
+
+    K = np.array([[40.0, 0.0, 63.5], [0.0, 40.0, 47.5], [0.0, 0.0, 1.0]])
+    rvec, tvec = np.array([0.1, 0.2, 0.3]), np.array([0.0, 0.0, 5.0])
+    homogeneous = np.c_[np.random.default_rng(0).normal(size=(50, 3)), np.ones(50)]
+    for model, D in (("fisheye", np.array([0.01, -0.002, 0.0, 0.0])), ("pinhole", np.zeros(5))):
+        packed = project_with_calibration(model, K, D, rvec, tvec, homogeneous[:, :3].copy())
+        assert np.array_equal(project_with_calibration(model, K, D, rvec, tvec, homogeneous[:, :3]), packed)

@@ -45,9 +45,9 @@ speed of 0.8-1.8 m/s locks, at 10 fps only walkers from 1.125 m/s do (the others
 slide about as far as they walk). A class without a walk cycle slides its whole distance (1.0). Composition selects one ``pose`` variant per object: the per-frame variant is in
 the document and the annotations, and a renderer that switches variants per frame follows it.
 
-**Facing.** People assets face -Y (the asset library's convention), vehicles face +X (their
-long footprint axis); a class whose footprint is longer along X than 1.5 times along Y is
-treated as facing +X.
+**Facing.** People (the person classes) face -Y (the asset library's convention) whatever
+their footprint; a vehicle class whose footprint is longer along X than 1.5 times along Y is
+treated as facing +X (its long axis), any other as facing -Y.
 
 Every moving object gets per frame ``pose_matrix4x4`` (the time-sampled transform of the
 stage) and the vec ``ground_position_m`` ``[x, y, z]``: where it stands on the ground (the
@@ -439,8 +439,14 @@ def vehicle_classes(catalog: Catalog) -> tuple[str, ...]:
                         if catalog[name].kind != "environment" and _has_word(name, VEHICLE_WORDS)))
 
 
-def _facing_offset(entry: AssetEntry) -> float:
-    """Yaw (rad) to add to a heading to turn the asset's front along it (see the module doc)."""
+def _facing_offset(entry: AssetEntry, *, person: bool) -> float:
+    """Yaw (rad) to add to a heading to turn the asset's front along it (see the module doc).
+
+    People face -Y whatever their footprint: a person's shoulders (x) are wider than its
+    depth (y), so the footprint rule of vehicles would walk them sideways.
+    """
+    if person:
+        return math.pi / 2.0
     size = np.asarray(entry.extent_max_m) - np.asarray(entry.extent_min_m)
     return 0.0 if size[0] > 1.5 * size[1] else math.pi / 2.0
 
@@ -672,7 +678,7 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
         offset, half = _footprint(entry, PERSON_MARGIN_M)
-        facing = _facing_offset(entry)
+        facing = _facing_offset(entry, person=True)
         across = half[0] if facing else half[1]  # facing -Y: the asset's x is across the path
         for _ in range(MAX_TRIES):
             path = routes[int(rng.integers(len(routes)))]
@@ -754,7 +760,7 @@ def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
         offset, half = _footprint(entry, VEHICLE_MARGIN_M)
-        facing = _facing_offset(entry)
+        facing = _facing_offset(entry, person=False)
         for _ in range(MAX_TRIES):
             bay = free[int(rng.integers(len(free)))]
             path = reachable[bay][int(rng.integers(len(reachable[bay])))]
