@@ -14,7 +14,8 @@ A static page that opens from ``file://`` with no server and no network. Chromiu
     report/thumbs/<camera>/<frame:06d>.jpg   THUMB_WIDTH_PX wide, for images wider than
                                 THUMB_ABOVE_PX (smaller ones: the page shows the image itself)
     report/tints/<camera>/<frame:06d>.png    the instance mask as 8-bit colour indices
-                                (:func:`tint_indices`), coloured by the page
+                                (:func:`tint_indices`), coloured by the page; none for an
+                                image labelled with no objects
     report/balance.png          the balance chart of a generated document (``DOC.report.json``)
     report/coverage.png         the plan picture when the document sits in a camera-plan folder
 
@@ -457,7 +458,9 @@ def _draw_one(out: Path, target: Path, image: dict) -> tuple[int, int, tuple[int
         small = cv2.resize(pixels, (THUMB_WIDTH_PX, height), interpolation=cv2.INTER_AREA)
         _write_picture(thumb, ".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, 85])
         drawn += 1
-    mask = out / image["mask_uri"] if image["mask_uri"] else None
+    # An image labelled with nothing in it has an all-background mask: no tint to show.
+    empty = image.get("labelled", False) and not image.get("objects")
+    mask = out / image["mask_uri"] if image["mask_uri"] and not empty else None
     if mask is not None and mask.is_file() and _newer(mask, tint):
         ids = cv2.imread(str(mask), cv2.IMREAD_UNCHANGED)
         if ids is not None and ids.ndim == 2:
