@@ -141,6 +141,36 @@ def test_tint_indices_wrap_past_255():
     assert tint_indices(ids).tolist() == [[0, 1, 255, 1, 1, 255]]
 
 
+def test_grey_png_decodes_to_its_pixels_and_is_stable():
+    from usdscene.dataset.report import grey_png
+
+    rng = np.random.default_rng(3)
+    pixels = rng.integers(0, 256, (37, 53), dtype=np.uint8)
+    pixels[:10] = 0  # runs, as in a tint
+    encoded = grey_png(pixels)
+    decoded = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_UNCHANGED)
+    assert decoded.dtype == np.uint8 and decoded.shape == (37, 53) and (decoded == pixels).all()
+    assert grey_png(pixels.copy()) == encoded
+
+
+def test_no_tint_for_an_image_labelled_with_nothing(output):
+    document = json.loads((output / "annotations.openlabel.json").read_text())
+    # frame 2 of cam_a: the bag leaves the picture, its mask is all background
+    cv2.imwrite(str(output / "masks" / "cam_a" / "000002.png"), np.zeros((H, W), np.uint16))
+    for entry in document["openlabel"]["frames"]["2"]["objects"].values():
+        data = entry["object_data"]
+        for kind in ("bbox", "poly2d", "rbbox", "vec"):
+            if kind in data:
+                data[kind] = [item for item in data[kind] if not item["name"].startswith("cam_a_")]
+    (output / "annotations.openlabel.json").write_text(json.dumps(document))
+    summary = build_report(output)
+    page = _script_data(output / "report" / "data" / "labels_00000.js", "usdsceneReportPage")[1]
+    assert page[4]["uri"] == "images/cam_a/000002.png" and page[4]["o"] == []
+    assert not picture_paths(output / "report", "cam_a", 2)[1].exists()
+    assert picture_paths(output / "report", "cam_b", 2)[1].is_file()
+    assert summary.pictures_drawn == 11  # 6 thumbnails + 5 tints
+
+
 def test_rebuild_redraws_only_changed_pictures(output):
     assert build_report(output).pictures_drawn == 12  # 6 thumbnails + 6 tints
     assert build_report(output).pictures_drawn == 0

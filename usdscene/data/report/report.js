@@ -324,8 +324,11 @@
     svgElement("image", { class: "photo", href: `${ix.imageRoot}/${entry.uri}`, x: -0.5, y: -0.5, width: w, height: h,
       preserveAspectRatio: "none" }, svg);
     svg.appendChild(tintFilter());
-    svgElement("image", { class: "ov-tint", href: `tints/${cam}/${pad6(frame)}.png`, x: -0.5, y: -0.5, width: w,
-      height: h, preserveAspectRatio: "none", filter: "url(#tint-colours)" }, svg);
+    // A labelled image with no objects has no tint file (its mask is all background).
+    if (!ix.labelled[i] || entry.o.length) {
+      svgElement("image", { class: "ov-tint", href: `tints/${cam}/${pad6(frame)}.png`, x: -0.5, y: -0.5, width: w,
+        height: h, preserveAspectRatio: "none", filter: "url(#tint-colours)" }, svg);
+    }
     const fontSize = Math.max(h / 34, 1);
     const list = $("label-list");
     list.innerHTML = "";
