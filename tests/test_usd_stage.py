@@ -450,8 +450,27 @@ def test_shipped_example_document_to_stage_to_document(tmp_path, document):
     scene = read_openlabel(document)
     result = compose_stage(scene, load_catalog(scene.asset_paths, base_dir=document.parent), tmp_path / "stage")
     write_document(tmp_path / "back.json", write_openlabel(scene_from_stage(result.root_layer)))
+    back = read_openlabel(tmp_path / "back.json")
+    # A walker's pose per frame comes back from its pose children, frame by frame.
+    walking = {o.uid: _walk_poses(o) for o in result.resolved.objects if _walk_poses(o)}
+    assert {o.uid: _walk_poses(o) for o in back.objects if _walk_poses(o)} == walking
     # The stage holds what usdscene models; content carried for others (the moving example's
-    # per-frame ground positions and track notes) stays in the document, not in USD.
+    # per-frame ground positions and track notes) stays in the document, not in USD. A walker's
+    # own pose_variant is only its pose where no frame names one, which no frame of it lacks.
     expected = dataclasses.replace(result.resolved, objects=tuple(
         dataclasses.replace(o, extra="", frame_extra=()) for o in result.resolved.objects))
-    assert_scenes_close(expected, read_openlabel(tmp_path / "back.json"))
+    back = dataclasses.replace(back, objects=tuple(
+        dataclasses.replace(o, frame_extra=(), pose_variant=(result.resolved.object_by_uid()[o.uid].pose_variant
+                                                             if o.uid in walking else o.pose_variant))
+        for o in back.objects))
+    assert_scenes_close(expected, back)
+
+
+def _walk_poses(obj: m.SceneObject) -> dict[int, str]:
+    """frame → the walk pose variant an object's per-frame data names (empty if none)."""
+    poses = {}
+    for frame, text in obj.frame_extra:
+        for item in json.loads(text).get("object_data", {}).get("text", []):
+            if item.get("name") == "walk_pose_variant":
+                poses[frame] = item["val"]
+    return poses
