@@ -150,7 +150,7 @@ def add_label_filter_arguments(parser: argparse.ArgumentParser) -> None:
     """``--min-pixels``, ``--min-visible``, ``--coco-rle-below`` (shared by ``export`` and ``run``)."""
     parser.add_argument("--min-pixels", type=non_negative_int, default=0, metavar="N",
                         help="COCO/YOLO: leave out labels of fewer than N visible pixels (default 0: keep all)")
-    parser.add_argument("--min-visible", type=_fraction, default=0.0, metavar="F",
+    parser.add_argument("--min-visible", type=fraction, default=0.0, metavar="F",
                         help="COCO/YOLO: leave out labels whose visible fraction is below F, 0..1 "
                              "(default 0: keep all)")
     parser.add_argument("--coco-rle-below", type=non_negative_int, default=0, metavar="N",
@@ -165,7 +165,12 @@ def label_filter_options(args: argparse.Namespace) -> dict:
             "rle_below_px": args.coco_rle_below}
 
 
-def _fraction(text: str) -> float:
+def fraction(text: str) -> float:
+    """argparse type of fractions (``--min-visible``, ``--occupancy``): a number in [0, 1].
+
+    Raises:
+        argparse.ArgumentTypeError: naming the bad text (argparse exits 2 with it).
+    """
     try:
         value = float(text)
     except ValueError:

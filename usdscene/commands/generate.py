@@ -13,19 +13,9 @@ _STRATEGIES = ("single-class", "balanced", "appearance", "random")  # usdscene.d
 _TRACKS = "tracks"  # usdscene.dataset.motion: people and vehicles that move
 
 
-def _fraction(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}") from None
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``usdscene generate`` arguments and options to ``parser``."""
-    from usdscene.commands._arguments import add_split_arguments, non_negative_int, output_path, positive_int
+    from usdscene.commands._arguments import add_split_arguments, fraction, non_negative_int, output_path, positive_int
 
     parser.add_argument("strategy", choices=(*_STRATEGIES, _TRACKS),
                         help="single-class: one class in one relation at every place it fits, per frame; "
@@ -49,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="object classes to place (default: every object class of the catalog)")
     parser.add_argument("--places", nargs="+", metavar="GLOB", default=(),
                         help="place name patterns to use, e.g. 'seat_*' 'bin_*' (default: every place)")
-    parser.add_argument("--occupancy", type=_fraction, default=0.0,
+    parser.add_argument("--occupancy", type=fraction, default=0.0,
                         help="fraction of the seats with a passenger in each frame (default 0)")
     add_split_arguments(parser)  # written into the document; usdscene export uses it
     moving = parser.add_argument_group("tracks")
@@ -77,7 +67,8 @@ def _fps(text: str) -> float:
 def _run_tracks(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from usdscene.dataset.motion import TrackOptions, generate_tracks_document, report_path
+    from usdscene.dataset.motion import TrackOptions, generate_tracks_document
+    from usdscene.dataset.sequences import report_path
 
     options = TrackOptions(frames=args.frames or 100, fps=args.fps or 10.0, people=args.people,
                            vehicles=args.vehicles, standing=args.standing, seed=args.seed,

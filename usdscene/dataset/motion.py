@@ -57,7 +57,6 @@ asset's origin, metres), which the multi-view export turns into ground-grid cell
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import heapq
 import logging
 import math
@@ -1010,12 +1009,6 @@ def tracks_report(scene: SceneSpec, tracks: Sequence[Track], catalog: Catalog, o
     }
 
 
-def report_path(document: str | os.PathLike) -> Path:
-    """Where the report of generated document ``document`` goes: ``DOC.report.json`` beside it."""
-    path = Path(document)
-    return path.with_name(path.name + ".report.json")
-
-
 def generate_tracks_document(setup_path: str | os.PathLike, out_path: str | os.PathLike,
                              options: TrackOptions) -> GeneratedTracks:
     """Read a setup document, generate its moving sequence, check that it composes, write
@@ -1026,27 +1019,11 @@ def generate_tracks_document(setup_path: str | os.PathLike, out_path: str | os.P
         AssetError: bad asset catalog.
     """
     from usdscene.bulk import paused_collection
-    from usdscene.scene.catalog import load_catalog
-    from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
-    from usdscene.files import write_json_atomic
-    from usdscene.dataset.sequences import check_composes
+    from usdscene.dataset.sequences import read_setup, write_generated
 
     setup_path, out_path = Path(setup_path), Path(out_path)
     with paused_collection():
-        document, provenance = load_with_provenance(setup_path)
-        setup = read_loaded(document, provenance)
-        base = setup_path.resolve().parent
-        catalog = load_catalog(setup.asset_paths, base_dir=base)
-        out_dir = out_path.resolve().parent
-        moved = tuple(os.path.relpath(p if os.path.isabs(p) else base / p, out_dir).replace(os.sep, "/")
-                      for p in setup.asset_paths)
-        setup = replace(setup, asset_paths=moved)
+        setup, catalog, provenance = read_setup(setup_path, out_path)
         generated = generate_tracks(setup, catalog, options, setup_sha256=provenance.source_sha256)
-        written = write_openlabel(generated.scene)
-        check_composes(read_loaded(written, provenance), catalog)
-        write_document(out_path, written)
-        report = dict(generated.report)
-        report["document"] = out_path.name
-        report["document_sha256"] = hashlib.sha256(out_path.read_bytes()).hexdigest()
-        write_json_atomic(report_path(out_path), report)
+        report = write_generated(generated.scene, generated.report, out_path, catalog, provenance)
     return dataclasses.replace(generated, report=report)

@@ -649,15 +649,30 @@ def generate_document(setup_path: str | os.PathLike, out_path: str | os.PathLike
 
 
 def _generate_document(setup_path: Path, out_path: Path, options: GenerateOptions) -> GeneratedSequence:
+    setup, catalog, provenance = read_setup(setup_path, out_path)
+    generated = generate_sequence(setup, catalog, options, setup_sha256=provenance.source_sha256)
+    return replace(generated, report=write_generated(generated.scene, generated.report, out_path, catalog,
+                                                     provenance))
+
+
+def read_setup(setup_path: Path, out_path: Path):
+    """A setup document and its asset catalog, with the paths the setup names (asset folders,
+    a world's HDRI) made relative to the folder of the document to be written at ``out_path``.
+
+    Returns:
+        ``(setup SceneSpec, Catalog, provenance of the setup file)``.
+
+    Raises:
+        DocumentError: bad setup document. AssetError: bad asset catalog.
+    """
+    from usdscene.converters.openlabel import load_with_provenance, read_loaded
     from usdscene.scene.catalog import load_catalog
-    from usdscene.converters.openlabel import load_with_provenance, read_loaded, write_document, write_openlabel
-    from usdscene.files import write_json_atomic
 
     document, provenance = load_with_provenance(setup_path)
     setup = read_loaded(document, provenance)
-    base = setup_path.resolve().parent
+    base = Path(setup_path).resolve().parent
     catalog = load_catalog(setup.asset_paths, base_dir=base)
-    out_dir = out_path.resolve().parent
+    out_dir = Path(out_path).resolve().parent
     moved = tuple(os.path.relpath(p if os.path.isabs(p) else base / p, out_dir).replace(os.sep, "/")
                   for p in setup.asset_paths)
     setup = replace(setup, asset_paths=moved)
@@ -665,13 +680,27 @@ def _generate_document(setup_path: Path, out_path: Path, options: GenerateOption
         # relative to the document, like asset_paths
         setup = replace(setup, world=replace(setup.world, hdri=os.path.relpath(
             base / setup.world.hdri, out_dir).replace(os.sep, "/")))
-    generated = generate_sequence(setup, catalog, options, setup_sha256=provenance.source_sha256)
-    written = write_openlabel(generated.scene)
+    return setup, catalog, provenance
+
+
+def write_generated(scene: SceneSpec, report: dict, out_path: Path, catalog, provenance) -> dict:
+    """Check that a generated scene composes as it will be read back, then write it to
+    ``out_path`` and its report (completed with the document's name and sha256) to
+    :func:`report_path` atomically; returns the written report.
+
+    Raises:
+        CompositionError: the document would not compose (a defect of the generator); nothing
+            is written.
+    """
+    from usdscene.converters.openlabel import read_loaded, write_document, write_openlabel
+    from usdscene.files import write_json_atomic
+
+    written = write_openlabel(scene)
     # What composition will read: the written document, read back.
     check_composes(read_loaded(written, provenance), catalog)
     write_document(out_path, written)
-    report = dict(generated.report)
-    report["document"] = out_path.name
-    report["document_sha256"] = hashlib.sha256(out_path.read_bytes()).hexdigest()
+    report = dict(report)
+    report["document"] = Path(out_path).name
+    report["document_sha256"] = hashlib.sha256(Path(out_path).read_bytes()).hexdigest()
     write_json_atomic(report_path(out_path), report)
-    return replace(generated, report=report)
+    return report
