@@ -124,11 +124,15 @@ def measure_page(index: Path) -> dict:
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select, WebDriverWait
 
+    browser_path, driver_path = shutil.which("chromium"), shutil.which("chromedriver")
+    if browser_path is None or driver_path is None:
+        raise SystemExit("the page figures need Debian's chromium and chromium-driver: "
+                         "apt-get install chromium chromium-driver")
     options = webdriver.ChromeOptions()
-    options.binary_location = shutil.which("chromium")
+    options.binary_location = browser_path
     for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,900"):
         options.add_argument(flag)
-    browser = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
+    browser = webdriver.Chrome(service=Service(driver_path), options=options)
     try:
         figures = {}
         for attempt in range(2):  # the first load also warms the browser's disk cache

@@ -140,3 +140,54 @@ def test_report_in_chromium(report, browser, tmp_path):
 
     errors = [entry for entry in browser.get_log("browser") if entry["level"] == "SEVERE"]
     assert errors == [], errors
+
+
+def test_image_labelled_with_nothing_opens_without_a_tint(report, browser, tmp_path):
+    """An image whose mask is all background has no tint file: the page must not ask for one
+    (from ``file://`` a missing file is a console error) and still draws the image."""
+    import cv2
+    import numpy as np
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    from usdscene.dataset.report import picture_paths
+
+    out = tmp_path / "out"
+    shutil.copytree(report, out)
+    mask = out / "masks" / "cam_02" / "000001.png"
+    height, width = cv2.imread(str(mask), cv2.IMREAD_UNCHANGED).shape
+    cv2.imwrite(str(mask), np.zeros((height, width), np.uint16))
+    annotations = out / "annotations.openlabel.json"
+    document = json.loads(annotations.read_text())
+    for entry in document["openlabel"]["frames"]["1"]["objects"].values():
+        data = entry.get("object_data", {})
+        for kind, items in list(data.items()):
+            if isinstance(items, list):
+                data[kind] = [item for item in items if not str(item.get("name", "")).startswith("cam_02_")]
+    annotations.write_text(json.dumps(document))
+    shutil.rmtree(out / "report")
+    assert main(["report", str(out)]) == 0
+    assert not picture_paths(out / "report", "cam_02", 1)[1].exists()
+    assert picture_paths(out / "report", "cam_01", 1)[1].is_file()
+
+    browser.get_log("browser")  # drop what earlier pages logged
+    browser.get((out / "report" / "index.html").as_uri())
+    WebDriverWait(browser, 20).until(lambda b: b.execute_script("return document.body.dataset.ready === '1'"))
+    browser.find_element(By.CSS_SELECTOR, '#grid .cell[title="cam_02 · frame 1"]').send_keys(Keys.ENTER)
+    WebDriverWait(browser, 10).until(lambda b: b.find_element(By.ID, "viewer").is_displayed())
+    assert browser.find_element(By.ID, "viewer-title").text.startswith("cam_02 · frame 1")
+    tint_toggle = browser.find_element(By.CSS_SELECTOR, 'input[data-overlay="tint"]')
+    if not tint_toggle.is_selected():
+        browser.find_element(By.TAG_NAME, "body").send_keys("4")
+    assert tint_toggle.is_selected()
+    assert _visible(browser, "#canvas image.photo")
+    assert not browser.find_elements(By.CSS_SELECTOR, "#canvas image.ov-tint")
+    assert not _visible(browser, "#canvas rect.ov-box")
+    # The neighbouring image of the same frame still has its tint.
+    browser.find_element(By.TAG_NAME, "body").send_keys(Keys.ARROW_UP)
+    WebDriverWait(browser, 5).until(
+        lambda b: b.find_element(By.ID, "viewer-title").text.startswith("cam_01 · frame 1"))
+    assert _visible(browser, "#canvas image.ov-tint")
+    errors = [entry for entry in browser.get_log("browser") if entry["level"] == "SEVERE"]
+    assert errors == [], errors
