@@ -132,3 +132,57 @@ def test_stage_bundle_mirrors_layers_and_assets(local_run, tmp_path):
     assert laptop, "the laptop asset did not compose from the bundle"
     stack = [spec.layer.realPath for spec in laptop[0].GetPrimStack()]
     assert any(path.startswith(str(tmp_path / "node")) and "assets" in path for path in stack), stack
+
+
+def test_a_ray_task_renders_with_the_shipped_hdri(cluster, tmp_path):
+    """The world's HDRI travels in the stage bundle: the task renders with its copy although
+    the original is gone from the driver's disk, and gives the local executor's bytes."""
+    import json
+
+    import cv2
+    import numpy as np
+
+    from usdscene.pipeline import RunOptions, compose_document, run_pipeline
+    from usdscene.render.driver import render
+    from usdscene.render.ray_executor import RayExecutor, bundle_stage
+    from usdscene.render.stage_reader import stage_digest
+
+    hdri = tmp_path / "sky.hdr"
+    picture = np.zeros((8, 16, 3), np.float32)
+    picture[:4] = (0.9, 0.6, 0.3)  # BGR: a blue upper hemisphere
+    picture[4:] = (0.2, 0.2, 0.2)
+    assert cv2.imwrite(str(hdri), picture)
+    doc = json.loads(MINIMAL.read_text())
+    block = doc["openlabel"]["metadata"]["usdscene"]
+    block["world"] = {"hdri": "sky.hdr", "strength": 2.0}
+    block["frame_range"] = {"frame_start": 0, "frame_end": 0}
+    path = tmp_path / "scene.openlabel.json"
+    path.write_text(json.dumps(doc))
+    local = tmp_path / "local"
+    run_pipeline(path, local, RunOptions(exports=[]), progress=False)
+
+    out = tmp_path / "ray"
+    compose_document(path, out / "stage")
+    stage = out / "stage" / "scene.usda"
+    bundle = bundle_stage(stage)
+    assert bundle.hdri == hdri.resolve().as_posix().lstrip("/")
+    assert bundle.files[bundle.hdri] == hdri.read_bytes()
+    # The stage's digest covers the HDRI: an edited one invalidates finished images on resume.
+    original = hdri.read_bytes()
+    digest = stage_digest(stage)
+    hdri.write_bytes(original[:-4] + b"\0\0\0\0")
+    assert stage_digest(stage) != digest
+    hdri.write_bytes(original)
+    moved = []
+
+    def hide_the_hdri(event: dict) -> None:
+        if event.get("event") == "started" and not moved:  # the bundle is in the object store
+            hdri.rename(tmp_path / "elsewhere.hdr")
+            moved.append(True)
+
+    report = render(stage, out, progress=False, on_event=hide_the_hdri, executor=RayExecutor(cluster.address))
+    assert moved and not hdri.exists()
+    assert report.pairs_rendered == 2
+    for camera in ("cam_01", "cam_02"):
+        for where in (layout.image_path, layout.mask_path):
+            assert where(out, camera, 0).read_bytes() == where(local, camera, 0).read_bytes(), (camera, where)

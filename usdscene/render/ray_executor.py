@@ -5,7 +5,7 @@ Each shard becomes one Ray task that runs the usual worker process
 No shared file system is needed:
 
 - the stage travels as a :class:`StageBundle` (the root layer, its sublayers and every asset
-  layer and texture it references, as bytes; ~2 MB for the shipped cabin) put once into the
+  layer and texture it references, and the world's HDRI, as bytes; ~2 MB for the shipped cabin) put once into the
   Ray object store and extracted by each task under its scratch folder, absolute paths
   mirrored so that the layers' relative asset paths resolve unchanged;
 - the task streams one result per finished image (a Ray generator task): the PNG bytes of
@@ -52,10 +52,14 @@ class StageBundle:
     Attributes:
         files: mirrored path → file content.
         stage: mirrored path of the root layer.
+        hdri: mirrored path of the world's HDRI, None without one. The stage names it by an
+            absolute path in its world JSON, which the task points at the extracted copy
+            (:meth:`node_job`).
     """
 
     files: dict[str, bytes]
     stage: str
+    hdri: str | None = None
 
     @property
     def size_bytes(self) -> int:
@@ -71,6 +75,20 @@ class StageBundle:
             target.write_bytes(data)
         return folder / self.stage
 
+    def node_job(self, job: dict, folder: Path) -> dict:
+        """``job`` as a node runs it after :meth:`extract` into ``folder``: the stage and the
+        world's HDRI read from the extracted copies."""
+        folder = Path(folder)
+        job = dict(job, stage=str(folder / self.stage))
+        if self.hdri is not None and job.get("world", {}).get("hdri_path"):
+            job["world"] = dict(job["world"], hdri_path=str(folder / self.hdri))
+        return job
+
+
+def _mirrored(path: Path) -> str:
+    """An absolute path as a bundle key: resolved, POSIX, without its leading ``/``."""
+    return PurePosixPath(Path(path).resolve().as_posix()).relative_to("/").as_posix()
+
 
 def bundle_stage(stage_path: Path) -> StageBundle:
     """Collect the stage's layers and referenced assets (see
@@ -79,17 +97,17 @@ def bundle_stage(stage_path: Path) -> StageBundle:
     Raises:
         RenderError: an asset path of the stage does not resolve here.
     """
-    from usdscene.render.stage_reader import stage_dependencies
+    from pxr import Sdf
+
+    from usdscene.render.stage_reader import stage_dependencies, world_hdri_path
 
     files, unresolved = stage_dependencies(stage_path)
     if unresolved:
         raise RenderError([Problem(str(stage_path), f"asset path {u!r} does not resolve; a Ray task could not "
                                                     "load it either") for u in unresolved])
-
-    def mirrored(path: Path) -> str:
-        return PurePosixPath(path.resolve().as_posix()).relative_to("/").as_posix()
-
-    return StageBundle({mirrored(p): p.read_bytes() for p in files}, mirrored(Path(stage_path)))
+    hdri = world_hdri_path([Sdf.Layer.FindOrOpen(str(p)) for p in files if p.suffix in (".usd", ".usda", ".usdc")])
+    return StageBundle({_mirrored(p): p.read_bytes() for p in files}, _mirrored(Path(stage_path)),
+                       _mirrored(hdri) if hdri is not None else None)
 
 
 def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
@@ -118,9 +136,10 @@ def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
     remove_stale_scratch()
     scratch = make_scratch("task")
     try:
-        stage = bundle.extract(scratch / "stage")
+        bundle.extract(scratch / "stage")
         out = scratch / "out"
-        job = dict(job, stage=str(stage), out_dir=str(out), scratch_dir=str(scratch), parent_pid=os.getpid())
+        job = dict(bundle.node_job(job, scratch / "stage"), out_dir=str(out), scratch_dir=str(scratch),
+                   parent_pid=os.getpid())
         job_path = scratch / "job.json"
         job_path.write_text(json.dumps(job))
         for event in iter_worker_events(job_path, scratch / "worker.log"):

@@ -157,7 +157,8 @@ def recorded_source(stage_path: str | Path) -> tuple[Path | None, str]:
 
 def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
     """Every file a render of the stage reads: its layers, the layers they reference or
-    sublayer (assets) and other assets they name (textures), found by following composition.
+    sublayer (assets) and other assets they name (textures), found by following composition,
+    and the world's HDRI (:func:`world_hdri_path`).
 
     Returns:
         ``(files, unresolved)``: absolute paths of existing files, root layer first, and the
@@ -165,13 +166,43 @@ def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
     """
     from pxr import UsdUtils
 
-    layers, assets, unresolved = UsdUtils.ComputeAllDependencies(str(Path(stage_path).resolve()))
+    layers, assets, unresolved_paths = UsdUtils.ComputeAllDependencies(str(Path(stage_path).resolve()))
+    unresolved = [str(u) for u in unresolved_paths]
     files: list[Path] = []
     for item in [layer.realPath for layer in layers] + [str(a) for a in assets]:
         path = Path(item).resolve()
         if item and path.is_file() and path not in files:
             files.append(path)
-    return files, [str(u) for u in unresolved]
+    hdri = world_hdri_path(layers)
+    if hdri is not None:
+        if hdri.is_file():
+            if hdri not in files:
+                files.append(hdri)
+        else:
+            unresolved.append(str(hdri))
+    return files, unresolved
+
+
+def world_hdri_path(layers) -> Path | None:
+    """The HDRI file of the stage's world (``hdri_path`` of ``usdscene:render:worldJson`` on
+    ``/Render/Settings``, an absolute path written by compose), read from the layer specs
+    without composing the stage; None when no layer authors an HDRI world.
+
+    The HDRI is named in that JSON, not as a USD asset path, so composition does not find it:
+    without this the digest would miss an edited HDRI and a Ray task would not receive it."""
+    from pxr import Sdf
+
+    attribute = Sdf.Path(names.RENDER_SETTINGS).AppendProperty(names.ATTR_RENDER_WORLD)
+    for layer in layers:
+        spec = layer.GetAttributeAtPath(attribute)
+        if spec is None or not spec.default:
+            continue
+        try:
+            hdri = json.loads(spec.default).get("hdri_path") or ""
+        except (ValueError, AttributeError):
+            return None  # read_stage_plan reports a malformed world
+        return Path(hdri).resolve() if hdri else None
+    return None
 
 
 def stage_digest(stage_path: str | Path) -> str:
