@@ -39,20 +39,29 @@ def draw_labels(image: np.ndarray, labels: list[dict], scale: int = 2) -> np.nda
         labels: :func:`usdscene.converters.openlabel_annotations.labels_in` records.
     """
     big = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    subpixel_bits = 4  # OpenCV's fixed-point drawing: coordinates in 1/16 px
 
-    def corners(box):  # OpenLABEL [cx, cy, w, h], pixel centres at integer coordinates
+    def corners(box):
+        """OpenLABEL [cx, cy, w, h] (pixel centres at integer coordinates) → the first and last
+        enlarged pixel inside the box, so that both edges are drawn on the box's own pixels."""
         cx, cy, w, h = box
-        return ((cx - w / 2 + 0.5) * scale, (cy - h / 2 + 0.5) * scale), ((cx + w / 2 + 0.5) * scale,
-                                                                          (cy + h / 2 + 0.5) * scale)
+        return ((cx - w / 2 + 0.5) * scale, (cy - h / 2 + 0.5) * scale), ((cx + w / 2 + 0.5) * scale - 1,
+                                                                          (cy + h / 2 + 0.5) * scale - 1)
+
+    def drawn(points):
+        """Image coordinates (pixel centres at integers) → OpenCV's fixed-point coordinates of
+        the enlarged picture, where enlarged pixel j has its centre at j: pixel-outline
+        vertices land on the pixels' edges, not half a pixel beside them."""
+        return np.round(((points + 0.5) * scale - 0.5) * (1 << subpixel_bits)).astype(np.int32)
 
     for label in labels:
         if label["amodal_bbox"]:
             (x0, y0), (x1, y1) = corners(label["amodal_bbox"])
             cv2.rectangle(big, (round(x0), round(y0)), (round(x1), round(y1)), (160, 160, 160), 1)
         for poly in label["polygons"]:
-            pts = (np.asarray(poly["points"], float).reshape(-1, 2) + 0.5) * scale
+            pts = np.asarray(poly["points"], float).reshape(-1, 2)
             colour = (0, 0, 255) if poly["is_hole"] else (255, 200, 0)
-            cv2.polylines(big, [np.round(pts).astype(np.int32)], True, colour, 1, cv2.LINE_AA)
+            cv2.polylines(big, [drawn(pts)], True, colour, 1, cv2.LINE_AA, subpixel_bits)
         if label["bbox"]:
             (x0, y0), (x1, y1) = corners(label["bbox"])
             cv2.rectangle(big, (round(x0), round(y0)), (round(x1), round(y1)), (0, 220, 0), 1)
