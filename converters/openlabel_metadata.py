@@ -25,8 +25,8 @@ from usdscene.converters.openlabel_values import (
 )
 from usdscene.errors import ProblemCollector
 
-METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "frame_range", "split", "fps",
-                 "world")
+METADATA_KEYS = ("seed", "environment", "asset_paths", "render", "exports", "roi_rules", "roi_ignore", "frame_range",
+                 "split", "fps", "world")
 RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_min_samples", "denoise",
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
                "path_guiding", "clamp_indirect", "sampling_pattern", "fast_gi", "fast_gi_method",
@@ -53,7 +53,8 @@ def read_metadata(doc: DocumentBody) -> dict:
 
     Returns:
         ``name``, ``description``, ``render`` (:class:`RenderSettings`), ``seed``,
-        ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``,
+        ``environment`` (or None), ``asset_paths``, ``exports``, ``roi_rules``, ``roi_ignore``
+        (names only: that they are catalog classes or kinds is checked against the catalog),
         ``frame_range`` (a :class:`FrameInterval` or None), ``fps`` (or None), ``world`` (a
         :class:`usdscene.document.imaging.World` or None), ``split_rule`` and ``split_seed``
         (``split``: ``{"rule", "seed"}``, checked by :mod:`usdscene.document.splits`), with defaults for what is absent
@@ -64,8 +65,8 @@ def read_metadata(doc: DocumentBody) -> dict:
     where = f"{R}.metadata"
     meta = doc.body.get("metadata")
     out: dict = dict(name="scene", description="", render=RenderSettings(), seed=0, environment=None,
-                     asset_paths=(), exports=(), roi_rules={}, frame_range=None, split_rule="", split_seed=0, fps=None,
-                     world=None)
+                     asset_paths=(), exports=(), roi_rules={}, roi_ignore=(), frame_range=None, split_rule="",
+                     split_seed=0, fps=None, world=None)
     if meta is None:
         problems.add(where, f"missing 'metadata' with 'schema_version': '{SCHEMA_VERSION}'")
         return out
@@ -112,6 +113,8 @@ def read_metadata(doc: DocumentBody) -> dict:
         rules = read_object(block["roi_rules"], f"{where}.roi_rules", problems) or {}
         out["roi_rules"] = {k: v for k, v in rules.items()
                             if read_text(v, f"{where}.roi_rules.{k}", problems, non_empty=True)}
+    if "roi_ignore" in block:
+        out["roi_ignore"] = _read_strings(block["roi_ignore"], f"{where}.roi_ignore", problems)
     if "split" in block:
         from usdscene.document.splits import read_document_split
 

@@ -26,10 +26,10 @@ from __future__ import annotations
 import difflib
 import os
 import re
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING, Iterable, Mapping
 
 from usdscene.bulk import paused_collection
-from usdscene.errors import DocumentError
+from usdscene.errors import DocumentError, Problem
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, LightKind, Provenance, SceneSpec, union_intervals
 
 from usdscene.converters.openlabel_cameras import read_cameras
@@ -89,7 +89,7 @@ def read_loaded(document: dict, provenance: Provenance, *, catalog: Catalog | No
         cameras=tuple(cameras), lights=tuple(lights), objects=tuple(objects), places=tuple(places),
         relations=tuple(relations), render=settings["render"], seed=settings["seed"],
         environment=settings["environment"], asset_paths=settings["asset_paths"],
-        exports=settings["exports"], roi_rules=settings["roi_rules"],
+        exports=settings["exports"], roi_rules=settings["roi_rules"], roi_ignore=settings["roi_ignore"],
         split_rule=settings["split_rule"], split_seed=settings["split_seed"], fps=settings["fps"],
         description=settings["description"], world=settings["world"],
         extra=scene_residue(doc.body, doc.frames(), cameras, relations))
@@ -123,9 +123,37 @@ def _frame_range(doc: DocumentBody, explicit: FrameInterval | None, elements) ->
     return merged[0].frame_start, merged[-1].frame_end
 
 
+def roi_ignored_classes(names: Iterable[str], catalog: Catalog, where: str) -> tuple[frozenset[str], list[Problem]]:
+    """The object classes that ``metadata.usdscene.roi_ignore`` means, and a problem for each
+    name that means none.
+
+    A name is an object class (``passenger``) or a catalog kind (every class of that kind, e.g.
+    ``passenger`` or ``object``). Environments are neither: no place region holds one.
+
+    Args:
+        names: the document's ``roi_ignore``.
+        catalog: the asset catalog the document is read with.
+        where: JSON path of ``roi_ignore``; a problem names ``where[index]`` and the value.
+    """
+    objects = {c: catalog[c].kind for c in catalog.classes() if catalog[c].kind != "environment"}
+    kinds = sorted(set(objects.values()))
+    classes: set[str] = set()
+    problems = []
+    for index, name in enumerate(names):
+        meant = {c for c, kind in objects.items() if name in (c, kind)}
+        if not meant:
+            problems.append(Problem(f"{where}[{index}]", (
+                f"{name!r} is no object class or kind of the asset catalog{suggest(name, [*kinds, *objects])}; "
+                f"kinds: {', '.join(kinds)}; classes: {', '.join(sorted(objects))}")))
+        classes |= meant
+    return frozenset(classes), problems
+
+
 def _check_catalog(doc: DocumentBody, catalog: Catalog, scene: dict) -> None:
-    """Environment, object classes, places and placement relations exist in ``catalog``."""
+    """Environment, object classes, places, placement relations and the ROI rules' ignored
+    classes exist in ``catalog``."""
     R = doc.root
+    doc.problems.extend(roi_ignored_classes(scene["roi_ignore"], catalog, f"{R}.metadata.usdscene.roi_ignore")[1])
     environment = scene["environment"]
     where_env = f"{R}.metadata.usdscene.environment"
     env_places = None

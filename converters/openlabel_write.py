@@ -344,6 +344,8 @@ def _metadata(scene: SceneSpec) -> dict:
         "seed": int(render.seed)}
     block["exports"] = list(scene.exports)
     block["roi_rules"] = dict(scene.roi_rules)
+    if scene.roi_ignore:
+        block["roi_ignore"] = list(scene.roi_ignore)
     if scene.split_rule:
         block["split"] = {"rule": scene.split_rule, "seed": int(scene.split_seed)}
     block["frame_range"] = {"frame_start": int(scene.frame_start), "frame_end": int(scene.frame_end)}

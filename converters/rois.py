@@ -13,17 +13,24 @@ and cropped from the image when the camera sees it:
 Label of a crop: the document's ``roi_rules`` (``metadata.usdscene.roi_rules``) applied to the
 relation of the region when some present object is in it at that frame, directly or through a
 chain of relations (``bag is_on suitcase is_below seat_03A`` is in seat_03A's ``is_below``
-region, see :func:`usdscene.converters.openlabel_annotations.resolve_places`) (rule keys ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the
-relation name itself), and ``empty`` when no object is there. Example rules for taxi, take-off
-and landing: ``{"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"}``.
+region, see :func:`usdscene.converters.openlabel_annotations.resolve_places`) (rule keys
+``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the relation name
+itself), and ``empty`` when no object is there. Example rules for taxi, take-off and landing:
+``{"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"}``.
+
+Objects of the classes or catalog kinds in ``metadata.usdscene.roi_ignore`` (the cabin:
+``["passenger"]``) are not judged: they do not make a region occupied, so a seat holding only
+a seated passenger is ``empty``; a bag on that passenger's lap still makes the seat's ``is_on``
+region ``incorrect`` (it rests on the seat through the passenger).
 
 Output (an image-folder dataset)::
 
     exports/rois/<label>/<camera>_<frame:06d>_<place>_<relation>.png
-    exports/rois/index.csv   path,label,camera,frame,place,place_kind,relation,objects,x,y,w,h,image
+    exports/rois/index.csv   path,label,camera,frame,place,place_kind,relation,objects,x,y,w,h,image,ignored
 
 ``x, y, w, h`` is the crop in the source image (pixels, top-left corner, pixel ``i`` covers
-``[i, i + 1)``), ``objects`` the uids in the region separated by ``;``.
+``[i, i + 1)``), ``objects`` the uids in the region that the label judges, ``ignored`` those of
+``roi_ignore`` classes in it, each separated by ``;``.
 """
 
 from __future__ import annotations
@@ -50,7 +57,7 @@ ROIS_DIR = "rois"
 INDEX_FILE = "index.csv"
 EMPTY_LABEL = "empty"
 CSV_COLUMNS = ("path", "label", "camera", "frame", "place", "place_kind", "relation", "objects",
-               "x", "y", "w", "h", "image")
+               "x", "y", "w", "h", "image", "ignored")
 
 
 @dataclass(frozen=True)
@@ -62,7 +69,9 @@ class RoiCrop:
         place: place name; place_kind: its kind (seat, bin, aisle).
         relation: the region's relation (``is_below`` ...).
         label: class label (rule result or ``empty``).
-        objects: uids of the objects in the region.
+        objects: uids of the objects in the region that the label judges.
+        ignored: uids of the objects in the region whose class or kind the document's
+            ``roi_ignore`` names (they leave the label ``empty``).
         x_min, y_min, x_max, y_max: inclusive pixel bounds of the crop in the image.
     """
 
@@ -77,6 +86,7 @@ class RoiCrop:
     y_min: int
     x_max: int
     y_max: int
+    ignored: tuple[str, ...] = ()
 
 
 def region_corners(region: PlaceRegion) -> np.ndarray:
@@ -130,9 +140,11 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
 
     Raises:
         DocumentError: the document does not read as a scene.
-        AssetError: its environment or one of its places is not in the catalog.
+        AssetError: its environment, one of its places or a ``roi_ignore`` class or kind is not
+            in the catalog.
     """
     from usdscene.converters.openlabel import read_openlabel
+    from usdscene.converters.openlabel_read import roi_ignored_classes
 
     scene = read_openlabel(document)
     if not scene.places:
@@ -147,6 +159,10 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
     if missing:
         raise AssetError(f"places {missing} are not in environment {scene.environment!r}",
                          where="openlabel.objects")
+    ignored_classes, problems = roi_ignored_classes(scene.roi_ignore, catalog, "openlabel.metadata.usdscene.roi_ignore")
+    if problems:
+        raise AssetError(problems)
+    ignored = {o.uid for o in scene.objects if o.class_name in ignored_classes}
     if not scene.roi_rules:
         log.warning("the document has no roi_rules; occupied regions are labelled by relation name")
     cameras = {c.name: c for c in scene.cameras}
@@ -166,10 +182,12 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
                 if box is None:
                     continue
                 occupants = _occupants(resolved[record["frame"]], place_ref.uid, relation)
+                judged = tuple(uid for uid in occupants if uid not in ignored)
                 crops.append(RoiCrop(camera=camera.name, frame=record["frame"], place=place.name,
                                      place_kind=place.kind, relation=relation,
-                                     label=_label(scene.roi_rules, place.kind, relation, bool(occupants)),
-                                     objects=occupants, x_min=box[0], y_min=box[1], x_max=box[2], y_max=box[3]))
+                                     label=_label(scene.roi_rules, place.kind, relation, bool(judged)),
+                                     objects=judged, x_min=box[0], y_min=box[1], x_max=box[2], y_max=box[3],
+                                     ignored=tuple(uid for uid in occupants if uid in ignored)))
     return sorted(crops, key=lambda c: (c.frame, c.camera, c.place, c.relation))
 
 
@@ -213,6 +231,6 @@ def export_rois(document: dict, out_dir: str | os.PathLike, catalog: Catalog, *,
         write_png_atomic(root / relative, pixels)
         writer.writerow([relative.as_posix(), crop.label, crop.camera, crop.frame, crop.place,
                          crop.place_kind, crop.relation, ";".join(crop.objects), crop.x_min, crop.y_min,
-                         crop.x_max - crop.x_min + 1, crop.y_max - crop.y_min + 1, uri])
+                         crop.x_max - crop.x_min + 1, crop.y_max - crop.y_min + 1, uri, ";".join(crop.ignored)])
     write_text_atomic(root / INDEX_FILE, buffer.getvalue())
     return root

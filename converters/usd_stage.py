@@ -233,6 +233,7 @@ class _StageReader:
             asset_paths=tuple(str(p) for p in self._json("assetPathsJson", [])),
             exports=tuple(str(e) for e in self._json("exportsJson", [])),
             roi_rules={str(k): str(v) for k, v in self._json("roiRulesJson", {}).items()},
+            roi_ignore=tuple(str(n) for n in self._json("roiIgnoreJson", [])),
             description=str(self.data.get("description", "")), world=world,
             # A stage that states its rate (compose writes one only for documents with fps).
             fps=(float(self.stage.GetTimeCodesPerSecond())

@@ -1,9 +1,11 @@
-"""ROI crops of place regions: projection, visibility rules, labels from roi_rules."""
+"""ROI crops of place regions: projection, visibility rules, labels from roi_rules and roi_ignore."""
 
 from __future__ import annotations
 
 import csv
 import json
+
+import dataclasses
 
 import cv2
 import numpy as np
@@ -41,7 +43,9 @@ def catalog(tmp_path):
     (folder / "catalog.json").write_text(json.dumps({"format": "usdscene-catalog", "version": 1, "classes": {
         "cabin": {"kind": "environment", "usd": "cabin.usda", "places": places},
         "backpack": {"kind": "object", "usd": "backpack.usda", "extent_m": [[-0.1, -0.1, 0], [0.1, 0.1, 0.3]],
-                     "relations": ["is_on", "is_below", "is_in"]}}}))
+                     "relations": ["is_on", "is_below", "is_in"]},
+        "traveller": {"kind": "passenger", "usd": "traveller.usda", "extent_m": [[-0.3, -0.3, 0], [0.3, 0.3, 1.2]],
+                      "relations": ["is_on"]}}}))
     return load_catalog([folder], include_default=False)
 
 
@@ -59,8 +63,8 @@ def _scene() -> SceneSpec:
         roi_rules={"is_below": "correct", "is_on": "incorrect", "seat:is_on": "incorrect_seat"})
 
 
-def _annotated(tmp_path):
-    scene = _scene()
+def _annotated(tmp_path, scene=None):
+    scene = scene or _scene()
     images = []
     for frame in (0, 1):
         path = tmp_path / "images" / "top" / f"{frame:06d}.png"
@@ -122,3 +126,48 @@ def test_export_writes_crops_and_index(tmp_path, catalog):
 def test_min_size_filter_drops_small_regions(tmp_path, catalog):
     _, document = _annotated(tmp_path)
     assert plan_rois(document, catalog, min_size_px=200) == []
+
+
+def _seated_scene(roi_ignore) -> SceneSpec:
+    """A traveller (catalog kind ``passenger``) sits on seat_01A in both frames; in frame 1 the
+    bag rests on the traveller's lap, so it is in the seat's ``is_on`` region through them."""
+    scene = _scene()
+    return dataclasses.replace(
+        scene, objects=(*scene.objects, SceneObject("2", "traveller", "traveller")),
+        relations=(Relation("20", "is_below", "1", "10"), Relation("21", "is_on", "2", "10"),
+                   Relation("22", "is_on", "0", "2", (FrameInterval(1, 1),))),
+        roi_ignore=roi_ignore)
+
+
+@pytest.mark.parametrize("roi_ignore", [("passenger",), ("traveller",)], ids=["kind", "class"])
+def test_ignored_occupant_leaves_the_region_empty(tmp_path, catalog, roi_ignore):
+    _, document = _annotated(tmp_path, _seated_scene(roi_ignore))
+    by_key = {(c.frame, c.place, c.relation): c for c in plan_rois(document, catalog, min_size_px=4)}
+    seated = by_key[(0, "seat_01A", "is_on")]
+    assert (seated.label, seated.objects, seated.ignored) == ("empty", (), ("2",))
+    with_bag = by_key[(1, "seat_01A", "is_on")]  # the bag on the lap is judged by the seat rule
+    assert (with_bag.label, with_bag.objects, with_bag.ignored) == ("incorrect_seat", ("0",), ("2",))
+    assert by_key[(0, "seat_01A", "is_below")].label == "correct"  # other objects are judged as before
+    root = export_rois(document, tmp_path, catalog, min_size_px=4)
+    rows = {(r["frame"], r["place"], r["relation"]): r for r in csv.DictReader((root / "index.csv").open())}
+    assert rows[("0", "seat_01A", "is_on")]["label"] == "empty"
+    assert rows[("0", "seat_01A", "is_on")]["path"].startswith("empty/")
+    assert (rows[("0", "seat_01A", "is_on")]["objects"], rows[("0", "seat_01A", "is_on")]["ignored"]) == ("", "2")
+    assert rows[("1", "seat_01A", "is_on")]["label"] == "incorrect_seat"
+
+
+def test_without_roi_ignore_every_occupant_is_judged(tmp_path, catalog):
+    _, document = _annotated(tmp_path, _seated_scene(()))
+    by_key = {(c.frame, c.place, c.relation): c for c in plan_rois(document, catalog, min_size_px=4)}
+    assert (by_key[(0, "seat_01A", "is_on")].label, by_key[(0, "seat_01A", "is_on")].objects) == ("incorrect_seat", ("2",))
+
+
+def test_unknown_roi_ignore_name_is_refused(tmp_path, catalog):
+    from usdscene.errors import AssetError
+
+    _, document = _annotated(tmp_path, _seated_scene(("passenger", "travel")))
+    with pytest.raises(AssetError) as info:
+        plan_rois(document, catalog, min_size_px=4)
+    assert [p.where for p in info.value.problems] == ["openlabel.metadata.usdscene.roi_ignore[1]"]
+    assert "'travel' is no object class or kind" in str(info.value.problems[0])
+    assert "did you mean 'traveller'?" in str(info.value.problems[0])

@@ -1,7 +1,9 @@
 """End to end on the shipped cabin: document → composed stage → Cycles → annotate → exports.
 
 A laptop stowed below seat_01A is hidden by the seat from the corridor camera: it gets an
-amodal box but no visible pixel; the ROI of that seat's below region is ``correct``.
+amodal box but no visible pixel; the ROI of that seat's below region is ``correct``. The rules
+judge luggage (``roi_ignore: ["passenger"]``): seat_01C holding only a seated passenger is
+``empty``, seat_01D whose passenger holds a magazine on the lap is ``incorrect``.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ def _document() -> dict:
             "seed": 3, "environment": "aircraft_cabin",
             "render": {"samples": 1, "denoise": False, "resolution_px": [W, H]},
             "roi_rules": {"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"},
+            "roi_ignore": ["passenger"],
             "frame_range": {"frame_start": 0, "frame_end": 0}}},
         "streams": {"corridor": {"type": "camera", "uri": "", "stream_properties": {"usdscene": {
             "model": "perspective", "resolution_px": [W, H], "sensor_size_mm": [5.6, 4.2], "fov_deg": 90.0,
@@ -38,10 +41,20 @@ def _document() -> dict:
                   "frame_intervals": [{"frame_start": 0, "frame_end": 0}],
                   "object_data": {"vec": [{"name": "position_m", "val": [2.0, 0.0, 0.0]},
                                           {"name": "rotation_xyz_deg", "val": [0.0, 0.0, 90.0]}]}},
+            "4": {"name": "seat_01C", "type": "place"},
+            "5": {"name": "seat_01D", "type": "place"},
+            "6": {"name": "passenger_01C", "type": "passenger"},
+            "7": {"name": "passenger_01D", "type": "passenger",
+                  "object_data": {"text": [{"name": "pose_variant", "val": "reading"}]}},
+            "8": {"name": "magazine_on_lap", "type": "magazine"},
         },
         "relations": {"0": {"name": "laptop below seat", "type": "is_below",
                             "rdf_subjects": [{"uid": "2", "type": "object"}],
-                            "rdf_objects": [{"uid": "1", "type": "object"}]}},
+                            "rdf_objects": [{"uid": "1", "type": "object"}]},
+                      **{str(k): {"name": name, "type": "is_on", "rdf_subjects": [{"uid": subject, "type": "object"}],
+                                  "rdf_objects": [{"uid": obj, "type": "object"}]}
+                         for k, (name, subject, obj) in enumerate((("seated 01C", "6", "4"), ("seated 01D", "7", "5"),
+                                                                   ("magazine on lap", "8", "7")), start=1)}},
         "frame_intervals": [{"frame_start": 0, "frame_end": 0}],
     }}
 
@@ -86,4 +99,8 @@ def test_document_valid_and_exports_consistent(output, openlabel_schema_path):
     rows = list(csv.DictReader((output / "exports" / "rois" / "index.csv").open()))
     below = [r for r in rows if r["place"] == "seat_01A" and r["relation"] == "is_below"]
     assert below and below[0]["label"] == "correct" and below[0]["objects"] == "2"
-    assert all(r["label"] == "empty" for r in rows if r["relation"] != "is_below")
+    seats = {r["place"]: r for r in rows if r["relation"] == "is_on"}
+    assert (seats["seat_01C"]["label"], seats["seat_01C"]["objects"], seats["seat_01C"]["ignored"]) == ("empty", "", "6")
+    assert (seats["seat_01D"]["label"], seats["seat_01D"]["objects"], seats["seat_01D"]["ignored"]) == ("incorrect", "8", "7")
+    assert all(r["label"] == "empty" for r in rows
+               if r["relation"] != "is_below" and (r["place"], r["relation"]) != ("seat_01D", "is_on"))

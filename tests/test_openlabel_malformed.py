@@ -145,6 +145,10 @@ CASES = [
     ("render_scrambling_distance", _set("metadata/usdscene/render/scrambling_distance", 1.5),
      ["openlabel.metadata.usdscene.render.scrambling_distance", "1.5", "[0, 1]"]),
     ("exports_unknown", _set("metadata/usdscene/exports", ["tfrecord"]), ["openlabel.metadata.usdscene.exports[0]"]),
+    ("roi_ignore_not_list", _set("metadata/usdscene/roi_ignore", "passenger"),
+     ["openlabel.metadata.usdscene.roi_ignore: expected a list of strings, got"]),
+    ("roi_ignore_empty_name", _set("metadata/usdscene/roi_ignore", ["passenger", ""]),
+     ["openlabel.metadata.usdscene.roi_ignore[1]"]),
     ("fov_inconsistent", _cam01(focal_length_mm=2.13, sensor_size_mm=[4.0, 3.0], fov_deg=118.0),
      ["openlabel.streams.cam_01.stream_properties.usdscene.fov_deg", "86.4°", "fisheye_equisolid lens gives 112.0°"]),
     ("lens_model_unknown", _cam01(model="fisheye"), ["openlabel.streams.cam_01.stream_properties.usdscene.model"]),
@@ -404,6 +408,21 @@ def test_unknown_class_against_the_shipped_catalog(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "openlabel.objects.5.type: unknown object class 'pasenger' (did you mean 'passenger'?)" in err
     assert "openlabel.objects.2.name: place 'seat_99Z' is not in environment 'aircraft_cabin'" in err
+
+
+def test_roi_ignore_against_the_shipped_catalog(tmp_path, capsys):
+    """roi_ignore names object classes or catalog kinds: a typo and an environment are refused
+    with the field and the value, and the shipped cabin example's ``passenger`` kind passes."""
+    assert BASE["openlabel"]["metadata"]["usdscene"]["roi_ignore"] == ["passenger"]
+    path = _write_case(tmp_path, _set("metadata/usdscene/roi_ignore", ["pasenger", "object", "aircraft_cabin"]))
+    assert main(["validate", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert ("openlabel.metadata.usdscene.roi_ignore[0]: 'pasenger' is no object class or kind of the asset "
+            "catalog (did you mean 'passenger'?); kinds: object, passenger; classes: backpack,") in err
+    assert "openlabel.metadata.usdscene.roi_ignore[2]: 'aircraft_cabin' is no object class or kind" in err
+    assert "roi_ignore[1]" not in err  # a kind
+    path = _write_case(tmp_path, _set("metadata/usdscene/roi_ignore", ["handbag", "passenger"]))
+    assert main(["validate", str(path)]) == 0, capsys.readouterr().err
 
 
 def _vcd(pose):

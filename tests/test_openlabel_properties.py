@@ -108,6 +108,7 @@ def scenes(draw):
                      environment=draw(st.none() | st.just("aircraft_cabin")),
                      exports=tuple(draw(st.lists(st.sampled_from(["coco", "yolo", "rois"]), unique=True))),
                      roi_rules=draw(st.dictionaries(st.sampled_from(["is_on", "is_below"]), name, max_size=2)),
+                     roi_ignore=tuple(draw(st.lists(name, max_size=2))),
                      description=draw(st.text(max_size=10)))
 
 

@@ -103,6 +103,7 @@ def full_scene() -> SceneSpec:
                                            scrambling_distance=0.25, auto_scrambling_distance=True),
                      seed=1234, environment="aircraft_cabin", asset_paths=("extra_assets",),
                      exports=("coco", "yolo", "rois"), roi_rules={"is_below": "correct", "is_on": "incorrect"},
+                     roi_ignore=("passenger",),
                      description="every feature once")
 
 

@@ -262,6 +262,23 @@ def test_same_setup_and_seed_give_identical_bytes(car_park, tmp_path, monkeypatc
     assert report["generator"]["seed"] == 9 and report["frames"] == 4
 
 
+def test_generated_document_keeps_the_setups_roi_rules_and_roi_ignore(car_park, tmp_path, monkeypatch):
+    """``usdscene generate`` copies what labels the ROI crops; the seated ``sitter`` (kind
+    passenger) is named by its kind and must pass the catalog check of the generated document."""
+    _, setup, folder = car_park
+    monkeypatch.setenv("USDSCENE_ASSET_PATH", str(folder))
+    setup_path = tmp_path / "setup.json"
+    write_document(setup_path, write_openlabel(dataclasses.replace(
+        setup, roi_rules={"is_on": "incorrect"}, roi_ignore=("passenger",))))
+    out = tmp_path / "seq.json"
+    assert main(["generate", "balanced", "--setup", str(setup_path), "-o", str(out), "--frames", "2",
+                 "--objects-per-frame", "2", "--occupancy", "0.5", "--seed", "1"]) == 0
+    from usdscene.validation import validate_document
+
+    scene = validate_document(out, schema=None).scene  # with the catalog of the document's asset paths
+    assert (scene.roi_rules, scene.roi_ignore) == ({"is_on": "incorrect"}, ("passenger",))
+
+
 def test_fixed_objects_of_the_setup_keep_their_region(car_park):
     catalog, setup, _ = car_park
     fixed = dataclasses.replace(

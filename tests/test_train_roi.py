@@ -141,6 +141,15 @@ def test_a_real_test_folder_with_an_unknown_label_is_refused(tmp_path, capsys):
     assert "folder(s) misplaced are no label of the roi_rules (labels: correct, incorrect, empty)" in capsys.readouterr().err
 
 
+def test_the_setup_says_the_rules_judge_luggage():
+    """The labels come from ``usdscene export rois`` alone: the experiment's setup (which
+    ``usdscene generate`` copies into every set) leaves seats holding only a passenger empty."""
+    train_roi = _script()
+    setup = train_roi.cabin_setup(["seats_L03"], ["seat_03*"], 64, 1)
+    assert setup.roi_ignore == ("passenger",)
+    assert train_roi.roi_classes(setup.roi_rules) == LABELS
+
+
 def test_without_torch_the_install_command_is_named(tmp_path, capsys, monkeypatch):
     """No torch installed (import fails): one line naming the extra's install command, exit 1."""
     train_roi = _script()

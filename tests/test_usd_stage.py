@@ -130,7 +130,8 @@ def random_scenes(draw) -> m.SceneSpec:
     return m.SceneSpec(name="random", frame_start=start, frame_end=end, cameras=tuple(cameras), lights=tuple(lights),
                        objects=tuple(objects), places=places, relations=tuple(relations), render=render,
                        seed=int(rng.integers(0, 2**31)), environment="test_cabin", asset_paths=("cat",),
-                       exports=("coco", "yolo"), roi_rules={"is_on": "ok"}, description="random scene")
+                       exports=("coco", "yolo"), roi_rules={"is_on": "ok"},
+                       roi_ignore=draw(st.sampled_from([(), ("passenger",), ("cup", "object")])), description="random scene")
 
 
 @given(scene=random_scenes())
@@ -160,13 +161,14 @@ def test_document_to_stage_to_document(tmp_path, workdir, catalog):
     from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
     from usdscene.converters.usd_stage import scene_from_stage
 
-    write_document(tmp_path / "in.json", write_openlabel(small_scene()))
+    write_document(tmp_path / "in.json", write_openlabel(dataclasses.replace(small_scene(), roi_ignore=("passenger",))))
     scene = read_openlabel(tmp_path / "in.json")
     result = compose_stage(scene, catalog, tmp_path / "stage")
     back = scene_from_stage(result.root_layer)
     write_document(tmp_path / "out.json", write_openlabel(back))
     again = read_openlabel(tmp_path / "out.json")
     assert_scenes_close(result.resolved, again)
+    assert back.roi_ignore == again.roi_ignore == ("passenger",)  # the ROI rules judge the same objects
     assert again.objects[0].color_rgb is not None  # the drawn colour is now explicit
 
 

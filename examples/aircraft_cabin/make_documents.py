@@ -47,6 +47,8 @@ CAMERA_HEIGHT_M = 1.95  # just below the ceiling panels, above the aisle and the
 # the aisle); the ROI crops are labelled by these rules.
 ROI_RULES = {"is_below": "correct", "is_in": "correct", "is_on": "incorrect",
              "is_in_front_of": "incorrect"}
+# The rules judge luggage: a seated passenger (catalog kind ``passenger``) leaves a seat empty.
+ROI_IGNORE = ("passenger",)
 
 # Bags that fit the 0.28 m clearance under a seat (laid on their side where needed) and the legroom.
 UNDER_SEAT_LUGGAGE = ("backpack", "handbag", "laptop_bag", "briefcase", "camera_bag")
@@ -208,6 +210,7 @@ def cabin_scene(frames: int, width_px: int, samples: int, seed: int) -> SceneSpe
         environment="aircraft_cabin",
         exports=("coco", "yolo"),
         roi_rules=ROI_RULES,
+        roi_ignore=ROI_IGNORE,
         description="Single-aisle aircraft cabin with the paper's 39-camera layout: luggage in "
                     "allowed and not-allowed positions for taxi, take-off and landing.",
     )

@@ -1,8 +1,9 @@
 """The paper's ROI classifier (section 4.6.1) trained on generated cabin data, with the balance
 ablation: does the data train a model, and does balanced generation matter?
 
-EfficientNet-B0 decides for each place-region crop (``usdscene export rois``) its ``roi_rules``
-label: ``correct``, ``incorrect`` and ``empty`` for the cabin's rules. Three training sets of
+EfficientNet-B0 decides for each place-region crop its label as ``usdscene export rois`` gives
+it by the setup's ``roi_rules`` and ``roi_ignore``: ``correct``, ``incorrect`` and ``empty`` for
+the cabin's rules (a seat holding only a passenger is ``empty``). Three training sets of
 equal size, each from one generator strategy over the same camera setup:
 
 * ``balanced``: ``usdscene generate balanced`` (equal instance-frames per class, every fitting
@@ -177,21 +178,11 @@ def render_set(document: Path, out: Path, workers: int, frames=None) -> Path:
     return index.parent
 
 
-def passenger_uids(document: Path) -> set[str]:
-    """Uids of the document's passenger-kind objects."""
-    from usdscene import load_catalog, read_openlabel
-
-    scene = read_openlabel(document)
-    catalog = load_catalog()
-    return {o.uid for o in scene.objects if o.class_name in catalog and catalog[o.class_name].kind == "passenger"}
-
-
-def read_roi_index(name: str, folder: Path, classes, passengers: set[str] = frozenset()) -> RoiSet:
-    """The crops of an ``exports/rois`` folder with labels among ``classes``.
-
-    A region whose only occupants are seated passengers is labelled ``empty``: the rules judge
-    luggage, and ``usdscene export rois`` labels a passenger ``is_on`` a seat by the ``is_on``
-    rule. Crops with a label outside ``classes`` (a relation without a rule) are left out.
+def read_roi_index(name: str, folder: Path, classes) -> RoiSet:
+    """The crops of an ``exports/rois`` folder with labels among ``classes``, labelled as
+    ``usdscene export rois`` labelled them (the setup's ``roi_ignore`` leaves a seat holding only
+    a passenger ``empty``). Crops with a label outside ``classes`` (a relation without a rule)
+    are left out.
     """
     index = folder / "index.csv"
     if not index.is_file():
@@ -200,9 +191,6 @@ def read_roi_index(name: str, folder: Path, classes, passengers: set[str] = froz
     with open(index, newline="") as handle:
         for row in csv.DictReader(handle):
             label = row["label"]
-            objects = [uid for uid in row["objects"].split(";") if uid]
-            if objects and all(uid in passengers for uid in objects):
-                label = EMPTY_LABEL
             if label in classes:
                 paths.append(folder / row["path"])
                 labels.append(label)
@@ -610,10 +598,7 @@ def prepare_sets(args) -> tuple[dict[str, RoiSet], tuple[str, ...], dict]:
     frames = args.frames
     for name in ("single-class", "balanced", "random", TEST_SET):  # single-class decides the frames
         if name in taken:
-            folder = taken[name]
-            document = folder.parent.parent / "annotations.openlabel.json"
-            passengers = passenger_uids(document) if document.is_file() else set()
-            sets[name] = read_roi_index(name, folder, classes, passengers)
+            sets[name] = read_roi_index(name, taken[name], classes)
             continue
         if name == TEST_SET:
             options = GenerateOptions(strategy="appearance", frames=args.test_frames, seed=args.test_seed,
@@ -642,7 +627,7 @@ def prepare_sets(args) -> tuple[dict[str, RoiSet], tuple[str, ...], dict]:
                 rendered = sorted({int(round(v)) for v in np.linspace(0, length - 1, frames)})
         folder = render_set(document, work / name, args.workers, rendered)
         timings[name] = time.perf_counter() - started
-        sets[name] = read_roi_index(name, folder, classes, passenger_uids(document))
+        sets[name] = read_roi_index(name, folder, classes)
     for roi_set in sets.values():
         check_set(roi_set, classes)
     size = min(len(sets[n].paths) for n in TRAIN_SETS)

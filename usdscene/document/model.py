@@ -689,6 +689,9 @@ class SceneSpec:
         asset_paths: extra asset folders (catalogs) named by the document, as given.
         exports: dataset formats to export after a run (``coco``, ``yolo``, ``rois``).
         roi_rules: relation type → label for ROI crops (e.g. ``{"is_below": "correct"}``).
+        roi_ignore: object classes or catalog kinds the ROI rules do not judge
+            (``metadata.usdscene.roi_ignore``, e.g. ``("passenger",)``): their objects do not make
+            a place region occupied; what rests on them still does.
         split_rule: the training split rule the document carries (``usdscene.document.splits`` syntax,
             e.g. ``train=0.8,val=0.2``), used by ``usdscene export`` when no ``--split`` is
             given; "" = none.
@@ -724,6 +727,7 @@ class SceneSpec:
     asset_paths: tuple[str, ...] = ()
     exports: tuple[str, ...] = ()
     roi_rules: Mapping[str, str] = field(default_factory=dict)
+    roi_ignore: tuple[str, ...] = ()
     description: str = ""
     provenance: Provenance = field(default_factory=Provenance)
     extra: str = ""

@@ -511,6 +511,7 @@ def _root_layer(scene: SceneSpec) -> str:
         "assetPathsJson": json.dumps(list(scene.asset_paths)),
         "exportsJson": json.dumps(list(scene.exports)),
         "roiRulesJson": json.dumps(dict(scene.roi_rules)),
+        **({"roiIgnoreJson": json.dumps(list(scene.roi_ignore))} if scene.roi_ignore else {}),
         "placesJson": json.dumps([_place_json(p) for p in scene.places]),
         "relationsJson": json.dumps([
             {"uid": r.uid, "type": r.type, "subject": r.subject_uid, "object": r.object_uid,
