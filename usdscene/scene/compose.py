@@ -84,7 +84,7 @@ from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCo
 from usdscene.files import make_folder, write_text_atomic
 from usdscene.document.output_layout import mask_ids
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
-                            Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
+                            Randomization, RenderSettings, SceneSpec, canonical_json, cv_pose_to_usd_pose,
                             extra_data, union_intervals)
 from usdscene.scene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
@@ -126,12 +126,14 @@ class ComposeResult:
 
 
 def _place_json(place) -> dict:
-    """A place as recorded in the root layer; declared regions only when it has some (the layer
-    of a document without them stays as it was)."""
+    """A place as recorded in the root layer; declared regions and carried content only when it
+    has some (the layer of a document without them stays as it was)."""
     out = {"uid": place.uid, "name": place.name}
     if place.regions:
         out["regions"] = [{"relation": r.relation, "matrix": r.pose.as_array().reshape(-1).tolist(),
                            "size_m": list(r.size_m)} for r in place.regions]
+    if place.extra:
+        out["extra"] = place.extra
     return out
 
 
@@ -369,12 +371,19 @@ def _attr(prim, name: str, type_name, value=None, *, uniform: bool = False, cust
     return spec
 
 
-def _identity(prim, uid: str, class_name: str, name: str) -> None:
+def _identity(prim, uid: str, class_name: str, name: str, extra: str = "", frame_extra: str = "") -> None:
+    """The element's identity on ``prim``, with the content it carries for others
+    (``stage_schema.CUSTOM_EXTRA`` / ``CUSTOM_FRAME_EXTRA``, canonical JSON text, only when
+    there is some): customData travels with the prim when a DCC tool renames or moves it."""
     from pxr import Sdf
 
-    prim.customData = {ss.LAYER_DATA_KEY: {ss.CUSTOM_UID.split(":")[1]: uid,
-                                           ss.CUSTOM_CLASS.split(":")[1]: class_name,
-                                           ss.CUSTOM_NAME.split(":")[1]: name}}
+    data = {ss.CUSTOM_UID.split(":")[1]: uid, ss.CUSTOM_CLASS.split(":")[1]: class_name,
+            ss.CUSTOM_NAME.split(":")[1]: name}
+    if extra:
+        data[ss.CUSTOM_EXTRA.split(":")[1]] = extra
+    if frame_extra:
+        data[ss.CUSTOM_FRAME_EXTRA.split(":")[1]] = frame_extra
+    prim.customData = {ss.LAYER_DATA_KEY: data}
     _attr(prim, ss.ATTR_USER_UID, Sdf.ValueTypeNames.String, uid, custom=True)
     _attr(prim, ss.ATTR_USER_CLASS, Sdf.ValueTypeNames.String, class_name, custom=True)
     _attr(prim, ss.ATTR_USER_NAME, Sdf.ValueTypeNames.String, name, custom=True)
@@ -486,6 +495,31 @@ def frame_pose_variants(obj, frames: range, present: list[bool]) -> list[str] | 
     return shown
 
 
+def carried_frame_extra(obj, frames: range, present: list[bool], shown: list[str] | None) -> str:
+    """``stage_schema.CUSTOM_FRAME_EXTRA`` text of ``obj``: its ``frame_extra`` as one canonical
+    JSON object keyed by frame, less the per-frame pose data (``FRAME_POSE_DATA``) of the
+    present frames when pose children show it (``shown``, :func:`frame_pose_variants`: the
+    children are the stage's form of that data, and a DCC user may edit them); "" when nothing
+    is left."""
+    shown_frames = {f for f, here in zip(frames, present) if here} if shown is not None else set()
+    out = {}
+    for frame, text in obj.frame_extra:
+        data = extra_data(text)
+        if frame in shown_frames and ss.FRAME_POSE_DATA in text:
+            kinds = data.get("object_data", {})
+            kept = [item for item in kinds.get("text", ())
+                    if not (isinstance(item, dict) and item.get("name") == ss.FRAME_POSE_DATA)]
+            if kept:
+                kinds["text"] = kept
+            else:
+                kinds.pop("text", None)
+            if not kinds:
+                data.pop("object_data", None)
+        if data:
+            out[str(int(frame))] = data
+    return canonical_json(out)
+
+
 def _presence(intervals, frames: range) -> list[bool]:
     return [any(iv.frame_start <= f <= iv.frame_end for iv in intervals) for f in frames]
 
@@ -499,7 +533,7 @@ def _root_layer(scene: SceneSpec) -> str:
     for name in ss.SUBLAYERS:
         layer.subLayerPaths.append(f"./{name}")
     prov = scene.provenance
-    layer.customLayerData = {ss.LAYER_DATA_KEY: {
+    data = {
         "toolkitVersion": __version__,
         "seed": int(scene.seed),
         "sourceSha256": prov.source_sha256,
@@ -516,7 +550,10 @@ def _root_layer(scene: SceneSpec) -> str:
             {"uid": r.uid, "type": r.type, "subject": r.subject_uid, "object": r.object_uid,
              "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals]}
             for r in scene.relations]),
-    }}
+    }
+    if scene.extra:
+        data[ss.LAYER_EXTRA] = scene.extra
+    layer.customLayerData = {ss.LAYER_DATA_KEY: data}
     return layer.ExportToString()
 
 
@@ -610,7 +647,7 @@ def _cameras_layer(scene: SceneSpec) -> str:
     parent = _world(layer, ss.CAMERAS)
     for cam in scene.cameras:
         prim = _prim(parent, ss.prim_name(cam.name), "Camera")
-        _identity(prim, cam.name, "camera", cam.name)
+        _identity(prim, cam.name, "camera", cam.name, extra=cam.extra)
         base = cv_pose_to_usd_pose(cam.pose).matrix
         per_frame = [cv_pose_to_usd_pose(cam.pose_at(f)).matrix for f in scene.frames] if cam.frame_poses else []
         _author_transform(layer, prim, base, per_frame, scene.frame_start)
@@ -750,7 +787,8 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
         shown = frame_pose_variants(obj, frames, present)
         if shown is None:
             prim.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
-        _identity(prim, obj.uid, obj.class_name, obj.name)
+        _identity(prim, obj.uid, obj.class_name, obj.name, extra=obj.extra,
+                  frame_extra=carried_frame_extra(obj, frames, present, shown))
         _attr(prim, ss.ATTR_MASK_ID, T.Int, ids[obj.uid], custom=True)
         _attr(prim, ss.ATTR_USER_MASK_ID, T.Int, ids[obj.uid], custom=True)
         base = (obj.pose or Pose()).matrix
