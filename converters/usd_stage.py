@@ -46,7 +46,7 @@ from usdscene.document import stage_schema as ss
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
                             Provenance, Relation, RenderSettings, SceneObject, SceneSpec, canonical_json,
-                            usd_pose_to_cv_pose)
+                            union_intervals, usd_pose_to_cv_pose)
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +174,9 @@ class _StageReader:
         imageable = UsdGeom.Imageable(prim)
         if not imageable:
             return [True] * len(self.frames)
-        varying = any(UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()
+        # One time sample is no variation to ValueMightBeTimeVarying, but it holds over every
+        # frame while the default says otherwise: sampled attributes are read per frame.
+        varying = any(UsdGeom.Imageable(p).GetVisibilityAttr().GetNumTimeSamples() > 0
                       for p in _self_and_ancestors(prim) if p.IsA(UsdGeom.Imageable))
         if not varying:
             here = imageable.ComputeVisibility() != UsdGeom.Tokens.invisible
@@ -206,6 +208,26 @@ class _StageReader:
             self.problems.add(where, f"expected a JSON object, got {str(text)[:60]!r}")
             return {}
         return value
+
+    def _presence(self, prim, shown: list[bool]) -> tuple[FrameInterval, ...]:
+        """The element's frame intervals: its visibility over the frame range (``shown``, per
+        frame) joined with the frames outside the range of the intervals the prim carries from
+        the document (``stage_schema.CUSTOM_FRAME_INTERVALS``), which the stage cannot show."""
+        visible = _intervals(shown, self.frame_start)
+        text = prim.GetCustomDataByKey(ss.CUSTOM_FRAME_INTERVALS)
+        if not text:
+            return visible
+        try:
+            carried = [FrameInterval(int(a), int(b)) for a, b in json.loads(str(text))]
+        except (json.JSONDecodeError, TypeError, ValueError) as exc:
+            self.problems.add(f"{prim.GetPath()}:customData.{ss.CUSTOM_FRAME_INTERVALS}",
+                              f"expected JSON [[frame_start, frame_end], ...], got {str(text)[:60]!r}: {exc}")
+            return visible
+        before = [FrameInterval(iv.frame_start, min(iv.frame_end, self.frame_start - 1))
+                  for iv in carried if iv.frame_start < self.frame_start]
+        after = [FrameInterval(max(iv.frame_start, self.frame_end + 1), iv.frame_end)
+                 for iv in carried if iv.frame_end > self.frame_end]
+        return union_intervals([*before, *visible, *after])
 
     def _carried(self, prim) -> tuple[str, dict[int, dict]]:
         """What the prim carries for others: ``(extra, frame → carried content)``, from its
@@ -505,7 +527,7 @@ class _StageReader:
                                          if width is not None and height is not None else None,
                                          defaults.size_m)),  # type: ignore[arg-type]
                 sun_angle_deg=float(_prefer(_value(prim, ss.ATTR_LIGHT_SUN_ANGLE), angle, defaults.sun_angle_deg)),
-                frame_intervals=_intervals(self._visible(prim), self.frame_start))
+                frame_intervals=self._presence(prim, self._visible(prim)))
             lights.append(light)
         return tuple(lights)
 
@@ -541,7 +563,7 @@ class _StageReader:
                 pose_variant = pose_data[min(pose_data)]
             extra, carried = self._carried(prim)
             objects.append(SceneObject(
-                uid=uid, name=name or uid, class_name=cls, frame_intervals=_intervals(visible, self.frame_start),
+                uid=uid, name=name or uid, class_name=cls, frame_intervals=self._presence(prim, visible),
                 pose=pose, frame_poses=frame_poses, appearance=appearance, pose_variant=pose_variant,
                 color_rgb=self._color(prim), extra=extra, frame_extra=_frame_extra(pose_data, carried)))
         return tuple(objects)

@@ -14,6 +14,7 @@ from test_compose_support import build_test_catalog, load_test_catalog, small_sc
 from test_openlabel_carry import carried_of
 from usdscene.cli import main
 from usdscene.converters.openlabel import load_document, read_openlabel, write_document, write_openlabel
+from usdscene.document import model as m
 from usdscene.document import stage_schema as ss
 from usdscene.document.model import extra_data
 from usdscene.scene.compose import compose_stage
@@ -152,3 +153,49 @@ def test_malformed_carry_is_reported(tmp_path, catalog):
     with pytest.raises(DocumentError, match="usdscene:extra"):
         scene_from_stage(result.root_layer)
 
+
+
+def test_one_frame_range_keeps_presence_and_intervals(tmp_path, catalog):
+    """A one-frame range (the golden scene cut to frame 0): an object absent on that frame stays
+    absent, and every object's intervals beyond the range come back as the document gives them."""
+    from pxr import Usd
+
+    from usdscene.converters.usd_stage import scene_from_stage
+
+    document = write_openlabel(small_scene())
+    document["openlabel"]["metadata"]["usdscene"]["frame_range"] = {"frame_start": 0, "frame_end": 0}
+    scene = read_openlabel(document)
+    by_name = {o.name: o for o in scene.objects}
+    assert by_name["cup on box"].frame_intervals == (m.FrameInterval(1, 4),)  # absent on frame 0
+    result = compose_stage(scene, catalog, tmp_path / "stage")
+    stage = Usd.Stage.Open(str(result.root_layer))
+    cup = by_name["cup on box"]
+    visibility = stage.GetPrimAtPath(ss.object_prim_path(cup.class_name, cup.uid)).GetAttribute("visibility")
+    assert visibility.Get() == "invisible" and visibility.GetNumTimeSamples() == 0  # any reader sees it
+    assert main(["export-openlabel", str(result.stage_dir), "-o", str(tmp_path / "out.json")]) == 0
+    back = read_openlabel(tmp_path / "out.json")
+    assert {o.name for o in back.objects_present(0)} == {o.name for o in scene.objects_present(0)} \
+        == {"bag one", "box", "pinned"}
+    assert {o.name: o.frame_intervals for o in back.objects} == {o.name: o.frame_intervals for o in scene.objects}
+    assert back.objects == scene_from_stage(result.root_layer).objects == result.resolved.objects
+
+
+def test_edited_visibility_decides_the_range_and_the_document_the_rest(tmp_path, catalog):
+    from pxr import Sdf, Usd, UsdGeom
+
+    from usdscene.converters.usd_stage import scene_from_stage
+
+    document = write_openlabel(small_scene())
+    document["openlabel"]["metadata"]["usdscene"]["frame_range"] = {"frame_start": 0, "frame_end": 0}
+    scene = read_openlabel(document)
+    bag = next(o for o in scene.objects if o.name == "bag one")
+    result = compose_stage(scene, catalog, tmp_path / "stage")
+    stage = Usd.Stage.Open(str(result.root_layer))
+    edits = Sdf.Layer.CreateNew(str(result.stage_dir / "edits.usda"))
+    stage.GetRootLayer().subLayerPaths.insert(0, "./edits.usda")
+    stage.SetEditTarget(edits)
+    UsdGeom.Imageable(stage.GetPrimAtPath(ss.object_prim_path(bag.class_name, bag.uid))).MakeInvisible()
+    back = scene_from_stage(stage).object_by_uid()[bag.uid]
+    assert bag.frame_intervals == (m.FrameInterval(0, 5),)
+    # hidden on the range's one frame by the stage's word, present after it by the document's
+    assert back.frame_intervals == (m.FrameInterval(1, 5),)

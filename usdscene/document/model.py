@@ -210,6 +210,13 @@ def union_intervals(intervals: Iterable[FrameInterval]) -> tuple[FrameInterval, 
     return tuple(merged)
 
 
+def clip_intervals(intervals: Iterable[FrameInterval], frame_start: int, frame_end: int) -> tuple[FrameInterval, ...]:
+    """The merged union of ``intervals`` cut to the closed range ``frame_start..frame_end``
+    (empty when none reaches into it)."""
+    return union_intervals(FrameInterval(max(iv.frame_start, frame_start), min(iv.frame_end, frame_end))
+                           for iv in intervals if iv.frame_end >= frame_start and iv.frame_start <= frame_end)
+
+
 def in_intervals(frame: int, intervals: Iterable[FrameInterval]) -> bool:
     """Whether ``frame`` lies in any of the closed ``intervals``."""
     return any(frame in iv for iv in intervals)

@@ -44,6 +44,11 @@ CUSTOM_EXTRA = "usdscene:extra"
 # ``SceneObject.frame_extra`` without the per-frame pose data the pose children hold
 # (FRAME_POSE_DATA); absent when there is none.
 CUSTOM_FRAME_EXTRA = "usdscene:frameExtra"
+# string, JSON [[frame_start, frame_end], ...]: the presence of an object or light as the
+# document gives it, only when it reaches outside the stage's frame range. The visibility
+# shows the range alone (and an element present on no frame of it would read back as always
+# present): Scene2VCD takes the range from the visibility and the frames outside it from here.
+CUSTOM_FRAME_INTERVALS = "usdscene:frameIntervals"
 
 # The same identity as plain attributes, because Blender's USD importer drops customData but
 # imports ``userProperties:*`` attributes as custom properties.

@@ -84,8 +84,8 @@ from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCo
 from usdscene.files import make_folder, write_text_atomic
 from usdscene.document.output_layout import mask_ids
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
-                            Randomization, RenderSettings, SceneSpec, canonical_json, cv_pose_to_usd_pose,
-                            extra_data, union_intervals)
+                            Randomization, RenderSettings, SceneSpec, canonical_json, clip_intervals,
+                            cv_pose_to_usd_pose, extra_data, union_intervals)
 from usdscene.scene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
@@ -279,12 +279,20 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
 
 
 def canonical_intervals(intervals, frame_start: int, frame_end: int) -> tuple[FrameInterval, ...]:
-    """Presence clipped to the scene range, merged; no intervals = the whole range."""
+    """Presence merged; no intervals = the whole range. Frames outside the range are kept: the
+    stage shows the range, and what the document says beyond it rides along
+    (``stage_schema.CUSTOM_FRAME_INTERVALS``)."""
     if not intervals:
         return (FrameInterval(frame_start, frame_end),)
-    clipped = [FrameInterval(max(iv.frame_start, frame_start), min(iv.frame_end, frame_end))
-               for iv in intervals if iv.frame_end >= frame_start and iv.frame_start <= frame_end]
-    return union_intervals(clipped)
+    return union_intervals(intervals)
+
+
+def _outside_intervals(intervals, frame_start: int, frame_end: int) -> str:
+    """``stage_schema.CUSTOM_FRAME_INTERVALS`` text of canonical ``intervals``: "" when the
+    range's visibility says them all."""
+    if intervals == clip_intervals(intervals, frame_start, frame_end):
+        return ""
+    return json.dumps([[iv.frame_start, iv.frame_end] for iv in intervals])
 
 
 def _canonical_camera(cam: Camera, frames: range) -> Camera:
@@ -314,7 +322,7 @@ def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
             frame_poses = tuple((f, span.pose) for span in spans if span.pose.matrix != base.matrix
                                 for f in span.frames())
         else:
-            # A reader of the stage cannot tell "never present" from "always present".
+            # Composed invisible; its intervals outside the range ride along on the prim.
             log.warning("object %r is present in no frame of %d..%d; it is composed invisible",
                         obj.uid, scene.frame_start, scene.frame_end)
             base, frame_poses = obj.pose or Pose(), ()
@@ -371,10 +379,12 @@ def _attr(prim, name: str, type_name, value=None, *, uniform: bool = False, cust
     return spec
 
 
-def _identity(prim, uid: str, class_name: str, name: str, extra: str = "", frame_extra: str = "") -> None:
+def _identity(prim, uid: str, class_name: str, name: str, extra: str = "", frame_extra: str = "",
+              frame_intervals: str = "") -> None:
     """The element's identity on ``prim``, with the content it carries for others
-    (``stage_schema.CUSTOM_EXTRA`` / ``CUSTOM_FRAME_EXTRA``, canonical JSON text, only when
-    there is some): customData travels with the prim when a DCC tool renames or moves it."""
+    (``stage_schema.CUSTOM_EXTRA`` / ``CUSTOM_FRAME_EXTRA``, canonical JSON text) and its
+    presence outside the frame range (``CUSTOM_FRAME_INTERVALS``), each only when there is
+    some: customData travels with the prim when a DCC tool renames or moves it."""
     from pxr import Sdf
 
     data = {ss.CUSTOM_UID.split(":")[1]: uid, ss.CUSTOM_CLASS.split(":")[1]: class_name,
@@ -383,6 +393,8 @@ def _identity(prim, uid: str, class_name: str, name: str, extra: str = "", frame
         data[ss.CUSTOM_EXTRA.split(":")[1]] = extra
     if frame_extra:
         data[ss.CUSTOM_FRAME_EXTRA.split(":")[1]] = frame_extra
+    if frame_intervals:
+        data[ss.CUSTOM_FRAME_INTERVALS.split(":")[1]] = frame_intervals
     prim.customData = {ss.LAYER_DATA_KEY: data}
     _attr(prim, ss.ATTR_USER_UID, Sdf.ValueTypeNames.String, uid, custom=True)
     _attr(prim, ss.ATTR_USER_CLASS, Sdf.ValueTypeNames.String, class_name, custom=True)
@@ -430,9 +442,16 @@ def _author_transform(layer, prim, base: tuple[float, ...], per_frame: list[tupl
 
 
 def _author_visibility(layer, prim, present: list[bool], frame_start: int) -> None:
+    """Visibility of a prim present on ``present`` (per frame of the range): none authored when
+    present throughout, ``invisible`` without samples when present on no frame (a lone sample
+    reads as a constant to readers that ask whether the value varies, which then take the
+    default), else ``inherited`` with a sample at each change."""
     from pxr import Sdf
 
     if all(present):
+        return
+    if not any(present):
+        _attr(prim, "visibility", Sdf.ValueTypeNames.Token, "invisible")
         return
     spec = _attr(prim, "visibility", Sdf.ValueTypeNames.Token, "inherited")
     previous = None
@@ -713,7 +732,8 @@ def _lights_layer(scene: SceneSpec) -> str:
     lights.variantSelections[ss.VARIANT_SET_LIGHTING] = LIGHTING_DOCUMENT
     for light in scene.lights:
         prim = _prim(parent, ss.prim_name(light.name), _LIGHT_TYPES[light.kind])
-        _identity(prim, light.uid, "light", light.name)
+        _identity(prim, light.uid, "light", light.name,
+                  frame_intervals=_outside_intervals(light.frame_intervals, scene.frame_start, scene.frame_end))
         _author_transform(layer, prim, light.pose.matrix, [], scene.frame_start)
         _author_visibility(layer, prim, _presence(light.frame_intervals, scene.frames), scene.frame_start)
         _attr(prim, "inputs:intensity", T.Float, light_intensity(light))
@@ -788,7 +808,8 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
         if shown is None:
             prim.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
         _identity(prim, obj.uid, obj.class_name, obj.name, extra=obj.extra,
-                  frame_extra=carried_frame_extra(obj, frames, present, shown))
+                  frame_extra=carried_frame_extra(obj, frames, present, shown),
+                  frame_intervals=_outside_intervals(obj.frame_intervals, scene.frame_start, scene.frame_end))
         _attr(prim, ss.ATTR_MASK_ID, T.Int, ids[obj.uid], custom=True)
         _attr(prim, ss.ATTR_USER_MASK_ID, T.Int, ids[obj.uid], custom=True)
         base = (obj.pose or Pose()).matrix
