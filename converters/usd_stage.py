@@ -16,6 +16,14 @@ What a stage cannot say comes back as defaults: a stage without the composer's
 ``customLayerData`` has no places and relations; a flattened stage has no variant selections
 left, so appearances come back empty.
 
+Other people's content (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`) comes
+back from where compose put it: a camera's and an object's from the prim's customData
+(``usdscene:extra``; per frame ``usdscene:frameExtra``, joined with the pose the pose children
+show), the scene's from the root layer's ``customLayerData`` (``extraJson``), a place's from
+``placesJson``. It follows the prim's uid, so a renamed or moved prim keeps it and a deleted one
+takes it along. An element's presence is its visibility over the frame range joined with the
+frames outside the range of the intervals the document gave it (``usdscene:frameIntervals``).
+
 Element discovery: cameras are every ``UsdGeom.Camera``; lights every sphere, distant, rect
 or disk light (dome lights such as Blender's exported world are skipped); objects the
 outermost prims carrying an identity (customData ``usdscene:uid`` or

@@ -57,6 +57,13 @@ Conventions of the authored stage:
   a class without one gets no colour, with a warning), to ``primvars:displayColor`` for viewers and, exact, to
   ``userProperties:usdscene_color``.
 
+Content usdscene does not model (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`)
+is kept in the stage for :func:`usdscene.converters.usd_stage.scene_from_stage`: a camera's and an
+object's in the prim's customData (``usdscene:extra``, per frame ``usdscene:frameExtra``), the
+scene's in the root layer's ``customLayerData`` (``extraJson``), a place's in ``placesJson``; an
+element's presence outside the frame range as ``usdscene:frameIntervals``. All is canonical JSON
+text, authored only when there is some.
+
 Everything random (appearance, colour, placement) is drawn from one
 ``numpy.random.Generator`` seeded with ``scene.seed``, in a fixed order (appearance and colour
 per object in document order, then placement frame by frame), so the same scene and seed give
