@@ -19,8 +19,8 @@ left, so appearances come back empty.
 Other people's content (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`) comes
 back from where compose put it: a camera's and an object's from the prim's customData
 (``usdscene:extra``; per frame ``usdscene:frameExtra``, joined with the pose the pose children
-show), the scene's from the root layer's ``customLayerData`` (``extraJson``), a place's from
-``placesJson``. It follows the prim's uid, so a renamed or moved prim keeps it and a deleted one
+show), the scene's from the root layer's ``customLayerData`` (``extraJson``), a place's and a
+relation's from ``placesJson`` and ``relationsJson``. It follows the prim's uid, so a renamed or moved prim keeps it and a deleted one
 takes it along. An element's presence is its visibility over the frame range joined with the
 frames outside the range of the intervals the document gave it (``usdscene:frameIntervals``).
 
@@ -282,7 +282,9 @@ class _StageReader:
         relations = tuple(
             Relation(uid=str(r["uid"]), type=str(r["type"]), subject_uid=str(r["subject"]),
                      object_uid=str(r["object"]),
-                     frame_intervals=tuple(FrameInterval(int(a), int(b)) for a, b in r.get("frameIntervals", [])))
+                     frame_intervals=tuple(FrameInterval(int(a), int(b)) for a, b in r.get("frameIntervals", [])),
+                     extra=canonical_json(self._carried_text(r.get("extra"), f"{self.root_path}:customLayerData."
+                                                                             f"{ss.LAYER_DATA_KEY}.relationsJson")))
             for r in self._json("relationsJson", []))
         environment = str(self.data.get("environment", "")) or self._environment_from_prims()
         world = self._imaging(self.stage.GetPrimAtPath(ss.RENDER_SETTINGS), ss.ATTR_RENDER_WORLD, "world")

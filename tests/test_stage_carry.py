@@ -57,6 +57,8 @@ def _foreign_document() -> dict:
     frame = frames.setdefault("2", {})
     frame.setdefault("frame_properties", {})["weather_id"] = "0"
     frame["events"] = {"0": {}}
+    below = next(r for r in body["relations"].values() if r["type"] == "is_below")
+    below.update({"name": "bag under its seat", "ontology_uid": "0"})
     body["relations"]["90"] = {"name": "", "type": "causes",
                                "rdf_subjects": [{"uid": "0", "type": "event"}],
                                "rdf_objects": [{"uid": bag, "type": "object"}]}
@@ -71,6 +73,8 @@ def _carried(body: dict, cameras: set[str]) -> dict:
     out["places"] = json.dumps([o.get("object_data", {}).get("text") for o in body["objects"].values()
                                 if o["type"] == "place"])
     out["ontology_uid"] = json.dumps(sorted(o.get("ontology_uid", "") for o in body["objects"].values()))
+    out["relations"] = json.dumps(sorted([r["type"], r["name"], r.get("ontology_uid", "")]
+                                         for r in body["relations"].values()))
     return out
 
 
@@ -90,6 +94,8 @@ def test_foreign_content_survives_compose_and_export_openlabel(tmp_path, catalog
     assert again.extra == scene.extra
     assert [c.extra for c in again.cameras] == [c.extra for c in scene.cameras]
     assert [p.extra for p in again.places] == [p.extra for p in scene.places]
+    assert [r.extra for r in again.relations] == [r.extra for r in scene.relations]
+    assert any(r.extra for r in scene.relations)
     assert [(o.extra, o.frame_extra) for o in again.objects] == [(o.extra, o.frame_extra) for o in scene.objects]
 
 

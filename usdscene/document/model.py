@@ -547,6 +547,9 @@ class Relation:
         subject_uid: uid of the object being placed (``rdf_subjects``).
         object_uid: uid of the place or object it relates to (``rdf_objects``).
         frame_intervals: when it holds; empty = whenever the subject is present.
+        extra: the element's content usdscene does not read (its ``name`` when not empty,
+            ``ontology_uid``, ``resource_uid``, other keys), as :func:`canonical_json` text;
+            "" = none. Written back unchanged.
     """
 
     uid: str
@@ -554,6 +557,7 @@ class Relation:
     subject_uid: str
     object_uid: str
     frame_intervals: tuple[FrameInterval, ...] = ()
+    extra: str = ""
 
 
 # --------------------------------------------------------------------------------------------

@@ -156,8 +156,8 @@ ATTR_LIGHT_SUN_ANGLE = "usdscene:light:sunAngleDeg"        # double, angular dia
 # fields that have no prim (JSON strings keep their order).
 LAYER_DATA_KEY = "usdscene"
 # Keys of that dictionary added for other people's content: ``SceneSpec.extra`` (string,
-# canonical JSON; absent when there is none). A carried place's ``PlaceRef.extra`` rides in
-# its entry of ``placesJson`` as ``"extra"``.
+# canonical JSON; absent when there is none). ``PlaceRef.extra`` and ``Relation.extra`` ride
+# in their entries of ``placesJson`` and ``relationsJson`` as ``"extra"``.
 LAYER_EXTRA = "extraJson"
 
 _PRIM_NAME_BAD = re.compile(r"[^A-Za-z0-9_]")

@@ -60,7 +60,8 @@ Conventions of the authored stage:
 Content usdscene does not model (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`)
 is kept in the stage for :func:`usdscene.converters.usd_stage.scene_from_stage`: a camera's and an
 object's in the prim's customData (``usdscene:extra``, per frame ``usdscene:frameExtra``), the
-scene's in the root layer's ``customLayerData`` (``extraJson``), a place's in ``placesJson``; an
+scene's in the root layer's ``customLayerData`` (``extraJson``), a place's and a relation's in
+``placesJson`` and ``relationsJson``; an
 element's presence outside the frame range as ``usdscene:frameIntervals``. All is canonical JSON
 text, authored only when there is some.
 
@@ -574,7 +575,8 @@ def _root_layer(scene: SceneSpec) -> str:
         "placesJson": json.dumps([_place_json(p) for p in scene.places]),
         "relationsJson": json.dumps([
             {"uid": r.uid, "type": r.type, "subject": r.subject_uid, "object": r.object_uid,
-             "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals]}
+             "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals],
+             **({"extra": r.extra} if r.extra else {})}
             for r in scene.relations]),
     }
     if scene.extra:
