@@ -238,4 +238,5 @@ def test_every_conformance_file_keeps_its_content_through_the_stage(openlabel_co
         assert [c.extra for c in again.cameras] == [c.extra for c in scene.cameras], path.name
         assert [(o.extra, o.frame_extra) for o in again.objects] == [(o.extra, o.frame_extra)
                                                                      for o in scene.objects], path.name
+        assert [r.extra for r in again.relations] == [r.extra for r in scene.relations], path.name
     assert carried_total > 100
