@@ -104,6 +104,11 @@ def main(argv=None) -> int:
               f"   (target < 10 s)")
         print(f"compose:                                     {t_compose:6.2f} s wall, {c_compose:6.2f} s CPU"
               f"   (target < 30 s)")
+        # The stage keeps the document's carried per-frame content (ground positions, walk
+        # phases) in the object prims' customData: its size beside the document's.
+        layers = {p.name: p.stat().st_size for p in (tmp / "stage").glob("*.usda")}
+        print(f"stage: {sum(layers.values()) / 1e6:.1f} MB in {len(layers)} layers, objects.usda "
+              f"{layers.get('objects.usda', 0) / 1e6:.1f} MB")
 
         cameras = 4
         frames = -(-args.images // cameras)

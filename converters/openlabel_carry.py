@@ -2,12 +2,16 @@
 
 A converted document must not lose the annotations it came with. The reader keeps what it
 reads past as canonical JSON text in the ``extra`` fields of :class:`usdscene.document.model.SceneSpec`,
-:class:`~usdscene.document.model.Camera` and :class:`~usdscene.document.model.SceneObject`
-(:func:`usdscene.document.model.canonical_json`), and the writer merges it back unchanged:
+:class:`~usdscene.document.model.Camera`, :class:`~usdscene.document.model.SceneObject`,
+:class:`~usdscene.document.model.PlaceRef` and :class:`~usdscene.document.model.Relation`
+(:func:`usdscene.document.model.canonical_json`), the writer merges it back unchanged, and the
+composed stage keeps it (``usdscene.scene.compose``, read back by ``usdscene.converters.usd_stage``):
 
 * per object: object data of names outside usdscene's vocabulary (bboxes, cuboids, poly2d, a
   vec ``Position``, ...), their ``object_data_pointers``, other keys of the element
   (``coordinate_system``, ``ontology_uid``, ...), and the same of ``frames[f].objects[uid]``;
+* per relation between two objects: keys of the element usdscene does not read (a ``name``
+  that is not empty, ``ontology_uid``, ``resource_uid``, ...);
 * per camera stream: keys of the stream and of its ``stream_properties`` that usdscene does
   not read (``uri``, ``sync``, ...);
 * per scene: ``metadata`` keys other than ``schema_version``, ``name``, ``comment`` and
@@ -28,6 +32,7 @@ from usdscene.document.model import Camera, Relation, canonical_json, extra_data
 # Keys the readers consume; everything else is carried.
 OBJECT_KEYS = frozenset({"name", "type", "frame_intervals", "object_data", "object_data_pointers"})
 FRAME_OBJECT_KEYS = frozenset({"object_data"})
+RELATION_KEYS = frozenset({"type", "rdf_subjects", "rdf_objects", "frame_intervals"})
 STREAM_KEYS = frozenset({"type", "description", "stream_properties"})
 CAMERA_PROPERTY_KEYS = frozenset({"intrinsics_pinhole", "intrinsics_fisheye", "intrinsics_custom", "usdscene"})
 METADATA_KEYS = frozenset({"schema_version", "name", "comment", "usdscene"})
@@ -68,6 +73,13 @@ def element_residue(element: Mapping, known_data: Mapping[str, str], consumed: f
 def _is_known(item: Any, known_data: Mapping[str, str]) -> bool:
     """Whether an object data item is one usdscene reads (by its name; any JSON may be there)."""
     return isinstance(item, dict) and isinstance(item.get("name"), str) and item["name"] in known_data
+
+
+def relation_residue(relation: Mapping) -> str:
+    """What usdscene does not read of a relation it models: other keys of the element (``name``
+    only when not empty, the writer's default), as canonical JSON text ("" when none)."""
+    return canonical_json({key: value for key, value in relation.items()
+                           if key not in RELATION_KEYS and not (key == "name" and value == "")})
 
 
 def stream_residue(stream: Mapping) -> str:

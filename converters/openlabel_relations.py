@@ -13,6 +13,7 @@ from typing import Mapping
 
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, Relation
 
+from usdscene.converters.openlabel_carry import relation_residue
 from usdscene.converters.openlabel_load import DocumentBody
 from usdscene.converters.openlabel_objects import UID_PATTERN
 from usdscene.converters.openlabel_values import describe, read_intervals
@@ -100,7 +101,7 @@ def read_relations(doc: DocumentBody, uids: Mapping[str, str]) -> list[Relation]
                 doc.add(f"{where}.rdf_objects[0].uid", f"object {subject!r} cannot be {rtype} itself")
                 continue
         relations.append(Relation(uid=ruid, type=rtype, subject_uid=subject, object_uid=target,
-                                  frame_intervals=intervals))
+                                  frame_intervals=intervals, extra=relation_residue(rel)))
     return relations
 
 

@@ -36,6 +36,7 @@ from usdscene.document.model import (
     RenderSettings,
     SceneObject,
     SceneSpec,
+    extra_data,
     union_intervals,
 )
 
@@ -234,11 +235,13 @@ def _relations(scene: SceneSpec, uid_map: dict[str, str], owners: Mapping[str, s
                                                         f"not a light, place or object of the scene")
         if dangling:
             continue
-        entry: dict[str, Any] = {"name": "", "type": rel.type,
+        carried = extra_data(rel.extra)
+        entry: dict[str, Any] = {"name": carried.pop("name", ""), "type": rel.type,
                                  "rdf_subjects": [{"uid": uid_map[rel.subject_uid], "type": "object"}],
                                  "rdf_objects": [{"uid": uid_map[rel.object_uid], "type": "object"}]}
         if rel.frame_intervals:
             entry["frame_intervals"] = _intervals(rel.frame_intervals)
+        entry.update((key, value) for key, value in carried.items() if key not in entry)
         relations[relation_uids[rel.uid]] = entry
     return relations
 

@@ -16,6 +16,14 @@ What a stage cannot say comes back as defaults: a stage without the composer's
 ``customLayerData`` has no places and relations; a flattened stage has no variant selections
 left, so appearances come back empty.
 
+Other people's content (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`) comes
+back from where compose put it: a camera's and an object's from the prim's customData
+(``usdscene:extra``; per frame ``usdscene:frameExtra``, joined with the pose the pose children
+show), the scene's from the root layer's ``customLayerData`` (``extraJson``), a place's and a
+relation's from ``placesJson`` and ``relationsJson``. It follows the prim's uid, so a renamed or moved prim keeps it and a deleted one
+takes it along. An element's presence is its visibility over the frame range joined with the
+frames outside the range of the intervals the document gave it (``usdscene:frameIntervals``).
+
 Element discovery: cameras are every ``UsdGeom.Camera``; lights every sphere, distant, rect
 or disk light (dome lights such as Blender's exported world are skipped); objects the
 outermost prims carrying an identity (customData ``usdscene:uid`` or
@@ -46,7 +54,7 @@ from usdscene.document import stage_schema as ss
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
                             Provenance, Relation, RenderSettings, SceneObject, SceneSpec, canonical_json,
-                            usd_pose_to_cv_pose)
+                            union_intervals, usd_pose_to_cv_pose)
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +182,9 @@ class _StageReader:
         imageable = UsdGeom.Imageable(prim)
         if not imageable:
             return [True] * len(self.frames)
-        varying = any(UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()
+        # One time sample is no variation to ValueMightBeTimeVarying, but it holds over every
+        # frame while the default says otherwise: sampled attributes are read per frame.
+        varying = any(UsdGeom.Imageable(p).GetVisibilityAttr().GetNumTimeSamples() > 0
                       for p in _self_and_ancestors(prim) if p.IsA(UsdGeom.Imageable))
         if not varying:
             here = imageable.ComputeVisibility() != UsdGeom.Tokens.invisible
@@ -191,6 +201,59 @@ class _StageReader:
         name = _value(prim, ss.ATTR_USER_NAME) or custom(ss.CUSTOM_NAME)
         return (str(uid) if uid is not None else None, str(cls) if cls is not None else None,
                 str(name) if name is not None else None)
+
+    def _carried_text(self, text, where: str) -> dict:
+        """The JSON object of carried canonical JSON text (``{}`` for none); malformed text
+        (edited by hand) is a problem."""
+        if text is None or text == "":
+            return {}
+        try:
+            value = json.loads(str(text))
+        except json.JSONDecodeError as exc:
+            self.problems.add(where, f"malformed JSON {str(text)[:60]!r}: {exc}")
+            return {}
+        if not isinstance(value, dict):
+            self.problems.add(where, f"expected a JSON object, got {str(text)[:60]!r}")
+            return {}
+        return value
+
+    def _presence(self, prim, shown: list[bool]) -> tuple[FrameInterval, ...]:
+        """The element's frame intervals: its visibility over the frame range (``shown``, per
+        frame) joined with the frames outside the range of the intervals the prim carries from
+        the document (``stage_schema.CUSTOM_FRAME_INTERVALS``), which the stage cannot show."""
+        visible = _intervals(shown, self.frame_start)
+        text = prim.GetCustomDataByKey(ss.CUSTOM_FRAME_INTERVALS)
+        if not text:
+            return visible
+        try:
+            carried = [FrameInterval(int(a), int(b)) for a, b in json.loads(str(text))]
+        except (json.JSONDecodeError, TypeError, ValueError) as exc:
+            self.problems.add(f"{prim.GetPath()}:customData.{ss.CUSTOM_FRAME_INTERVALS}",
+                              f"expected JSON [[frame_start, frame_end], ...], got {str(text)[:60]!r}: {exc}")
+            return visible
+        before = [FrameInterval(iv.frame_start, min(iv.frame_end, self.frame_start - 1))
+                  for iv in carried if iv.frame_start < self.frame_start]
+        after = [FrameInterval(max(iv.frame_start, self.frame_end + 1), iv.frame_end)
+                 for iv in carried if iv.frame_end > self.frame_end]
+        return union_intervals([*before, *visible, *after])
+
+    def _carried(self, prim) -> tuple[str, dict[int, dict]]:
+        """What the prim carries for others: ``(extra, frame → carried content)``, from its
+        customData (``stage_schema.CUSTOM_EXTRA``, ``CUSTOM_FRAME_EXTRA``)."""
+        where = f"{prim.GetPath()}:customData"
+        extra = canonical_json(self._carried_text(prim.GetCustomDataByKey(ss.CUSTOM_EXTRA),
+                                                  f"{where}.{ss.CUSTOM_EXTRA}"))
+        frames = {}
+        for frame, value in self._carried_text(prim.GetCustomDataByKey(ss.CUSTOM_FRAME_EXTRA),
+                                               f"{where}.{ss.CUSTOM_FRAME_EXTRA}").items():
+            try:
+                number = int(frame)
+            except ValueError:
+                self.problems.add(f"{where}.{ss.CUSTOM_FRAME_EXTRA}.{frame}", "expected a frame number")
+                continue
+            if isinstance(value, dict) and value:
+                frames[number] = value
+        return extra, frames
 
     def _json(self, key: str, default):
         text = self.data.get(key)
@@ -212,12 +275,16 @@ class _StageReader:
         objects = self._objects()
         places = tuple(PlaceRef(uid=str(p["uid"]), name=str(p["name"]), regions=tuple(
             DeclaredRegion(str(r["relation"]), Pose.from_matrix(r["matrix"]),
-                           tuple(float(v) for v in r["size_m"])) for r in p.get("regions", ())))
+                           tuple(float(v) for v in r["size_m"])) for r in p.get("regions", ())),
+            extra=canonical_json(self._carried_text(p.get("extra"), f"{self.root_path}:customLayerData."
+                                                                    f"{ss.LAYER_DATA_KEY}.placesJson")))
             for p in self._json("placesJson", []))
         relations = tuple(
             Relation(uid=str(r["uid"]), type=str(r["type"]), subject_uid=str(r["subject"]),
                      object_uid=str(r["object"]),
-                     frame_intervals=tuple(FrameInterval(int(a), int(b)) for a, b in r.get("frameIntervals", [])))
+                     frame_intervals=tuple(FrameInterval(int(a), int(b)) for a, b in r.get("frameIntervals", [])),
+                     extra=canonical_json(self._carried_text(r.get("extra"), f"{self.root_path}:customLayerData."
+                                                                             f"{ss.LAYER_DATA_KEY}.relationsJson")))
             for r in self._json("relationsJson", []))
         environment = str(self.data.get("environment", "")) or self._environment_from_prims()
         world = self._imaging(self.stage.GetPrimAtPath(ss.RENDER_SETTINGS), ss.ATTR_RENDER_WORLD, "world")
@@ -235,6 +302,7 @@ class _StageReader:
             roi_rules={str(k): str(v) for k, v in self._json("roiRulesJson", {}).items()},
             roi_ignore=tuple(str(n) for n in self._json("roiIgnoreJson", [])),
             description=str(self.data.get("description", "")), world=world,
+            extra=canonical_json(self._json(ss.LAYER_EXTRA, {})),
             # A stage that states its rate (compose writes one only for documents with fps).
             fps=(float(self.stage.GetTimeCodesPerSecond())
                  if self.stage.GetRootLayer().HasTimeCodesPerSecond() else None),
@@ -328,7 +396,8 @@ class _StageReader:
             cameras.append(Camera(
                 name=name, intrinsics=intr, pose=pose, frame_poses=frame_poses, clip_near_m=near, clip_far_m=far,
                 model_name=str(_value(prim, ss.ATTR_CAMERA_MODEL_NAME) or ""),
-                description=str(_value(prim, ss.ATTR_CAMERA_DESCRIPTION) or ""), custom=custom, sensor=sensor))
+                description=str(_value(prim, ss.ATTR_CAMERA_DESCRIPTION) or ""), custom=custom, sensor=sensor,
+                extra=self._carried(prim)[0]))
         return tuple(cameras)
 
     def _imaging(self, prim, attribute: str, key: str):
@@ -469,7 +538,7 @@ class _StageReader:
                                          if width is not None and height is not None else None,
                                          defaults.size_m)),  # type: ignore[arg-type]
                 sun_angle_deg=float(_prefer(_value(prim, ss.ATTR_LIGHT_SUN_ANGLE), angle, defaults.sun_angle_deg)),
-                frame_intervals=_intervals(self._visible(prim), self.frame_start))
+                frame_intervals=self._presence(prim, self._visible(prim)))
             lights.append(light)
         return tuple(lights)
 
@@ -500,25 +569,25 @@ class _StageReader:
             pose_variant = None
             if sets.HasVariantSet(ss.VARIANT_SET_POSE):
                 pose_variant = sets.GetVariantSet(ss.VARIANT_SET_POSE).GetVariantSelection() or None
-            frame_extra = self._frame_poses(posed, present) if posed else ()
-            if frame_extra:
-                pose_variant = _json_pose(frame_extra[0][1])
+            pose_data = self._frame_poses(posed, present) if posed else {}
+            if pose_data:
+                pose_variant = pose_data[min(pose_data)]
+            extra, carried = self._carried(prim)
             objects.append(SceneObject(
-                uid=uid, name=name or uid, class_name=cls, frame_intervals=_intervals(visible, self.frame_start),
+                uid=uid, name=name or uid, class_name=cls, frame_intervals=self._presence(prim, visible),
                 pose=pose, frame_poses=frame_poses, appearance=appearance, pose_variant=pose_variant,
-                color_rgb=self._color(prim), frame_extra=frame_extra))
+                color_rgb=self._color(prim), extra=extra, frame_extra=_frame_extra(pose_data, carried)))
         return tuple(objects)
 
-    def _frame_poses(self, posed: list, present: list[int]) -> tuple[tuple[int, str], ...]:
-        """``(frame, text)`` object data naming the pose child shown on each present frame."""
+    def _frame_poses(self, posed: list, present: list[int]) -> dict[int, str]:
+        """Frame → the variant of the pose child shown on it, for each present frame that shows one."""
         shown: dict[int, str] = {}
         for child in posed:
             variant = str(_value(child, ss.ATTR_USER_POSE))
             for f, here in zip(self.frames, self._visible(child)):
                 if here:
                     shown[f] = variant
-        return tuple((f, canonical_json({"object_data": {"text": [{"name": ss.FRAME_POSE_DATA, "val": shown[f]}]}}))
-                     for f in present if f in shown)
+        return {f: shown[f] for f in present if f in shown}
 
     def _color(self, prim) -> tuple[float, float, float] | None:
         exact = _value(prim, ss.ATTR_USER_COLOR)
@@ -634,6 +703,14 @@ def _derive_intrinsics(usd: dict, ortho: bool, width: int, height: int, mpu: flo
                       sensor_width_mm=h_ap * tenth_m * 1000.0)
 
 
-def _json_pose(text: str) -> str:
-    """The pose variant named by one ``(frame, text)`` of :meth:`_frame_poses`."""
-    return json.loads(text)["object_data"]["text"][0]["val"]
+def _frame_extra(pose_data: dict[int, str], carried: dict[int, dict]) -> tuple[tuple[int, str], ...]:
+    """``SceneObject.frame_extra``: per frame the carried content, with the pose the stage shows
+    (text object data ``FRAME_POSE_DATA``, first of its kind) where pose children show one."""
+    out = []
+    for frame in sorted(set(pose_data) | set(carried)):
+        data = carried.get(frame, {})
+        if frame in pose_data:
+            kinds = data.setdefault("object_data", {})
+            kinds["text"] = [{"name": ss.FRAME_POSE_DATA, "val": pose_data[frame]}, *kinds.get("text", ())]
+        out.append((frame, canonical_json(data)))
+    return tuple(out)

@@ -115,6 +115,23 @@ def test_unknown_object_data_and_metadata_round_trip_in_order():
     assert _no_provenance(read_openlabel({"openlabel": written})) == _no_provenance(scene)
 
 
+def test_keys_of_a_modelled_relation_round_trip():
+    document = {"openlabel": {
+        "metadata": {"schema_version": "1.0.0"},
+        "objects": {"0": {"name": "bag", "type": "bag"}, "1": {"name": "seat_01A", "type": "place"}},
+        "ontologies": {"0": "http://example.org/ontology"},
+        "relations": {"0": {"name": "bag under its seat", "type": "is_below", "ontology_uid": "0",
+                            "rdf_subjects": [{"uid": "0", "type": "object"}],
+                            "rdf_objects": [{"uid": "1", "type": "object"}]},
+                      "1": {"name": "", "type": "is_on", "rdf_subjects": [{"uid": "0", "type": "object"}],
+                            "rdf_objects": [{"uid": "1", "type": "object"}]}}}}
+    scene = read_openlabel(document)
+    assert extra_data(scene.relations[0].extra) == {"name": "bag under its seat", "ontology_uid": "0"}
+    assert scene.relations[1].extra == ""  # the writer's own empty name is nothing to carry
+    written = write_openlabel(scene)["openlabel"]["relations"]
+    assert written == document["openlabel"]["relations"]
+
+
 def test_carried_stream_that_clashes_with_a_camera_is_refused():
     from usdscene.errors import DocumentError
     from usdscene.document.model import Camera, Intrinsics, LensModel, SceneSpec

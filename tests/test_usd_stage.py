@@ -456,14 +456,13 @@ def test_shipped_example_document_to_stage_to_document(tmp_path, document):
     # A walker's pose per frame comes back from its pose children, frame by frame.
     walking = {o.uid: _walk_poses(o) for o in result.resolved.objects if _walk_poses(o)}
     assert {o.uid: _walk_poses(o) for o in back.objects if _walk_poses(o)} == walking
-    # The stage holds what usdscene models; content carried for others (the moving example's
-    # per-frame ground positions and track notes) stays in the document, not in USD. A walker's
-    # own pose_variant is only its pose where no frame names one, which no frame of it lacks.
-    expected = dataclasses.replace(result.resolved, objects=tuple(
-        dataclasses.replace(o, extra="", frame_extra=()) for o in result.resolved.objects))
+    # Content carried for others (the moving example's per-frame ground positions and track
+    # notes) comes back from the prims' customData. A walker's own pose_variant is only its pose
+    # where no frame names one, which no frame of it lacks.
+    expected = result.resolved
     back = dataclasses.replace(back, objects=tuple(
-        dataclasses.replace(o, frame_extra=(), pose_variant=(result.resolved.object_by_uid()[o.uid].pose_variant
-                                                             if o.uid in walking else o.pose_variant))
+        dataclasses.replace(o, pose_variant=(result.resolved.object_by_uid()[o.uid].pose_variant
+                                             if o.uid in walking else o.pose_variant))
         for o in back.objects))
     assert_scenes_close(expected, back)
 

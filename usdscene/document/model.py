@@ -210,6 +210,13 @@ def union_intervals(intervals: Iterable[FrameInterval]) -> tuple[FrameInterval, 
     return tuple(merged)
 
 
+def clip_intervals(intervals: Iterable[FrameInterval], frame_start: int, frame_end: int) -> tuple[FrameInterval, ...]:
+    """The merged union of ``intervals`` cut to the closed range ``frame_start..frame_end``
+    (empty when none reaches into it)."""
+    return union_intervals(FrameInterval(max(iv.frame_start, frame_start), min(iv.frame_end, frame_end))
+                           for iv in intervals if iv.frame_end >= frame_start and iv.frame_start <= frame_end)
+
+
 def in_intervals(frame: int, intervals: Iterable[FrameInterval]) -> bool:
     """Whether ``frame`` lies in any of the closed ``intervals``."""
     return any(frame in iv for iv in intervals)
@@ -540,6 +547,9 @@ class Relation:
         subject_uid: uid of the object being placed (``rdf_subjects``).
         object_uid: uid of the place or object it relates to (``rdf_objects``).
         frame_intervals: when it holds; empty = whenever the subject is present.
+        extra: the element's content usdscene does not read (its ``name`` when not empty,
+            ``ontology_uid``, ``resource_uid``, other keys), as :func:`canonical_json` text;
+            "" = none. Written back unchanged.
     """
 
     uid: str
@@ -547,6 +557,7 @@ class Relation:
     subject_uid: str
     object_uid: str
     frame_intervals: tuple[FrameInterval, ...] = ()
+    extra: str = ""
 
 
 # --------------------------------------------------------------------------------------------

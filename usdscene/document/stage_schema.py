@@ -37,6 +37,18 @@ RENDER_PRODUCTS = "/Render/Products"
 CUSTOM_UID = "usdscene:uid"
 CUSTOM_CLASS = "usdscene:class"
 CUSTOM_NAME = "usdscene:name"
+# Other people's content of the element (usdscene.converters.openlabel_carry): string,
+# canonical JSON of ``Camera.extra`` / ``SceneObject.extra``; absent when there is none.
+CUSTOM_EXTRA = "usdscene:extra"
+# string, canonical JSON {"<frame>": <carried frames[f].objects[uid] content>} of
+# ``SceneObject.frame_extra`` without the per-frame pose data the pose children hold
+# (FRAME_POSE_DATA); absent when there is none.
+CUSTOM_FRAME_EXTRA = "usdscene:frameExtra"
+# string, JSON [[frame_start, frame_end], ...]: the presence of an object or light as the
+# document gives it, only when it reaches outside the stage's frame range. The visibility
+# shows the range alone (and an element present on no frame of it would read back as always
+# present): Scene2VCD takes the range from the visibility and the frames outside it from here.
+CUSTOM_FRAME_INTERVALS = "usdscene:frameIntervals"
 
 # The same identity as plain attributes, because Blender's USD importer drops customData but
 # imports ``userProperties:*`` attributes as custom properties.
@@ -143,6 +155,10 @@ ATTR_LIGHT_SUN_ANGLE = "usdscene:light:sunAngleDeg"        # double, angular dia
 # Root layer customLayerData: dictionary "usdscene" with provenance and the document-level
 # fields that have no prim (JSON strings keep their order).
 LAYER_DATA_KEY = "usdscene"
+# Keys of that dictionary added for other people's content: ``SceneSpec.extra`` (string,
+# canonical JSON; absent when there is none). ``PlaceRef.extra`` and ``Relation.extra`` ride
+# in their entries of ``placesJson`` and ``relationsJson`` as ``"extra"``.
+LAYER_EXTRA = "extraJson"
 
 _PRIM_NAME_BAD = re.compile(r"[^A-Za-z0-9_]")
 

@@ -57,6 +57,14 @@ Conventions of the authored stage:
   a class without one gets no colour, with a warning), to ``primvars:displayColor`` for viewers and, exact, to
   ``userProperties:usdscene_color``.
 
+Content usdscene does not model (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`)
+is kept in the stage for :func:`usdscene.converters.usd_stage.scene_from_stage`: a camera's and an
+object's in the prim's customData (``usdscene:extra``, per frame ``usdscene:frameExtra``), the
+scene's in the root layer's ``customLayerData`` (``extraJson``), a place's and a relation's in
+``placesJson`` and ``relationsJson``; an
+element's presence outside the frame range as ``usdscene:frameIntervals``. All is canonical JSON
+text, authored only when there is some.
+
 Everything random (appearance, colour, placement) is drawn from one
 ``numpy.random.Generator`` seeded with ``scene.seed``, in a fixed order (appearance and colour
 per object in document order, then placement frame by frame), so the same scene and seed give
@@ -84,8 +92,8 @@ from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCo
 from usdscene.files import make_folder, write_text_atomic
 from usdscene.document.output_layout import mask_ids
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
-                            Randomization, RenderSettings, SceneSpec, cv_pose_to_usd_pose,
-                            extra_data, union_intervals)
+                            Randomization, RenderSettings, SceneSpec, canonical_json, clip_intervals,
+                            cv_pose_to_usd_pose, extra_data, union_intervals)
 from usdscene.scene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
@@ -126,12 +134,14 @@ class ComposeResult:
 
 
 def _place_json(place) -> dict:
-    """A place as recorded in the root layer; declared regions only when it has some (the layer
-    of a document without them stays as it was)."""
+    """A place as recorded in the root layer; declared regions and carried content only when it
+    has some (the layer of a document without them stays as it was)."""
     out = {"uid": place.uid, "name": place.name}
     if place.regions:
         out["regions"] = [{"relation": r.relation, "matrix": r.pose.as_array().reshape(-1).tolist(),
                            "size_m": list(r.size_m)} for r in place.regions]
+    if place.extra:
+        out["extra"] = place.extra
     return out
 
 
@@ -277,12 +287,20 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
 
 
 def canonical_intervals(intervals, frame_start: int, frame_end: int) -> tuple[FrameInterval, ...]:
-    """Presence clipped to the scene range, merged; no intervals = the whole range."""
+    """Presence merged; no intervals = the whole range. Frames outside the range are kept: the
+    stage shows the range, and what the document says beyond it rides along
+    (``stage_schema.CUSTOM_FRAME_INTERVALS``)."""
     if not intervals:
         return (FrameInterval(frame_start, frame_end),)
-    clipped = [FrameInterval(max(iv.frame_start, frame_start), min(iv.frame_end, frame_end))
-               for iv in intervals if iv.frame_end >= frame_start and iv.frame_start <= frame_end]
-    return union_intervals(clipped)
+    return union_intervals(intervals)
+
+
+def _outside_intervals(intervals, frame_start: int, frame_end: int) -> str:
+    """``stage_schema.CUSTOM_FRAME_INTERVALS`` text of canonical ``intervals``: "" when the
+    range's visibility says them all."""
+    if intervals == clip_intervals(intervals, frame_start, frame_end):
+        return ""
+    return json.dumps([[iv.frame_start, iv.frame_end] for iv in intervals])
 
 
 def _canonical_camera(cam: Camera, frames: range) -> Camera:
@@ -312,7 +330,7 @@ def resolved_scene(scene: SceneSpec, placements: Mapping[str, ObjectPlacement],
             frame_poses = tuple((f, span.pose) for span in spans if span.pose.matrix != base.matrix
                                 for f in span.frames())
         else:
-            # A reader of the stage cannot tell "never present" from "always present".
+            # Composed invisible; its intervals outside the range ride along on the prim.
             log.warning("object %r is present in no frame of %d..%d; it is composed invisible",
                         obj.uid, scene.frame_start, scene.frame_end)
             base, frame_poses = obj.pose or Pose(), ()
@@ -369,12 +387,23 @@ def _attr(prim, name: str, type_name, value=None, *, uniform: bool = False, cust
     return spec
 
 
-def _identity(prim, uid: str, class_name: str, name: str) -> None:
+def _identity(prim, uid: str, class_name: str, name: str, extra: str = "", frame_extra: str = "",
+              frame_intervals: str = "") -> None:
+    """The element's identity on ``prim``, with the content it carries for others
+    (``stage_schema.CUSTOM_EXTRA`` / ``CUSTOM_FRAME_EXTRA``, canonical JSON text) and its
+    presence outside the frame range (``CUSTOM_FRAME_INTERVALS``), each only when there is
+    some: customData travels with the prim when a DCC tool renames or moves it."""
     from pxr import Sdf
 
-    prim.customData = {ss.LAYER_DATA_KEY: {ss.CUSTOM_UID.split(":")[1]: uid,
-                                           ss.CUSTOM_CLASS.split(":")[1]: class_name,
-                                           ss.CUSTOM_NAME.split(":")[1]: name}}
+    data = {ss.CUSTOM_UID.split(":")[1]: uid, ss.CUSTOM_CLASS.split(":")[1]: class_name,
+            ss.CUSTOM_NAME.split(":")[1]: name}
+    if extra:
+        data[ss.CUSTOM_EXTRA.split(":")[1]] = extra
+    if frame_extra:
+        data[ss.CUSTOM_FRAME_EXTRA.split(":")[1]] = frame_extra
+    if frame_intervals:
+        data[ss.CUSTOM_FRAME_INTERVALS.split(":")[1]] = frame_intervals
+    prim.customData = {ss.LAYER_DATA_KEY: data}
     _attr(prim, ss.ATTR_USER_UID, Sdf.ValueTypeNames.String, uid, custom=True)
     _attr(prim, ss.ATTR_USER_CLASS, Sdf.ValueTypeNames.String, class_name, custom=True)
     _attr(prim, ss.ATTR_USER_NAME, Sdf.ValueTypeNames.String, name, custom=True)
@@ -421,9 +450,16 @@ def _author_transform(layer, prim, base: tuple[float, ...], per_frame: list[tupl
 
 
 def _author_visibility(layer, prim, present: list[bool], frame_start: int) -> None:
+    """Visibility of a prim present on ``present`` (per frame of the range): none authored when
+    present throughout, ``invisible`` without samples when present on no frame (a lone sample
+    reads as a constant to readers that ask whether the value varies, which then take the
+    default), else ``inherited`` with a sample at each change."""
     from pxr import Sdf
 
     if all(present):
+        return
+    if not any(present):
+        _attr(prim, "visibility", Sdf.ValueTypeNames.Token, "invisible")
         return
     spec = _attr(prim, "visibility", Sdf.ValueTypeNames.Token, "inherited")
     previous = None
@@ -486,6 +522,31 @@ def frame_pose_variants(obj, frames: range, present: list[bool]) -> list[str] | 
     return shown
 
 
+def carried_frame_extra(obj, frames: range, present: list[bool], shown: list[str] | None) -> str:
+    """``stage_schema.CUSTOM_FRAME_EXTRA`` text of ``obj``: its ``frame_extra`` as one canonical
+    JSON object keyed by frame, less the per-frame pose data (``FRAME_POSE_DATA``) of the
+    present frames when pose children show it (``shown``, :func:`frame_pose_variants`: the
+    children are the stage's form of that data, and a DCC user may edit them); "" when nothing
+    is left."""
+    shown_frames = {f for f, here in zip(frames, present) if here} if shown is not None else set()
+    out = {}
+    for frame, text in obj.frame_extra:
+        data = extra_data(text)
+        if frame in shown_frames and ss.FRAME_POSE_DATA in text:
+            kinds = data.get("object_data", {})
+            kept = [item for item in kinds.get("text", ())
+                    if not (isinstance(item, dict) and item.get("name") == ss.FRAME_POSE_DATA)]
+            if kept:
+                kinds["text"] = kept
+            else:
+                kinds.pop("text", None)
+            if not kinds:
+                data.pop("object_data", None)
+        if data:
+            out[str(int(frame))] = data
+    return canonical_json(out)
+
+
 def _presence(intervals, frames: range) -> list[bool]:
     return [any(iv.frame_start <= f <= iv.frame_end for iv in intervals) for f in frames]
 
@@ -499,7 +560,7 @@ def _root_layer(scene: SceneSpec) -> str:
     for name in ss.SUBLAYERS:
         layer.subLayerPaths.append(f"./{name}")
     prov = scene.provenance
-    layer.customLayerData = {ss.LAYER_DATA_KEY: {
+    data = {
         "toolkitVersion": __version__,
         "seed": int(scene.seed),
         "sourceSha256": prov.source_sha256,
@@ -515,9 +576,13 @@ def _root_layer(scene: SceneSpec) -> str:
         "placesJson": json.dumps([_place_json(p) for p in scene.places]),
         "relationsJson": json.dumps([
             {"uid": r.uid, "type": r.type, "subject": r.subject_uid, "object": r.object_uid,
-             "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals]}
+             "frameIntervals": [[iv.frame_start, iv.frame_end] for iv in r.frame_intervals],
+             **({"extra": r.extra} if r.extra else {})}
             for r in scene.relations]),
-    }}
+    }
+    if scene.extra:
+        data[ss.LAYER_EXTRA] = scene.extra
+    layer.customLayerData = {ss.LAYER_DATA_KEY: data}
     return layer.ExportToString()
 
 
@@ -611,7 +676,7 @@ def _cameras_layer(scene: SceneSpec) -> str:
     parent = _world(layer, ss.CAMERAS)
     for cam in scene.cameras:
         prim = _prim(parent, ss.prim_name(cam.name), "Camera")
-        _identity(prim, cam.name, "camera", cam.name)
+        _identity(prim, cam.name, "camera", cam.name, extra=cam.extra)
         base = cv_pose_to_usd_pose(cam.pose).matrix
         per_frame = [cv_pose_to_usd_pose(cam.pose_at(f)).matrix for f in scene.frames] if cam.frame_poses else []
         _author_transform(layer, prim, base, per_frame, scene.frame_start)
@@ -677,7 +742,8 @@ def _lights_layer(scene: SceneSpec) -> str:
     lights.variantSelections[ss.VARIANT_SET_LIGHTING] = LIGHTING_DOCUMENT
     for light in scene.lights:
         prim = _prim(parent, ss.prim_name(light.name), _LIGHT_TYPES[light.kind])
-        _identity(prim, light.uid, "light", light.name)
+        _identity(prim, light.uid, "light", light.name,
+                  frame_intervals=_outside_intervals(light.frame_intervals, scene.frame_start, scene.frame_end))
         _author_transform(layer, prim, light.pose.matrix, [], scene.frame_start)
         _author_visibility(layer, prim, _presence(light.frame_intervals, scene.frames), scene.frame_start)
         _attr(prim, "inputs:intensity", T.Float, light_intensity(light))
@@ -751,7 +817,9 @@ def _objects_layer(scene: SceneSpec, catalog: Catalog, stage_dir: Path, ids: Map
         shown = frame_pose_variants(obj, frames, present)
         if shown is None:
             prim.referenceList.prependedItems.append(Sdf.Reference(asset_reference_path(entry.usd_path, stage_dir)))
-        _identity(prim, obj.uid, obj.class_name, obj.name)
+        _identity(prim, obj.uid, obj.class_name, obj.name, extra=obj.extra,
+                  frame_extra=carried_frame_extra(obj, frames, present, shown),
+                  frame_intervals=_outside_intervals(obj.frame_intervals, scene.frame_start, scene.frame_end))
         _attr(prim, ss.ATTR_MASK_ID, T.Int, ids[obj.uid], custom=True)
         _attr(prim, ss.ATTR_USER_MASK_ID, T.Int, ids[obj.uid], custom=True)
         base = (obj.pose or Pose()).matrix
