@@ -496,6 +496,10 @@ class Session:
         return rgb, ids
 
 
+# Width of the importance map of a physical sky (its height is half): see WorldNodes.
+SKY_MAP_RESOLUTION = 512
+
+
 class WorldNodes:
     """A document's world as a Blender world of our own, made ``scene.world`` (it replaces a
     dome light's world: the document's world is what the user asked for): Background ← colour,
@@ -541,6 +545,15 @@ class WorldNodes:
         else:
             self.background.inputs["Color"].default_value = (*world.color_rgb, 1.0)
             bworld.color = world.color_rgb
+        if world.sky or world.hdri:
+            # Cycles' automatic importance map of a world without a sun disc is 4096 x 2048:
+            # 8 M evaluations of the world each time it changes (every frame when its strength
+            # is randomised), and a 64 MB table that every light sample searches. The sky (its
+            # sun is a light) is smooth, 512 x 256 resolves it; an HDRI gets its own width (what
+            # Cycles gave an environment image before that rule).
+            width = SKY_MAP_RESOLUTION if world.sky else min(max(int(env.image.size[0]), 64), 4096)
+            bworld.cycles.sampling_method = "MANUAL"
+            bworld.cycles.sample_map_resolution = width
 
     def apply(self, at) -> None:
         """Set the values of ``at`` (the world at one frame) that differ from the nodes' (each
