@@ -549,8 +549,8 @@ class WorldNodes:
             # Cycles' automatic importance map of a world without a sun disc is 4096 x 2048:
             # 8 M evaluations of the world each time it changes (every frame when its strength
             # is randomised), and a 64 MB table that every light sample searches. The sky (its
-            # sun is a light) is smooth, 512 x 256 resolves it; an HDRI gets its own width (what
-            # Cycles gave an environment image before that rule).
+            # sun is a light) is smooth, 512 x 256 resolves it; an HDRI gets its own width, 64 to
+            # 4096 (what Cycles gave an environment image before that rule).
             width = SKY_MAP_RESOLUTION if world.sky else min(max(int(env.image.size[0]), 64), 4096)
             bworld.cycles.sampling_method = "MANUAL"
             bworld.cycles.sample_map_resolution = width
