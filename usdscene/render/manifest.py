@@ -6,7 +6,7 @@ Format::
       "format": "usdscene-render-manifest/1",
       "fingerprint": "<sha256 of what determines the pixels>",
       "versions": {"usdscene": ..., "blender": ...},
-      "done": {"<camera>": {"<frame>": {"render_s": ..., "post_s": ...}}},
+      "done": {"<camera>": {"<frame>": {"render_s": ..., "render_cpu_s": ..., "post_s": ...}}},
       "timings": {"wall_s": ..., "render_s": ...}
     }
 

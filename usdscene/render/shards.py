@@ -84,7 +84,7 @@ class Tally:
                     # (e.g. labels) exists for every image the manifest lists.
                     self.on_event(event)
                 self.manifest.mark_done(int(event["frame"]), event["camera"],
-                                        {k: event[k] for k in ("render_s", "post_s") if k in event})
+                                        {k: event[k] for k in ("render_s", "render_cpu_s", "post_s") if k in event})
                 self.manifest.save()
                 self.totals["render_s"] += event["render_s"]
                 self.totals["post_s"] += event["post_s"]
