@@ -644,6 +644,9 @@ LAP_CELL_M = 0.01
 LAP_MARGIN_M = 0.015
 """Vertices block the grid cells this close (the low-poly mesh has a vertex every 2-4 cm)."""
 LAP_MAX_CLEARANCE_M = 0.25
+LAP_MIN_WIDTH_M = 0.30
+"""A lap spans both thighs: boxes at least this wide across them come first (with the knees
+together the largest box is often a narrow strip along them, where a laptop no longer fits)."""
 LAP_SAG_M = 0.05
 """The lap reaches forward to the last thigh point this close below the crest (the knees):
 rigid things lie on the crest, whatever the thighs do below it."""
@@ -656,7 +659,8 @@ _LAP_IGNORED = ("thigh", "calf", "foot", "ball")
 
 def lap_region(points: np.ndarray, bones: np.ndarray):
     """The lap of one seated body: the largest box resting on the thighs' crest that no other
-    body part (hands, forearms, belly) reaches into.
+    body part (hands, forearms, belly) reaches into, among those :data:`LAP_MIN_WIDTH_M` across
+    the thighs or more when there is one.
 
     Args:
         points: (N, 3) posed vertices, asset frame (facing -Y), metres.
@@ -693,7 +697,8 @@ def lap_region(points: np.ndarray, bones: np.ndarray):
             continue
         cells = free[max(i0, 0):i1 + 1, max(j0, 0):j1 + 1]
         np.minimum(cells, p[2] - surface, out=cells)
-    best = None  # (area cells, clearance, i0, i1, j0, j1)
+    best = None  # (wide enough, area cells, clearance, i0, i1, j0, j1)
+    wide_cells = int(round(LAP_MIN_WIDTH_M / LAP_CELL_M))
     for j0 in range(ny):
         column = np.full(nx, np.inf)
         for j1 in range(j0, ny):
@@ -707,14 +712,13 @@ def lap_region(points: np.ndarray, bones: np.ndarray):
                 k = i
                 while k < nx and ok[k]:
                     k += 1
-                area = (k - i) * (j1 - j0 + 1)
-                clearance = float(column[i:k].min())
-                if best is None or (area, clearance) > best[:2]:
-                    best = (area, clearance, i, k, j0, j1 + 1)
+                rank = (j1 - j0 + 1 >= wide_cells, (k - i) * (j1 - j0 + 1), float(column[i:k].min()))
+                if best is None or rank > best[:3]:
+                    best = (*rank, i, k, j0, j1 + 1)
                 i = k
     if best is None:
         return None
-    _, clearance, i0, i1, j0, j1 = best
+    _, _, clearance, i0, i1, j0, j1 = best
     cx, cy = x0 + (i0 + i1) / 2.0 * LAP_CELL_M, y0 + (j0 + j1) / 2.0 * LAP_CELL_M
     length, width = (i1 - i0) * LAP_CELL_M, (j1 - j0) * LAP_CELL_M
     # The thighs' highest point may lie outside the footprint (by the hips): what holds an
