@@ -189,8 +189,8 @@ def seat_parts(config: CabinConfig) -> dict[str, m.MeshData]:
         # Hard back shell with the tray table, and the armrests.
         _tilted(m.rounded_box((0.02, 0.41, 0.50), 0.008, 1), _on_backrest(0.34, -0.06)),
         _tilted(m.rounded_box((0.018, 0.36, 0.26), 0.008, 1), _on_backrest(0.45, -0.079)),
-        *(m.rounded_box(ARMREST_SIZE_M, 0.015, 1).translated((x, side * y, z))
-          for x, y, z in (ARMREST_CENTRE_M,) for side in (1.0, -1.0)),
+        *(m.rounded_box(ARMREST_SIZE_M, 0.015, 1).translated(np.multiply(ARMREST_CENTRE_M, (1.0, side, 1.0)))
+          for side in (1.0, -1.0)),
         m.box((0.44, 0.44, 0.04)).translated((-0.24, 0.0, pan + 0.02)),
     ]
     pocket = [_tilted(m.rounded_box((0.025, 0.34, 0.20), 0.008, 1), _on_backrest(0.14, -0.083))]
