@@ -74,6 +74,16 @@ def test_planning_lap_of_a_pose_fits_every_body():
             assert np.all(np.asarray(plan.size_m[:2]) <= np.asarray(exact.size_m[:2]) + 1e-9), (pose, body)
 
 
+def test_awake_poses_laps_span_both_thighs_and_hold_a_laptop():
+    """A lap lies across both thighs (at least 0.30 m) where a box that wide fits: with the
+    knees together the largest box would be a strip along them, too narrow for a laptop."""
+    entry = load_catalog()["passenger"]
+    laptop = np.subtract(load_catalog()["laptop"].extent_max_m, load_catalog()["laptop"].extent_min_m)
+    for pose in ("upright", "leaning", "reading"):
+        across, along, height = entry.places_for({ss.VARIANT_SET_POSE: pose})["lap"].regions["is_on"].size_m
+        assert across >= 0.30 and across >= laptop[0] and along >= laptop[1] and height >= laptop[2], pose
+
+
 def test_variant_places_name_a_variant_the_entry_has(tmp_path):
     (tmp_path / "p.usda").write_text("#usda 1.0\n")
     lap = {"lap": {"kind": "lap", "regions": {"is_on": {"matrix": list(np.eye(4).reshape(16)),

@@ -114,3 +114,45 @@ def test_walk_cycle_alternates_the_feet():
         kp = np.asarray(root.GetAttribute(ss.ATTR_KEYPOINTS).Get(), dtype=np.float64)
         ankles.append(kp[15, 1] - kp[16, 1])  # left minus right ankle along Y (forward is -Y)
     assert ankles[0] < -0.3 and ankles[4] > 0.3  # walk_0: left foot forward; walk_4: right foot forward
+
+
+def test_armrest_depth_is_the_distance_to_the_nearest_face_of_the_boxes():
+    from usdscene.assetgen.cabin import ARMREST_CENTRE_M, CabinConfig, armrest_depth_m
+
+    x, y, z = ARMREST_CENTRE_M
+    neighbour = CabinConfig().seat_spacing_m - y  # the neighbour's armrest beside this seat's
+    points = np.array([(x, y, z), (x, -y, z + 0.02), (x, neighbour, z), (x, 0.0, z), (x, y, z + 0.03)])
+    assert armrest_depth_m(points) == pytest.approx([0.02, 0.005, 0.02, 0.0, 0.0])
+
+
+@pytest.mark.usd
+def test_seated_bodies_stay_out_of_the_armrests_and_sleep_reclined():
+    """The bake's check: no body in any pose inside an armrest of its seat or the neighbours'
+    (splayed thighs of a wide body used to reach 1.7 cm into them); the sleeping pose, less
+    reclined where a body needs it, still leans back further than the upright one."""
+    from pxr import Usd, UsdGeom
+
+    from usdscene.assetgen.cabin import armrest_depth_m
+    from usdscene.assetgen.people import _asset_to_seat
+    from usdscene.scene.catalog import load_catalog
+
+    entry = load_catalog()["passenger"]
+    stage = Usd.Stage.Open(str(entry.usd_path))
+    root = stage.GetDefaultPrim()
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{root.GetPath()}/Geom/Body"))
+    kp_attr = root.GetAttribute(ss.ATTR_KEYPOINTS)
+    sets = root.GetVariantSets()
+    shoulders = COCO_KEYPOINTS.index("left_shoulder"), COCO_KEYPOINTS.index("right_shoulder")
+    hips = COCO_KEYPOINTS.index("left_hip"), COCO_KEYPOINTS.index("right_hip")
+    for body in entry.variants[ss.VARIANT_SET_APPEARANCE]:
+        sets.GetVariantSet(ss.VARIANT_SET_APPEARANCE).SetVariantSelection(body)
+        lean = {}
+        for pose in entry.variants[ss.VARIANT_SET_POSE]:
+            sets.GetVariantSet(ss.VARIANT_SET_POSE).SetVariantSelection(pose)
+            points = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
+            # 1 mm: the file keeps points to the millimetre.
+            assert armrest_depth_m(_asset_to_seat(points)).max() <= 1e-3, (body, pose)
+            kp = np.asarray(kp_attr.Get(), dtype=np.float64)
+            back = kp[list(shoulders), 1].mean() - kp[list(hips), 1].mean()  # +Y = backwards
+            lean[pose] = back / (kp[list(shoulders), 2].mean() - kp[list(hips), 2].mean())
+        assert lean["sleeping"] > lean["upright"] + 0.03, body

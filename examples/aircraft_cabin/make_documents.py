@@ -145,9 +145,12 @@ def cabin_objects(places, catalog, frames: int, rng: np.random.Generator):
 
     def add(class_name: str, relation: str, place_name: str, intervals=all_frames, **kw):
         uid = f"{class_name}_{len(objects) + 1:03d}"
+        # Luggage lies a little askew; a passenger sits in the middle of the seat facing forward
+        # like it (the people are baked to fit the seat there, as usdscene generate seats them).
+        noise = ({} if catalog[class_name].kind == "passenger"
+                 else dict(position_noise_m=0.02, rotation_noise_deg=15.0))
         objects.append(SceneObject(uid=uid, name=uid, class_name=class_name, frame_intervals=intervals,
-                                   randomization=Randomization(position_noise_m=0.02, rotation_noise_deg=15.0,
-                                                               random_appearance=True), **kw))
+                                   randomization=Randomization(random_appearance=True, **noise), **kw))
         relations.append(Relation(uid=f"rel_{len(relations) + 1:03d}", type=relation, subject_uid=uid,
                                   object_uid=place(place_name), frame_intervals=intervals))
         return uid

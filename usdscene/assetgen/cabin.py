@@ -151,6 +151,27 @@ def backrest_clearance_m(points_seat: np.ndarray, pitch_rows: float = 0.0) -> np
     return d - np.where(headrest, 0.08, _BACK_THICKNESS / 2)
 
 
+ARMREST_SIZE_M = (0.40, 0.04, 0.05)
+ARMREST_CENTRE_M = (-0.25, 0.22, 0.62)
+"""The left armrest's box (seat frame); the right one is its mirror image across y = 0."""
+
+
+def armrest_depth_m(points_seat: np.ndarray, config: CabinConfig = CabinConfig()) -> np.ndarray:
+    """Depth (N,) of seat-frame points inside an armrest beside the seat: its own two and the
+    neighbours' two next to them (``seat_spacing_m`` further out), each as its bounding box (the
+    mesh's rounded edges lie inside it); 0 outside. Used to keep seated people's hips and
+    thighs out of them."""
+    p = np.asarray(points_seat, dtype=np.float64)
+    size = np.asarray(ARMREST_SIZE_M)
+    depth = np.zeros(len(p))
+    for y in (ARMREST_CENTRE_M[1], config.seat_spacing_m - ARMREST_CENTRE_M[1]):
+        for side in (1.0, -1.0):
+            centre = np.array([ARMREST_CENTRE_M[0], side * y, ARMREST_CENTRE_M[2]])
+            d = (size / 2 - np.abs(p - centre)).min(axis=1)  # > 0 inside: to the nearest face
+            depth = np.maximum(depth, d)
+    return depth
+
+
 def _tilted(mesh: m.MeshData, centre: np.ndarray) -> m.MeshData:
     return mesh.transformed(m.translation(centre) @ m.rotation_y(-_BACK_TILT_DEG))
 
@@ -168,8 +189,8 @@ def seat_parts(config: CabinConfig) -> dict[str, m.MeshData]:
         # Hard back shell with the tray table, and the armrests.
         _tilted(m.rounded_box((0.02, 0.41, 0.50), 0.008, 1), _on_backrest(0.34, -0.06)),
         _tilted(m.rounded_box((0.018, 0.36, 0.26), 0.008, 1), _on_backrest(0.45, -0.079)),
-        m.rounded_box((0.40, 0.04, 0.05), 0.015, 1).translated((-0.25, 0.22, 0.62)),
-        m.rounded_box((0.40, 0.04, 0.05), 0.015, 1).translated((-0.25, -0.22, 0.62)),
+        *(m.rounded_box(ARMREST_SIZE_M, 0.015, 1).translated(np.multiply(ARMREST_CENTRE_M, (1.0, side, 1.0)))
+          for side in (1.0, -1.0)),
         m.box((0.44, 0.44, 0.04)).translated((-0.24, 0.0, pan + 0.02)),
     ]
     pocket = [_tilted(m.rounded_box((0.025, 0.34, 0.20), 0.008, 1), _on_backrest(0.14, -0.083))]

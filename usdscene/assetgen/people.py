@@ -352,7 +352,7 @@ def bake_body(src: bm.SourceData, binding: bm.LowPolyBinding, spec: BodySpec, se
     for name, make in (SEATED_POSES if seated else STANDING_POSES).items():
         directions, twists = make()
         if seated:
-            points, keypoints = _seat(skel, rest, weights, sources, directions, twists)
+            points, keypoints = _seat(skel, rest, weights, sources, directions, twists, f"{spec.name} {name}")
         else:
             t = bm.pose_transforms(skel, directions, twists)
             points = bm.skin(rest, weights, t)
@@ -368,9 +368,11 @@ def bake_body(src: bm.SourceData, binding: bm.LowPolyBinding, spec: BodySpec, se
 
 
 SEAT_CLEARANCE_M = 0.005
+"""Gap kept between a seated body and the backrest, and between the knees and the seat in front."""
 CUSHION_HALF_DEPTH_M = 0.23
 """The cabin's cushion reaches this far in front of the passenger origin (0.46 m deep)."""
-"""Gap kept between a seated body and the backrest, and between the knees and the seat in front."""
+RECLINE_STEPS = (1.0, 0.8, 0.6, 0.4)
+"""Fractions of a seated pose's backward lean of the spine tried in turn (see :func:`_seat`)."""
 
 
 def _asset_to_seat(points: np.ndarray) -> np.ndarray:
@@ -381,13 +383,64 @@ def _asset_to_seat(points: np.ndarray) -> np.ndarray:
     return np.stack([-0.235 - points[:, 1], points[:, 0], CabinConfig().cushion_height_m + points[:, 2]], axis=1)
 
 
+def _reclined(directions: Directions, fraction: float) -> Directions:
+    """The pose with ``fraction`` of its spine's and neck's backward lean (their +Y component)."""
+    out = dict(directions)
+    for name in ("spine_01", "spine_02", "spine_03", "neck_01"):
+        if name in out:
+            x, y, z = out[name]
+            out[name] = (x, y * fraction, z)
+    return out
+
+
 def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dict, directions: Directions,
-          twists: dict) -> tuple[np.ndarray, np.ndarray]:
+          twists: dict, label: str) -> tuple[np.ndarray, np.ndarray]:
     """A seated pose placed on the cushion: buttocks on z = 0, back against the cabin seat's
     backrest (its tilted front face), shins angled so the soles reach the floor (short legs:
     the toes point down), long thighs splayed and lowered until the knees clear the seat in
-    front."""
-    from usdscene.assetgen.cabin import backrest_clearance_m
+    front.
+
+    The check every pose is baked against: no vertex inside an armrest, the seat's own or its
+    neighbours' (``armrest_depth_m``: splayed thighs of wide hips reach them), and the knees
+    :data:`SEAT_CLEARANCE_M` in front of the plane behind the pocket of the seat in front
+    (``backrest_clearance_m`` one pitch forward). The least splay that passes both is taken; a
+    pose that no splay lets pass sits less reclined (:data:`RECLINE_STEPS`: a slouch slides
+    the hips forward, the knees with them) and keeps its head and arms. Legs too long for the
+    seat pitch in any recline take the splay and recline that bring the knees least far past
+    that plane, clear of the armrests (logged; the plane is conservative: ``people_seat_fit.py``
+    in ``benchmarks/`` measures their depth into the seat meshes).
+
+    ``label`` (body and pose) names the pose in the log and the error.
+
+    Raises:
+        AssetError: no splay clears the armrests.
+    """
+    from usdscene.errors import AssetError
+
+    fallback = None
+    for fraction in RECLINE_STEPS:
+        for t, pts, offset, knees, armrest in _seat_candidates(skel, rest, weights, _reclined(directions, fraction),
+                                                                twists):
+            if armrest > 0.0:
+                continue
+            if knees >= SEAT_CLEARANCE_M:
+                return pts, _posed_keypoints(skel, sources, t) + offset
+            if fallback is None or knees > fallback[3]:
+                fallback = (t, pts, offset, knees)
+    if fallback is None:
+        raise AssetError(f"seated pose {label}: every splay of the thighs reaches into an armrest")
+    t, pts, offset, knees = fallback
+    log.info("seated pose %s: the knees reach %.1f cm past the pocket of the seat in front", label, -100.0 * knees)
+    return pts, _posed_keypoints(skel, sources, t) + offset
+
+
+def _seat_candidates(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, directions: Directions,
+                     twists: dict):
+    """The seated pose of :func:`_seat` with the thighs splayed more and more: yields (bone
+    transforms (J, 4, 4), points (N, 3), the offset (3,) added to the skinned points, the
+    knees' clearance to the seat in front (m, negative = past it), the deepest vertex inside
+    an armrest (m, 0 = none))."""
+    from usdscene.assetgen.cabin import armrest_depth_m, backrest_clearance_m
 
     bones = _dominant_bones(weights, skel.names)
     # What rests on the cushion: buttocks, thighs and the back of the knees (LBS folds the
@@ -397,7 +450,6 @@ def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dic
     legs = np.array([b.startswith(("thigh", "calf")) for b in bones])
     shins = np.array([b.startswith(("calf", "foot", "ball")) for b in bones])
     hip_y = skel.heads[skel.index("thigh_l")][1]
-    best = None
     for splay, pitch in ((0.0, 0.05), (0.12, 0.0), (0.22, -0.06), (0.32, -0.12), (0.42, -0.18)):
         d0 = dict(directions)
         for side, sign in (("l", 1.0), ("r", -1.0)):
@@ -438,13 +490,9 @@ def _seat(skel: bm.Skeleton, rest: np.ndarray, weights: np.ndarray, sources: dic
             over = moved[seat_part & (np.abs(moved[:, 1]) < 0.21)]
             offset[2] -= over[:, 2].min()
         pts = pts + offset
-        knees = backrest_clearance_m(_asset_to_seat(pts[legs]), pitch_rows=1.0).min()
-        best = (t, pts, offset)
-        if knees >= SEAT_CLEARANCE_M:
-            break
-    t, pts, offset = best
-    keypoints = _posed_keypoints(skel, sources, t) + offset
-    return pts, keypoints
+        seat = _asset_to_seat(pts)
+        yield (t, pts, offset, float(backrest_clearance_m(seat[legs], pitch_rows=1.0).min()),
+               float(armrest_depth_m(seat).max()))
 
 
 # --- USD ------------------------------------------------------------------------------------
@@ -596,6 +644,9 @@ LAP_CELL_M = 0.01
 LAP_MARGIN_M = 0.015
 """Vertices block the grid cells this close (the low-poly mesh has a vertex every 2-4 cm)."""
 LAP_MAX_CLEARANCE_M = 0.25
+LAP_MIN_WIDTH_M = 0.30
+"""A lap spans both thighs: boxes at least this wide across them come first (with the knees
+together the largest box is often a narrow strip along them, where a laptop no longer fits)."""
 LAP_SAG_M = 0.05
 """The lap reaches forward to the last thigh point this close below the crest (the knees):
 rigid things lie on the crest, whatever the thighs do below it."""
@@ -608,7 +659,8 @@ _LAP_IGNORED = ("thigh", "calf", "foot", "ball")
 
 def lap_region(points: np.ndarray, bones: np.ndarray):
     """The lap of one seated body: the largest box resting on the thighs' crest that no other
-    body part (hands, forearms, belly) reaches into.
+    body part (hands, forearms, belly) reaches into, among those :data:`LAP_MIN_WIDTH_M` across
+    the thighs or more when there is one.
 
     Args:
         points: (N, 3) posed vertices, asset frame (facing -Y), metres.
@@ -645,7 +697,8 @@ def lap_region(points: np.ndarray, bones: np.ndarray):
             continue
         cells = free[max(i0, 0):i1 + 1, max(j0, 0):j1 + 1]
         np.minimum(cells, p[2] - surface, out=cells)
-    best = None  # (area cells, clearance, i0, i1, j0, j1)
+    best = None  # (wide enough, area cells, clearance, i0, i1, j0, j1)
+    wide_cells = int(round(LAP_MIN_WIDTH_M / LAP_CELL_M))
     for j0 in range(ny):
         column = np.full(nx, np.inf)
         for j1 in range(j0, ny):
@@ -659,14 +712,13 @@ def lap_region(points: np.ndarray, bones: np.ndarray):
                 k = i
                 while k < nx and ok[k]:
                     k += 1
-                area = (k - i) * (j1 - j0 + 1)
-                clearance = float(column[i:k].min())
-                if best is None or (area, clearance) > best[:2]:
-                    best = (area, clearance, i, k, j0, j1 + 1)
+                rank = (j1 - j0 + 1 >= wide_cells, (k - i) * (j1 - j0 + 1), float(column[i:k].min()))
+                if best is None or rank > best[:3]:
+                    best = (*rank, i, k, j0, j1 + 1)
                 i = k
     if best is None:
         return None
-    _, clearance, i0, i1, j0, j1 = best
+    _, _, clearance, i0, i1, j0, j1 = best
     cx, cy = x0 + (i0 + i1) / 2.0 * LAP_CELL_M, y0 + (j0 + j1) / 2.0 * LAP_CELL_M
     length, width = (i1 - i0) * LAP_CELL_M, (j1 - j0) * LAP_CELL_M
     # The thighs' highest point may lie outside the footprint (by the hips): what holds an
