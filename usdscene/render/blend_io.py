@@ -47,11 +47,8 @@ def write_blend(stage_path: str | Path, blend_path: str | Path) -> Path:
 
     Raises:
         RenderError: the stage is unusable or Blender failed.
-        DocumentError: the stage's usdscene data is malformed (from ``scene_from_stage``).
         OutputError: ``blend_path`` cannot be written (a folder, its parent is a file...).
     """
-    from usdscene.converters.openlabel import write_openlabel
-    from usdscene.converters.usd_stage import scene_from_stage
     from usdscene.files import prepare_output_file
     from usdscene.render.driver import camera_jobs, resolve_settings, run_job
     from usdscene.render.stage_reader import read_stage_plan
@@ -75,11 +72,25 @@ def write_blend(stage_path: str | Path, blend_path: str | Path) -> Path:
         "cameras": camera_jobs(plan, [c.name for c in plan.cameras], frames),
         "frame_start": plan.frame_start,
         "frame_end": plan.frame_end,
-        # What the stage route (export-openlabel STAGE) gives back, compact: the .blend keeps it.
-        "document": json.dumps(write_openlabel(scene_from_stage(plan.stage_path)), separators=(",", ":")),
+        "document": _stage_document(plan.stage_path),
     }
     run_job(job, str(blend_path))
     return Path(blend_path)
+
+
+def _stage_document(stage_path: Path) -> str | None:
+    """What the stage route (``export-openlabel STAGE``) gives back, as compact JSON text for
+    the .blend to keep; None (and a warning) for a stage that route cannot read: the project
+    still serves camera design, and reads back as Blender exports it."""
+    from usdscene.converters.openlabel import write_openlabel
+    from usdscene.converters.usd_stage import scene_from_stage
+
+    try:
+        return json.dumps(write_openlabel(scene_from_stage(stage_path)), separators=(",", ":"))
+    except DocumentError as exc:
+        log.warning("%s: the .blend will not carry the scene's document (places, relations, ROI rules, "
+                    "carried content): %s", stage_path, exc)
+        return None
 
 
 def scene_from_blend(path: str | Path) -> SceneSpec:
