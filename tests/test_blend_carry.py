@@ -114,3 +114,25 @@ def test_blend_without_or_with_a_broken_carried_document(routes, tmp_path):
     broken = _edit(blend, tmp_path / "broken.blend", 'bpy.context.scene["usdscene_document"] = "{oops"')
     with pytest.raises(DocumentError, match="usdscene_document"):
         scene_from_blend(broken)
+
+
+def test_deleting_an_object_in_blender_drops_its_relations_and_renaming_keeps_its_content(routes, tmp_path):
+    from usdscene.converters.openlabel import read_openlabel
+    from usdscene.render.blend_io import scene_from_blend
+
+    _, stage_doc, blend = routes
+    edited = _edit(blend, tmp_path / "edited.blend", """
+        roots = [ob for ob in bpy.data.objects if ob.get("usdscene_uid") in ("3", "5")]
+        for ob in roots:
+            if ob["usdscene_uid"] == "5":
+                ob.name = "renamed_passenger"
+            else:
+                for member in (ob, *ob.children_recursive):
+                    bpy.data.objects.remove(member, do_unlink=True)
+    """)
+    want = {o.uid: o for o in read_openlabel(stage_doc).objects}
+    got = scene_from_blend(edited)
+    assert sorted(o.uid for o in got.objects) == ["4", "5"]
+    assert got.relations == ()  # "backpack is_below seat" named the deleted backpack
+    assert got.places == read_openlabel(stage_doc).places
+    assert {o.uid: o for o in got.objects}["5"] == want["5"]  # appearance, pose variant, name kept
