@@ -140,7 +140,9 @@ def scene_from_blend(path: str | Path) -> SceneSpec:
     scene = dataclasses.replace(scene, cameras=cameras, objects=objects, provenance=provenance)
     if carried is None:
         return scene
-    origins = [str(cam.get("custom", {}).get(ss.BLEND_CAMERA_NAME, name)) for name, cam in sorted(info["cameras"].items())]
+    # A camera's name in the carried document (its Blender name for one written before).
+    origins = [str(cam.get("custom", {}).get(ss.BLEND_CAMERA_NAME, name))
+               for name, cam in sorted(info["cameras"].items())]
     return _join(carried, scene, origins)
 
 
