@@ -160,6 +160,15 @@ LAYER_DATA_KEY = "usdscene"
 # in their entries of ``placesJson`` and ``relationsJson`` as ``"extra"``.
 LAYER_EXTRA = "extraJson"
 
+# Custom properties of a Blender project written by ``usdscene blend``
+# (usdscene.render.blend_io), for what Blender's USD exporter cannot carry (it writes neither
+# customData nor customLayerData). On the Blender scene: the OpenLABEL document (compact JSON)
+# of the scene the composed stage gives back, read back and joined with the project's cameras,
+# lights and objects by ``usdscene export-openlabel scene.blend``. On each camera object: the
+# camera's name in that document, so that a camera renamed in Blender keeps its content.
+BLEND_DOCUMENT = "usdscene_document"
+BLEND_CAMERA_NAME = "usdscene_name"
+
 _PRIM_NAME_BAD = re.compile(r"[^A-Za-z0-9_]")
 
 

@@ -725,7 +725,9 @@ def write_display_outputs(out_dir: Path, camera: str, frame: int, image, ids, *,
 def build_blend(job: dict) -> None:
     """Write a Blender project of the whole stage: every object (presence keyframed per frame,
     pass index = mask id), one Blender camera per stage camera (pose keyframed when it moves,
-    exact intrinsics kept as custom properties), render settings as for rendering."""
+    exact intrinsics kept as custom properties), render settings as for rendering; the scene's
+    document (``job["document"]``) as a custom property of the Blender scene."""
+    from usdscene.document import stage_schema as ss
     from usdscene.render.job import intrinsics_from_json, usd_camera_matrix
 
     job = dict(job, pairs=[])
@@ -735,6 +737,8 @@ def build_blend(job: dict) -> None:
     bpy.data.objects.remove(session.camera, do_unlink=True)
     frames = range(int(job["frame_start"]), int(job["frame_end"]) + 1)
     scene.frame_start, scene.frame_end = frames[0], frames[-1]
+    if job.get("document"):
+        scene[ss.BLEND_DOCUMENT] = job["document"]
     for o in job["objects"]:
         members = session.objects.get(o["uid"], [])
         poses = session.poses.get(o["uid"])
@@ -759,6 +763,7 @@ def build_blend(job: dict) -> None:
         render = intrinsics_from_json(cam_job["render_intrinsics"])
         apply_intrinsics(scene, data, render)
         data.clip_start, data.clip_end = cam_job["clip_m"]
+        ob[ss.BLEND_CAMERA_NAME] = name
         ob["usdscene_lens"] = json.dumps(cam_job["intrinsics"])
         ob["usdscene_render_lens"] = json.dumps(cam_job["render_intrinsics"])
         ob["usdscene_blender_lens"] = json.dumps(camera_data_json(data))
@@ -819,7 +824,11 @@ def export_blend_usd(job: dict) -> None:
 
 def inspect_blend(job: dict) -> None:
     """Export a .blend to USD and dump its cameras (pose per frame, lens data, custom
-    properties) as JSON: Blender's USD exporter writes only perspective cameras."""
+    properties), the presence and matrices of its usdscene objects and the scene's document
+    (custom property ``stage_schema.BLEND_DOCUMENT``, null when absent) as JSON: Blender's USD
+    exporter writes only perspective cameras, and no customData or customLayerData."""
+    from usdscene.document import stage_schema as ss
+
     bpy = _import_bpy()
     bpy.ops.wm.open_mainfile(filepath=job["blend"])
     scene = bpy.context.scene
@@ -828,6 +837,7 @@ def inspect_blend(job: dict) -> None:
                                    root_prim_path="", convert_orientation=False, check_existing=False)
     if "FINISHED" not in result:
         raise RuntimeError(f"USD export of {job['blend']} failed: {result}")
+    document = scene.get(ss.BLEND_DOCUMENT)
     frames = range(scene.frame_start, scene.frame_end + 1)
     cameras = {ob.name: {"data": camera_data_json(ob.data), "poses": {},
                          "custom": {k: ob[k] for k in ob.keys() if k.startswith("usdscene_")},
@@ -860,7 +870,9 @@ def inspect_blend(job: dict) -> None:
         "object_matrices": matrices,
         "frame_start": scene.frame_start, "frame_end": scene.frame_end,
         "resolution_px": [scene.render.resolution_x, scene.render.resolution_y],
-        "cameras": cameras}))
+        "cameras": cameras,
+        # Text as saved; anything else (a user's group property) reads back as malformed.
+        "document": None if document is None else str(document)}))
     _emit({"event": "inspected"})
 
 
