@@ -94,8 +94,8 @@ def test_vehicles_stay_upright_on_the_ground_and_park_in_their_bay(setup, genera
         last = np.flatnonzero(track.present)[-1]
         if last == len(track.present) - 1 and np.allclose(track.position[-1], track.position[-2]):
             assert np.allclose(track.position[-1, :2], bay.centre[:2], atol=1e-6)
-            forward = np.array([math.cos(track.yaw[-1]), math.sin(track.yaw[-1])])
-            assert abs(forward @ bay.axes[:, 1]) == pytest.approx(1.0, abs=1e-6)  # along the bay
+            front = np.array([math.sin(track.yaw[-1]), -math.cos(track.yaw[-1])])  # the asset's -Y
+            assert abs(front @ bay.axes[:, 1]) == pytest.approx(1.0, abs=1e-6)  # along the bay
     leaving = [t for t in generated.tracks if t.kind == "leaving"]
     for track in leaving:  # parked in its bay at frame 0
         assert np.allclose(track.position[0, :2], areas[track.route[0]].centre[:2])
@@ -218,30 +218,52 @@ def test_cli_writes_nothing_on_error(tmp_path, capsys):
     assert main(["generate", "tracks", "--setup", "x.json", "-o", str(out), "--fps", "-1"]) == 2
 
 
-def test_walkers_face_where_they_walk(setup, generated):
-    """People face -Y whatever their footprint (the person is wider across the shoulders than
-    deep, which the vehicles' long-axis rule would take for a front along X): the rotated -Y
-    axis points along the walked direction; vehicles drive along their long (x) axis."""
+def test_movers_face_where_they_go(setup, generated):
+    """Every mover's front is its asset's -Y (the catalog's contract, whatever its footprint):
+    the rotated -Y axis points along the walked or driven direction, and against it while a
+    leaving vehicle backs out of its bay. The person is wider across the shoulders than deep
+    and the car park's vehicle, added with ``--forward-axis +X``, longer along y."""
     scene, catalog = setup
     size = np.subtract(catalog["person"].extent_max_m, catalog["person"].extent_min_m)
-    assert size[0] > 1.5 * size[1]  # the case the footprint rule got wrong
+    assert size[0] > 1.5 * size[1]
+    size = np.subtract(catalog["vehicle"].extent_max_m, catalog["vehicle"].extent_min_m)
+    assert catalog["vehicle"].forward_axis == "+X" and size[1] > 1.5 * size[0]
     seen = set()
     for t in generated.tracks:
-        if t.kind not in ("walking", "arriving", "leaving"):
+        if t.kind == "standing":
             continue
         idx = np.flatnonzero(t.present)
         step = np.diff(t.position[idx, :2], axis=0)
         moving = np.linalg.norm(step, axis=1) > 1e-6
         direction = step[moving] / np.linalg.norm(step[moving], axis=1)[:, None]
         yaw = t.yaw[idx[1:]][moving]
-        if t.kind == "walking":
-            front = np.stack([np.sin(yaw), -np.cos(yaw)], axis=1)  # the asset's -Y turned by the yaw
-            assert np.median(np.sum(front * direction, axis=1)) > 0.95, t.class_name
+        front = np.stack([np.sin(yaw), -np.cos(yaw)], axis=1)  # the asset's -Y turned by the yaw
+        along = np.sum(front * direction, axis=1)
+        if t.kind == "leaving":
+            assert along[0] < -0.95 and along[-1] > 0.95  # backs out, then drives off nose first
+            assert np.median(np.abs(along)) > 0.95
         else:
-            along = np.abs(np.sum(np.stack([np.cos(yaw), np.sin(yaw)], axis=1) * direction, axis=1))
-            assert np.median(along) > 0.95, t.class_name  # forward or reversing, along the long axis
-        seen.add((t.kind, t.class_name))
-    assert ("walking", "person") in seen and any(k != "walking" for k, _ in seen)
+            assert np.median(along) > 0.95, (t.kind, t.class_name)
+        seen.add(t.kind)
+    assert seen == {"walking", "arriving", "leaving"}
+
+
+def test_a_vehicle_class_longer_across_than_along_is_warned_about(setup, caplog):
+    """A vehicle whose front was never turned to -Y (added without ``--forward-axis``, long
+    along x) follows the contract, so it would drive sideways: the generator says so."""
+    scene, catalog = setup
+    entry = catalog["vehicle"]
+    lo, hi = entry.extent_min_m, entry.extent_max_m
+    turned = dataclasses.replace(entry, extent_min_m=(lo[1], lo[0], lo[2]), extent_max_m=(hi[1], hi[0], hi[2]),
+                                 forward_axis="-Y")
+    catalog = dataclasses.replace(catalog, entries={**catalog.entries, "vehicle": turned})
+    with caplog.at_level("WARNING", logger="usdscene.dataset.motion"):
+        generate_tracks(scene, catalog, TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
+    assert "--forward-axis" in caplog.text and "'vehicle'" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="usdscene.dataset.motion"):
+        generate_tracks(scene, setup[1], TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
+    assert "--forward-axis" not in caplog.text
 
 
 def test_standing_people_take_an_idle_pose_of_their_class(setup):

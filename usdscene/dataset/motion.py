@@ -45,9 +45,14 @@ speed of 0.8-1.8 m/s locks, at 10 fps only walkers from 1.125 m/s do (the others
 slide about as far as they walk). A class without a walk cycle slides its whole distance (1.0). Composition selects one ``pose`` variant per object: the per-frame variant is in
 the document and the annotations, and a renderer that switches variants per frame follows it.
 
-**Facing.** People (the person classes) face -Y (the asset library's convention) whatever
-their footprint; a vehicle class whose footprint is longer along X than 1.5 times along Y is
-treated as facing +X (its long axis), any other as facing -Y.
+**Facing.** Every mover faces -Y, the catalog's contract: the shipped library is modelled so,
+and ``usdscene assets add --forward-axis`` turns an imported asset whose front faces another
+way to face it (recording ``forward_axis``). A walker's or vehicle's yaw is its heading plus a
+quarter turn (:data:`FRONT_YAW`), so the asset's -Y points where it goes. An entry without a
+recorded ``forward_axis`` was added saying its front already faces -Y, and is taken at its word;
+no guess from the mesh is made (a long axis tells no front from back). A vehicle class longer
+across (x) than along (y) by more than :data:`SIDEWAYS_RATIO` would drive sideways: the
+generator warns and names ``--forward-axis``.
 
 Every moving object gets per frame ``pose_matrix4x4`` (the time-sampled transform of the
 stage) and the vec ``ground_position_m`` ``[x, y, z]``: where it stands on the ground (the
@@ -104,6 +109,10 @@ REVERSE_RUN_M = 3.0
 WALK_TURN_RADIUS_M = 0.8
 VEHICLE_TURN_RADIUS_M = 3.0
 MAX_TRIES = 200
+FRONT_YAW = math.pi / 2.0
+"""Yaw (rad) added to a heading so that an asset's front (-Y, the catalog's contract) points along it."""
+SIDEWAYS_RATIO = 1.5
+"""A vehicle class longer across (x) than this times along (y) is warned about (see the module doc)."""
 MAX_PEOPLE = 10000
 MAX_VEHICLES = 10000
 
@@ -438,16 +447,13 @@ def vehicle_classes(catalog: Catalog) -> tuple[str, ...]:
                         if catalog[name].kind != "environment" and _has_word(name, VEHICLE_WORDS)))
 
 
-def _facing_offset(entry: AssetEntry, *, person: bool) -> float:
-    """Yaw (rad) to add to a heading to turn the asset's front along it (see the module doc).
-
-    People face -Y whatever their footprint: a person's shoulders (x) are wider than its
-    depth (y), so the footprint rule of vehicles would walk them sideways.
-    """
-    if person:
-        return math.pi / 2.0
+def _warn_sideways(name: str, entry: AssetEntry) -> None:
+    """Warn when a vehicle class looks turned: longer across its front (x) than along it (y)."""
     size = np.asarray(entry.extent_max_m) - np.asarray(entry.extent_min_m)
-    return 0.0 if size[0] > 1.5 * size[1] else math.pi / 2.0
+    if size[0] > SIDEWAYS_RATIO * size[1]:
+        log.warning("vehicle class %r is %.1f m across and %.1f m long (front towards -Y, forward_axis %s): it "
+                    "drives sideways; if its front faces +X or -X, add it again with usdscene assets add "
+                    "--forward-axis", name, size[0], size[1], entry.forward_axis)
 
 
 def _footprint(entry: AssetEntry, margin: float) -> tuple[np.ndarray, np.ndarray]:
@@ -677,8 +683,7 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
         offset, half = _footprint(entry, PERSON_MARGIN_M)
-        facing = _facing_offset(entry, person=True)
-        across = half[0] if facing else half[1]  # facing -Y: the asset's x is across the path
+        across = half[0]  # facing -Y: the asset's x is across the path
         for _ in range(MAX_TRIES):
             path = routes[int(rng.integers(len(routes)))]
             width = min(float(2 * areas[i].half.min()) for i in path if areas[i].role == "walk") \
@@ -695,7 +700,7 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
             if not present.any():
                 continue
             pos, heading = line.at(np.nan_to_num(s, nan=0.0))
-            track = Track("walking", cls, present, pos, heading + facing, np.where(present, s, 0.0), speed,
+            track = Track("walking", cls, present, pos, heading + FRONT_YAW, np.where(present, s, 0.0), speed,
                           route=tuple(areas[i].place for i in path), footprint=(offset, half),
                           stride_m=locked_stride(speed, fps, len(_walk_variants(entry))))
             if not _collides(track, [*accepted, *out]):
@@ -742,6 +747,8 @@ def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
 def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track]) -> list[Track]:
     if not options.vehicles:
         return []
+    for name in classes:
+        _warn_sideways(name, catalog[name])
     edges = _graph(areas, {"lane", "bay", "entrance"})
     bays = [i for i in edges if areas[i].role == "bay" and any(areas[j].role == "lane" for j in edges[i])]
     gates = [i for i in edges if areas[i].role == "entrance" and any(areas[j].role == "lane" for j in edges[i])]
@@ -759,15 +766,14 @@ def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
         offset, half = _footprint(entry, VEHICLE_MARGIN_M)
-        facing = _facing_offset(entry, person=False)
         for _ in range(MAX_TRIES):
             bay = free[int(rng.integers(len(free)))]
             path = reachable[bay][int(rng.integers(len(reachable[bay])))]
             speed = float(rng.uniform(*VEHICLE_SPEED_RANGE_M_S))
             if rng.random() < 0.5:
-                track = _arriving(areas, path, speed, facing, options, rng)
+                track = _arriving(areas, path, speed, options, rng)
             else:
-                track = _leaving(areas, path, speed, facing, options, rng)
+                track = _leaving(areas, path, speed, options, rng)
             if track is None:
                 continue
             track.class_name = cls
@@ -782,7 +788,7 @@ def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
     return out
 
 
-def _arriving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | None:
+def _arriving(areas, path, speed, options: TrackOptions, rng) -> Track | None:
     F, fps = options.frames, float(options.fps)
     line = _Polyline(_rounded(_route_points(areas, path), VEHICLE_TURN_RADIUS_M))
     duration_s = line.length / speed + speed / VEHICLE_DECEL_M_S2
@@ -792,11 +798,11 @@ def _arriving(areas, path, speed, facing, options: TrackOptions, rng) -> Track |
     present = np.isfinite(s)  # parked after arriving: stays
     s = np.minimum(np.nan_to_num(s, nan=0.0), line.length)
     pos, heading = line.at(s)
-    return Track("arriving", "", present, pos, heading + facing, np.zeros(F), speed,
+    return Track("arriving", "", present, pos, heading + FRONT_YAW, np.zeros(F), speed,
                  route=tuple(areas[i].place for i in path))
 
 
-def _leaving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | None:
+def _leaving(areas, path, speed, options: TrackOptions, rng) -> Track | None:
     """Parked nose-in at frame 0, backs out past the bay's lane spot, then drives out."""
     F, fps = options.frames, float(options.fps)
     out_path = path[::-1]  # bay, lane ..., entrance
@@ -822,7 +828,7 @@ def _leaving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | 
     # Backing out the nose points against the motion; the first reversing heading at rest.
     heading = np.where(moving_on, head2, head1 + math.pi)
     present = ~(moving_on & (s2 > forward.length))
-    return Track("leaving", "", present, pos, heading + facing, np.zeros(F), speed,
+    return Track("leaving", "", present, pos, heading + FRONT_YAW, np.zeros(F), speed,
                  route=tuple(areas[i].place for i in out_path))
 
 
