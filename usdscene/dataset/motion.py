@@ -553,23 +553,30 @@ class Obstacles:
                 columns; half: (2,) half sizes (m); ground_z: (N,) ground heights (m).
 
         The rectangle, shrunk by half a cube (a surface marks the whole cube it lies in), is
-        tested at points half a cube apart.
+        tested at points a cube apart (every cube inside it holds one); poses repeated to the
+        millimetre and milliradian (a parked car) are tested once.
         """
+        centre, axes = np.asarray(centre, dtype=np.float64), np.asarray(axes, dtype=np.float64)
+        ground_z = np.asarray(ground_z, dtype=np.float64)
+        key = np.round(np.concatenate([centre, axes[:, :, 0], ground_z[:, None]], axis=1) * 1000.0)
+        _, first, back = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        centre, axes, ground_z = centre[first], axes[first], ground_z[first]
         inner = np.maximum(np.asarray(half, dtype=np.float64) - self.cell_m / 2.0, 0.0)
-        n = np.ceil(4.0 * inner / self.cell_m).astype(np.int64) + 1
+        n = np.ceil(2.0 * inner / self.cell_m).astype(np.int64) + 1
         gx, gy = np.meshgrid(np.linspace(-inner[0], inner[0], n[0]), np.linspace(-inner[1], inner[1], n[1]),
                              indexing="ij")
-        local = np.stack([gx.ravel(), gy.ravel()], axis=1)  # (K, 2)
-        world = np.asarray(centre)[:, None, :] + np.einsum("nij,kj->nki", axes, local)  # (N, K, 2)
+        gx, gy = gx.ravel()[None, :, None], gy.ravel()[None, :, None]  # (1, K, 1)
+        world = centre[:, None, :] + gx * axes[:, None, :, 0] + gy * axes[:, None, :, 1]  # (N, K, 2)
         cell = np.floor((world - self.origin[:2]) / self.cell_m).astype(np.int64)
         nx, ny, levels = self.below.shape
         inside = (cell[..., 0] >= 0) & (cell[..., 0] < nx) & (cell[..., 1] >= 0) & (cell[..., 1] < ny)
-        ix, iy = np.where(inside, cell[..., 0], 0), np.where(inside, cell[..., 1], 0)
-        z = np.asarray(ground_z, dtype=np.float64) - self.origin[2]
+        column = np.where(inside, cell[..., 0] * ny + cell[..., 1], 0)  # (N, K)
+        z = ground_z - self.origin[2]
         k0 = np.clip(np.floor((z + STEP_HEIGHT_M) / self.cell_m), 0, levels - 1).astype(np.int64)[:, None]
         k1 = np.clip(np.ceil((z + height_m) / self.cell_m), 0, levels - 1).astype(np.int64)[:, None]
-        count = self.below[ix, iy, np.broadcast_to(k1, ix.shape)] - self.below[ix, iy, np.broadcast_to(k0, ix.shape)]
-        return np.any(inside & (count > 0), axis=1)
+        flat = self.below.reshape(-1)
+        count = flat[column * levels + k1] - flat[column * levels + k0]
+        return np.any(inside & (count > 0), axis=1)[np.ravel(back)]
 
 
 def _surface_points(triangles: np.ndarray, spacing: float, most: int = 2_000_000):
