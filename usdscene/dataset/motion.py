@@ -16,9 +16,9 @@ environment (and those the setup declares as cuboids) by the words of their name
 
 Routes run through the chain of touching places found by the shortest path between their
 centres; the points a route passes are the portals between consecutive places (the point of
-one box nearest the other), corners rounded into circular arcs (turning circles). The route stays on the
-support surface of its places (z interpolated between them): movers stay on the ground and
-upright (rotation about world Z only).
+one box nearest the other), corners rounded into circular arcs (turning circles). The route
+stays on the support surface of its places (z interpolated between them): movers stay on the
+ground and upright (rotation about world Z only).
 
 Walkers enter at one entrance, walk to another at a constant speed drawn from
 ``speed_range_m_s`` (0.8-1.8 m/s), offset sideways within the narrowest place of their route,
@@ -596,7 +596,8 @@ def _surface_points(triangles: np.ndarray, spacing: float, most: int = 2_000_000
         step = max(1, most // int(keep.sum()))
         for k in range(0, len(group), step):
             t = group[k:k + step]
-            yield (t[:, None, 0] + u * (t[:, None, 1] - t[:, None, 0]) + v * (t[:, None, 2] - t[:, None, 0])).reshape(-1, 3)
+            corner = t[:, None, 0]
+            yield (corner + u * (t[:, None, 1] - corner) + v * (t[:, None, 2] - corner)).reshape(-1, 3)
 
 
 def environment_obstacles(setup: SceneSpec, catalog: Catalog) -> Obstacles:
