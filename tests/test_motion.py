@@ -154,7 +154,8 @@ def test_walk_cycle_phase_follows_distance(setup):
     walking = dataclasses.replace(entry, variants={**entry.variants, "pose": (*cycle, "stand", "idle")},
                                   default_variants={**entry.default_variants, "pose": "stand"})
     catalog = dataclasses.replace(catalog, entries={**catalog.entries, "pedestrian": walking})
-    generated = generate_tracks(scene, catalog, TrackOptions(frames=60, fps=10, people=6, standing=2, seed=2))
+    generated = generate_tracks(scene, catalog, TrackOptions(frames=60, fps=10, people=6, standing=2, seed=2,
+                                                             person_classes=("pedestrian",)))
     doc = write_openlabel(generated.scene)["openlabel"]
     for track, obj in zip(generated.tracks, generated.scene.objects[-len(generated.tracks):]):
         if track.kind == "standing":
@@ -342,13 +343,14 @@ def _frames_in_obstacles(track, boxes, height_m: float, margin_m: float) -> list
 
 
 def test_movers_keep_out_of_the_pillars_and_walls(setup, obstacles):
-    """The moving example's sequence (seed 5) keeps every walker, standing person and vehicle out
+    """Sequences of the moving example's size keep every walker, standing person and vehicle out
     of the environment's pillars, walls and parapet at every frame; the same draws without the
-    obstacles walk people into them."""
+    obstacles walk people into them (seeds where they do: a pillar reaches 0.2 m into the
+    south footpath, so it takes a walker offset to that side passing it)."""
     scene, catalog = setup
     boxes = _obstacle_boxes(setup)
     assert len(boxes) == 11  # 8 pillars, 2 walls, the parapet
-    options = TrackOptions(frames=100, fps=5, people=12, standing=3, vehicles=4, seed=5, person_classes=("person",))
+    blind_obstacles = Obstacles.from_triangles(np.zeros((0, 3, 3)))
 
     def crossings(generated):
         out = []
@@ -358,9 +360,13 @@ def test_movers_keep_out_of_the_pillars_and_walls(setup, obstacles):
                 out.append((t.kind, t.route))
         return out
 
-    assert crossings(generate_tracks(scene, catalog, options, obstacles=obstacles)) == []
-    blind = generate_tracks(scene, catalog, options, obstacles=Obstacles.from_triangles(np.zeros((0, 3, 3))))
-    assert any(kind == "walking" for kind, _ in crossings(blind))
+    blind = []
+    for seed in (1, 5, 10):
+        options = TrackOptions(frames=100, fps=5, people=12, standing=3, vehicles=4, seed=seed,
+                               person_classes=("person",))
+        assert crossings(generate_tracks(scene, catalog, options, obstacles=obstacles)) == []
+        blind += crossings(generate_tracks(scene, catalog, options, obstacles=blind_obstacles))
+    assert any(kind == "walking" for kind, _ in blind)
 
 
 def test_a_route_only_through_an_obstacle_is_one_clear_error(setup):

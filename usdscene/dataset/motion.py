@@ -25,7 +25,8 @@ Walkers enter at one entrance, walk to another at a constant speed drawn from
 and leave. Standing people stand at random spots of the walk places for the whole sequence.
 Vehicles either arrive (enter at a vehicle entrance at cruise speed, drive along the lanes into
 a free bay nose first and stop there, braking at :data:`VEHICLE_DECEL_M_S2`) or leave (parked
-at frame 0, reverse out of the bay into the lane, then drive to an entrance); every vehicle
+at frame 0, reverse out of the bay into the lane, stop for :data:`SHIFT_PAUSE_S`, then drive
+to an entrance); every vehicle
 uses its own bay. No two movers overlap at any frame: each is its asset's footprint rectangle
 (plus :data:`PERSON_MARGIN_M` around people) and a candidate route that would touch an earlier
 one at some frame is drawn again (new times, speed, entrances, offset), up to
@@ -113,6 +114,8 @@ VEHICLE_DECEL_M_S2 = 1.5
 REVERSE_SPEED_M_S = 1.0
 REVERSE_RUN_M = 3.0
 """How far a leaving vehicle backs along the lane past the bay's lane spot."""
+SHIFT_PAUSE_S = 1.0
+"""A leaving vehicle's stop between backing out and driving off (shifting into drive), seconds."""
 WALK_TURN_RADIUS_M = 0.8
 VEHICLE_TURN_RADIUS_M = 3.0
 """Turning radius of a vehicle's origin (the middle of its footprint) in metres, where the
@@ -701,11 +704,10 @@ def _check_capacity(areas: Sequence[Area], routes_m: Sequence[float], options: T
 # Motion profiles
 
 
-def _timing(length: float, v_max: float, *, from_rest: bool, to_rest: bool, accel: float,
-            start_s: float, fps: float, frames: int) -> np.ndarray:
-    """Distance along a route (F,) at frames 0..F-1 for a mover that starts at time
-    ``start_s`` (seconds): cruise ``v_max``, accelerating from rest / braking to rest at
-    ``accel`` m/s² when asked. NaN before the start; ``length`` and beyond after the end."""
+def _profile(length: float, v_max: float, *, from_rest: bool, to_rest: bool,
+             accel: float) -> tuple[np.ndarray, np.ndarray]:
+    """Distances along a route (M,) every 2 cm and the seconds (M,) at which a mover reaches
+    them: cruise ``v_max``, accelerating from rest / braking to rest at ``accel`` m/s² when asked."""
     grid = np.linspace(0.0, length, max(int(length / 0.02), 2) + 1)
     v = np.full_like(grid, v_max)
     if to_rest:
@@ -714,7 +716,16 @@ def _timing(length: float, v_max: float, *, from_rest: bool, to_rest: bool, acce
         v = np.minimum(v, np.sqrt(2.0 * accel * grid))
     v = np.maximum(v, 0.05 * v_max)  # the ends: no division by zero
     dt = np.diff(grid) / ((v[:-1] + v[1:]) / 2.0)
-    t = start_s + np.concatenate([[0.0], np.cumsum(dt)])
+    return grid, np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _timing(length: float, v_max: float, *, from_rest: bool, to_rest: bool, accel: float,
+            start_s: float, fps: float, frames: int) -> np.ndarray:
+    """Distance along a route (F,) at frames 0..F-1 for a mover that starts at time
+    ``start_s`` (seconds) and moves as :func:`_profile` says. NaN before the start; ``length``
+    and beyond after the end."""
+    grid, t = _profile(length, v_max, from_rest=from_rest, to_rest=to_rest, accel=accel)
+    t = start_s + t
     times = np.arange(frames) / fps
     s = np.interp(times, t, grid)
     s[times < t[0]] = np.nan
@@ -817,9 +828,12 @@ def generate_tracks(setup: SceneSpec, catalog: Catalog, options: TrackOptions, *
     return GeneratedTracks(scene=scene, tracks=tuple(tracks), report=report)
 
 
-def _draw_look(entry: AssetEntry, rng: np.random.Generator) -> str | None:
+def _draw_look(entry: AssetEntry, rng: np.random.Generator) -> tuple[str | None, AssetEntry]:
+    """One appearance of the class (None when it has none) and the entry with that variant's
+    extent: a van's footprint is longer than the class's default sedan's."""
     looks = entry.appearances
-    return looks[int(rng.integers(len(looks)))] if looks else None
+    look = looks[int(rng.integers(len(looks)))] if looks else None
+    return look, entry.for_variants({"appearance": look}) if look else entry
 
 
 def _full_fail(flag: str, placed: int, wanted: int, what: str, blocked: int = 0) -> DocumentError:
@@ -863,7 +877,8 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
     for k in range(options.people):
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        offset, half = _footprint(entry, PERSON_MARGIN_M)
+        look, sized = _draw_look(entry, rng)
+        offset, half = _footprint(sized, PERSON_MARGIN_M)
         across = half[0]  # facing -Y: the asset's x is across the path
         height, blocked = _mover_height(entry), 0
         for _ in range(MAX_TRIES):
@@ -889,7 +904,7 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
                 blocked += 1
                 continue
             if not _collides(track, [*accepted, *out]):
-                track.appearance = _draw_look(entry, rng)
+                track.appearance = look
                 cycle = _walk_variants(entry)
                 track.pose_variant = cycle[0] if cycle else None
                 out.append(track)
@@ -909,7 +924,8 @@ def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
     for k in range(options.standing):
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        offset, half = _footprint(entry, PERSON_MARGIN_M)
+        look, sized = _draw_look(entry, rng)
+        offset, half = _footprint(sized, PERSON_MARGIN_M)
         height, blocked = _mover_height(entry), 0
         for _ in range(MAX_TRIES):
             area = walk[int(rng.integers(len(walk)))]
@@ -924,7 +940,7 @@ def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
                 blocked += 1
                 continue
             if not _collides(track, [*accepted, *out]):
-                track.appearance = _draw_look(entry, rng)
+                track.appearance = look
                 idle = [v for v in entry.variants.get("pose", ()) if v.startswith(IDLE_VARIANTS)]
                 track.pose_variant = idle[int(rng.integers(len(idle)))] if idle else None
                 out.append(track)
@@ -956,7 +972,8 @@ def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
     for k in range(options.vehicles):
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        offset, half = _footprint(entry, VEHICLE_MARGIN_M)
+        look, sized = _draw_look(entry, rng)
+        offset, half = _footprint(sized, VEHICLE_MARGIN_M)
         height, blocked = _mover_height(entry), 0
         for _ in range(MAX_TRIES):
             bay = free[int(rng.integers(len(free)))]
@@ -974,7 +991,7 @@ def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
                 blocked += 1
                 continue
             if not _collides(track, [*accepted, *out]):
-                track.appearance = _draw_look(entry, rng)
+                track.appearance = look
                 out.append(track)
                 free.remove(bay)
                 break
@@ -1013,7 +1030,9 @@ def _leaving(areas, path, speed, options: TrackOptions, rng) -> Track | None:
     depart_s = float(rng.uniform(0.0, max(F / fps * 0.8, 0.0)))
     s1 = _timing(reverse.length, REVERSE_SPEED_M_S, from_rest=True, to_rest=True, accel=VEHICLE_DECEL_M_S2,
                  start_s=depart_s, fps=fps, frames=F)
-    t1 = depart_s + 2.0 * reverse.length / REVERSE_SPEED_M_S  # generous: a pause after backing out
+    reversing_s = _profile(reverse.length, REVERSE_SPEED_M_S, from_rest=True, to_rest=True,
+                           accel=VEHICLE_DECEL_M_S2)[1][-1]
+    t1 = depart_s + reversing_s + SHIFT_PAUSE_S
     s2 = _timing(forward.length, speed, from_rest=True, to_rest=False, accel=VEHICLE_DECEL_M_S2, start_s=t1,
                  fps=fps, frames=F)
     pos1, head1 = reverse.at(np.minimum(np.nan_to_num(s1, nan=0.0), reverse.length))
