@@ -71,7 +71,8 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
         del objects[sun]
     else:
         # A car on the driving lane, 1.5 m further each frame (27 km/h at 5 frames per second):
-        # with the shutter open for a whole frame it is blurred, the parked ones are not.
+        # with the shutter open for a whole frame it is blurred, the parked ones are not. Its
+        # front faces -Y (the catalog's contract): a quarter turn drives it along +X.
         uid = str(max(int(k) for k in objects) + 1)
         objects[uid] = {"name": "moving_car", "type": "vehicle", "object_data": {
             "text": [{"name": "appearance", "val": "sedan-red"}]}}
@@ -79,7 +80,7 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
             body["frames"] = body.get("frames", {})
             body["frames"].setdefault(str(frame), {}).setdefault("objects", {})[uid] = {"object_data": {
                 "vec": [{"name": "position_m", "val": [3.0 + 1.5 * frame, 0.3, 0.0]},
-                        {"name": "rotation_xyz_deg", "val": [0.0, 0.0, 0.0]}]}}
+                        {"name": "rotation_xyz_deg", "val": [0.0, 0.0, 90.0]}]}}
     return doc
 
 

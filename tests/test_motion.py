@@ -14,9 +14,9 @@ from usdscene.scene.catalog import load_catalog
 from usdscene.converters.openlabel import read_openlabel, write_openlabel
 from usdscene.errors import DocumentError
 from usdscene.document.model import DeclaredRegion, PlaceRef, Pose
-from usdscene.dataset.motion import (STRIDE_M, TrackOptions, foot_sliding, generate_tracks, ground_areas,
-                                     locked_stride,
-                             overlapping_frames, walk_phases)
+from usdscene.dataset.motion import (OBSTACLE_CELL_M, PERSON_MARGIN_M, STEP_HEIGHT_M, VEHICLE_MARGIN_M, Obstacles,
+                                     STRIDE_M, TrackOptions, environment_obstacles, foot_sliding, generate_tracks,
+                                     ground_areas, locked_stride, overlapping_frames, walk_phases)
 
 CAR_PARK = Path(__file__).resolve().parents[1] / "examples" / "car_park"
 
@@ -28,17 +28,23 @@ def setup():
 
 
 @pytest.fixture(scope="module")
-def generated(setup):
+def obstacles(setup):
+    return environment_obstacles(*setup)
+
+
+@pytest.fixture(scope="module")
+def generated(setup, obstacles):
     scene, catalog = setup
-    return generate_tracks(scene, catalog, TrackOptions(frames=120, fps=5, people=12, standing=3, vehicles=4, seed=7))
+    return generate_tracks(scene, catalog, TrackOptions(frames=120, fps=5, people=12, standing=3, vehicles=4, seed=7),
+                           obstacles=obstacles)
 
 
-def test_same_seed_same_document_other_seed_other(setup, generated):
+def test_same_seed_same_document_other_seed_other(setup, generated, obstacles):
     scene, catalog = setup
     options = TrackOptions(frames=120, fps=5, people=12, standing=3, vehicles=4, seed=7)
-    again = generate_tracks(scene, catalog, options)
+    again = generate_tracks(scene, catalog, options)  # its own obstacles, from the setup
     assert write_openlabel(again.scene) == write_openlabel(generated.scene)
-    other = generate_tracks(scene, catalog, dataclasses.replace(options, seed=8))
+    other = generate_tracks(scene, catalog, dataclasses.replace(options, seed=8), obstacles=obstacles)
     assert write_openlabel(other.scene) != write_openlabel(generated.scene)
 
 
@@ -94,11 +100,28 @@ def test_vehicles_stay_upright_on_the_ground_and_park_in_their_bay(setup, genera
         last = np.flatnonzero(track.present)[-1]
         if last == len(track.present) - 1 and np.allclose(track.position[-1], track.position[-2]):
             assert np.allclose(track.position[-1, :2], bay.centre[:2], atol=1e-6)
-            forward = np.array([math.cos(track.yaw[-1]), math.sin(track.yaw[-1])])
-            assert abs(forward @ bay.axes[:, 1]) == pytest.approx(1.0, abs=1e-6)  # along the bay
+            front = np.array([math.sin(track.yaw[-1]), -math.cos(track.yaw[-1])])  # the asset's -Y
+            inwards = bay.centre[:2] - areas[track.route[-2]].centre[:2]  # from its lane spot
+            assert front @ inwards / np.linalg.norm(inwards) == pytest.approx(1.0, abs=1e-6)  # nose first
     leaving = [t for t in generated.tracks if t.kind == "leaving"]
-    for track in leaving:  # parked in its bay at frame 0
-        assert np.allclose(track.position[0, :2], areas[track.route[0]].centre[:2])
+    assert leaving
+    for track in leaving:  # parked nose first in its bay at frame 0
+        bay = areas[track.route[0]]
+        assert np.allclose(track.position[0, :2], bay.centre[:2])
+        front = np.array([math.sin(track.yaw[0]), -math.cos(track.yaw[0])])
+        inwards = bay.centre[:2] - areas[track.route[1]].centre[:2]
+        assert front @ inwards / np.linalg.norm(inwards) == pytest.approx(1.0, abs=1e-6)
+    # Backed out into the lane, a leaving vehicle waits along it, not across it.
+    waited = 0
+    for track in leaving:
+        lane = areas[track.route[1]]
+        idx = np.flatnonzero(track.present)
+        still = idx[1:][np.all(track.position[idx[1:]] == track.position[idx[:-1]], axis=1)]
+        for f in still[np.linalg.norm(track.position[still, :2] - areas[track.route[0]].centre[:2], axis=1) > 1.0]:
+            front = np.array([math.sin(track.yaw[f]), -math.cos(track.yaw[f])])
+            assert abs(front @ lane.axes[:, int(np.argmax(lane.half))]) == pytest.approx(1.0, abs=0.01)
+            waited += 1
+    assert waited
 
 
 def test_document_has_fps_ground_positions_and_round_trips(generated):
@@ -131,7 +154,8 @@ def test_walk_cycle_phase_follows_distance(setup):
     walking = dataclasses.replace(entry, variants={**entry.variants, "pose": (*cycle, "stand", "idle")},
                                   default_variants={**entry.default_variants, "pose": "stand"})
     catalog = dataclasses.replace(catalog, entries={**catalog.entries, "pedestrian": walking})
-    generated = generate_tracks(scene, catalog, TrackOptions(frames=60, fps=10, people=6, standing=2, seed=2))
+    generated = generate_tracks(scene, catalog, TrackOptions(frames=60, fps=10, people=6, standing=2, seed=2,
+                                                             person_classes=("pedestrian",)))
     doc = write_openlabel(generated.scene)["openlabel"]
     for track, obj in zip(generated.tracks, generated.scene.objects[-len(generated.tracks):]):
         if track.kind == "standing":
@@ -161,7 +185,7 @@ def test_cabin_walker_walks_the_aisle():
         np.eye(3), [-0.05, 0.0, 0.0]), (0.5, 0.8, 2.0)),))
     setup = dataclasses.replace(cabin, objects=(), relations=(), places=(door,))
     generated = generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=1, seed=0,
-                                                             person_classes=("pedestrian",)))
+                                                             person_classes=("person",)))
     track = generated.tracks[0]
     assert track.route[0] == "entrance_front" and any(p.startswith("aisle_") for p in track.route)
     idx = np.flatnonzero(track.present)
@@ -170,7 +194,7 @@ def test_cabin_walker_walks_the_aisle():
     # Nobody passes anybody in a 0.44 m aisle: a walker fits only where it never meets the others
     # (one following another the same way, 0.32 m deep along the aisle, may), so 8 never fit.
     with pytest.raises(DocumentError, match=r"--people: only [12] of 8 walkers fit"):
-        generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=8, seed=0, person_classes=("pedestrian",)))
+        generate_tracks(setup, catalog, TrackOptions(frames=40, fps=5, people=8, seed=0, person_classes=("person",)))
 
 
 def test_every_walking_speed_locks_at_5_fps_with_8_poses():
@@ -218,30 +242,52 @@ def test_cli_writes_nothing_on_error(tmp_path, capsys):
     assert main(["generate", "tracks", "--setup", "x.json", "-o", str(out), "--fps", "-1"]) == 2
 
 
-def test_walkers_face_where_they_walk(setup, generated):
-    """People face -Y whatever their footprint (the person is wider across the shoulders than
-    deep, which the vehicles' long-axis rule would take for a front along X): the rotated -Y
-    axis points along the walked direction; vehicles drive along their long (x) axis."""
+def test_movers_face_where_they_go(setup, generated):
+    """Every mover's front is its asset's -Y (the catalog's contract, whatever its footprint):
+    the rotated -Y axis points along the walked or driven direction, and against it while a
+    leaving vehicle backs out of its bay. The person is wider across the shoulders than deep
+    and the car park's vehicle, added with ``--forward-axis +X``, longer along y."""
     scene, catalog = setup
     size = np.subtract(catalog["person"].extent_max_m, catalog["person"].extent_min_m)
-    assert size[0] > 1.5 * size[1]  # the case the footprint rule got wrong
+    assert size[0] > 1.5 * size[1]
+    size = np.subtract(catalog["vehicle"].extent_max_m, catalog["vehicle"].extent_min_m)
+    assert catalog["vehicle"].forward_axis == "+X" and size[1] > 1.5 * size[0]
     seen = set()
     for t in generated.tracks:
-        if t.kind not in ("walking", "arriving", "leaving"):
+        if t.kind == "standing":
             continue
         idx = np.flatnonzero(t.present)
         step = np.diff(t.position[idx, :2], axis=0)
         moving = np.linalg.norm(step, axis=1) > 1e-6
         direction = step[moving] / np.linalg.norm(step[moving], axis=1)[:, None]
         yaw = t.yaw[idx[1:]][moving]
-        if t.kind == "walking":
-            front = np.stack([np.sin(yaw), -np.cos(yaw)], axis=1)  # the asset's -Y turned by the yaw
-            assert np.median(np.sum(front * direction, axis=1)) > 0.95, t.class_name
+        front = np.stack([np.sin(yaw), -np.cos(yaw)], axis=1)  # the asset's -Y turned by the yaw
+        along = np.sum(front * direction, axis=1)
+        if t.kind == "leaving":
+            assert along[0] < -0.95 and along[-1] > 0.95  # backs out, then drives off nose first
+            assert np.median(np.abs(along)) > 0.95
         else:
-            along = np.abs(np.sum(np.stack([np.cos(yaw), np.sin(yaw)], axis=1) * direction, axis=1))
-            assert np.median(along) > 0.95, t.class_name  # forward or reversing, along the long axis
-        seen.add((t.kind, t.class_name))
-    assert ("walking", "person") in seen and any(k != "walking" for k, _ in seen)
+            assert np.median(along) > 0.95, (t.kind, t.class_name)
+        seen.add(t.kind)
+    assert seen == {"walking", "arriving", "leaving"}
+
+
+def test_a_vehicle_class_longer_across_than_along_is_warned_about(setup, caplog):
+    """A vehicle whose front was never turned to -Y (added without ``--forward-axis``, long
+    along x) follows the contract, so it would drive sideways: the generator says so."""
+    scene, catalog = setup
+    entry = catalog["vehicle"]
+    lo, hi = entry.extent_min_m, entry.extent_max_m
+    turned = dataclasses.replace(entry, extent_min_m=(lo[1], lo[0], lo[2]), extent_max_m=(hi[1], hi[0], hi[2]),
+                                 forward_axis="-Y")
+    catalog = dataclasses.replace(catalog, entries={**catalog.entries, "vehicle": turned})
+    with caplog.at_level("WARNING", logger="usdscene.dataset.motion"):
+        generate_tracks(scene, catalog, TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
+    assert "--forward-axis" in caplog.text and "'vehicle'" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="usdscene.dataset.motion"):
+        generate_tracks(scene, setup[1], TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
+    assert "--forward-axis" not in caplog.text
 
 
 def test_standing_people_take_an_idle_pose_of_their_class(setup):
@@ -251,3 +297,101 @@ def test_standing_people_take_an_idle_pose_of_their_class(setup):
     poses = {t.pose_variant for t in generated.tracks}
     assert poses <= {"standing", "idle", "phone"} and len(poses) >= 2
     assert set(catalog["person"].variants["pose"]) >= poses
+
+
+def _obstacle_boxes(setup) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The car park's pillars, walls and parapet, each a box (lo (3,), hi (3,)): the connected
+    parts of the environment's triangles that reach above the kerbs and start below the roof."""
+    import tempfile
+
+    import trimesh
+
+    from usdscene.scene.compose import compose_stage
+    from usdscene.scene.stage_geometry import environment_triangles
+
+    scene, catalog = setup
+    with tempfile.TemporaryDirectory() as folder:
+        compose_stage(dataclasses.replace(scene, objects=(), relations=(), places=(), lights=()), catalog, folder)
+        triangles = environment_triangles(Path(folder) / "scene.usda")
+    mesh = trimesh.Trimesh(vertices=triangles.reshape(-1, 3), faces=np.arange(3 * len(triangles)).reshape(-1, 3))
+    boxes = [part.bounds for part in mesh.split(only_watertight=False)]
+    return [(lo, hi) for lo, hi in boxes if hi[2] > STEP_HEIGHT_M and lo[2] < 2.0]
+
+
+def _frames_in_obstacles(track, boxes, height_m: float, margin_m: float) -> list[int]:
+    """Frames where the track's bare footprint, less the obstacle grid's tolerance of one cube,
+    overlaps a box that reaches into its height band (separating axes, exact)."""
+    offset, half = track.footprint
+    half = half - margin_m - OBSTACLE_CELL_M
+    hits = []
+    for f in np.flatnonzero(track.present):
+        c, s = math.cos(track.yaw[f]), math.sin(track.yaw[f])
+        axes = np.array([[c, -s], [s, c]])
+        centre = track.position[f, :2] + axes @ offset
+        ground = track.position[f, 2]
+        for lo, hi in boxes:
+            if hi[2] <= ground + STEP_HEIGHT_M or lo[2] >= ground + height_m:
+                continue
+            d = (lo[:2] + hi[:2]) / 2.0 - centre
+            box_half = (hi[:2] - lo[:2]) / 2.0
+            separated = any(abs(d @ n) >= np.abs(n @ axes) @ half + np.abs(n) @ box_half
+                            for n in (*axes.T, np.array([1.0, 0.0]), np.array([0.0, 1.0])))
+            if not separated:
+                hits.append(int(f))
+                break
+    return hits
+
+
+def test_movers_keep_out_of_the_pillars_and_walls(setup, obstacles):
+    """Sequences of the moving example's size keep every walker, standing person and vehicle out
+    of the environment's pillars, walls and parapet at every frame; the same draws without the
+    obstacles walk people into them (seeds where they do: a pillar reaches 0.2 m into the
+    south footpath, so it takes a walker offset to that side passing it)."""
+    scene, catalog = setup
+    boxes = _obstacle_boxes(setup)
+    assert len(boxes) == 11  # 8 pillars, 2 walls, the parapet
+    blind_obstacles = Obstacles.from_triangles(np.zeros((0, 3, 3)))
+
+    def crossings(generated):
+        out = []
+        for t in generated.tracks:
+            margin = VEHICLE_MARGIN_M if t.kind in ("arriving", "leaving") else PERSON_MARGIN_M
+            if _frames_in_obstacles(t, boxes, catalog[t.class_name].extent_max_m[2], margin):
+                out.append((t.kind, t.route))
+        return out
+
+    blind = []
+    for seed in (1, 5, 10):
+        options = TrackOptions(frames=100, fps=5, people=12, standing=3, vehicles=4, seed=seed,
+                               person_classes=("person",))
+        assert crossings(generate_tracks(scene, catalog, options, obstacles=obstacles)) == []
+        blind += crossings(generate_tracks(scene, catalog, options, obstacles=blind_obstacles))
+    assert any(kind == "walking" for kind, _ in blind)
+
+
+def test_a_route_only_through_an_obstacle_is_one_clear_error(setup):
+    """A ceiling 1 m above the whole deck: no walker can come through, and the error says why."""
+    scene, catalog = setup
+    ceiling = np.array([[[-20.0, -15.0, 1.0], [20.0, -15.0, 1.0], [20.0, 15.0, 1.0]],
+                        [[-20.0, -15.0, 1.0], [20.0, 15.0, 1.0], [-20.0, 15.0, 1.0]]])
+    with pytest.raises(DocumentError, match=r"--people: only 0 of 1 walkers fit: every one of 200 routes .* "
+                                            r"meets an obstacle of the environment"):
+        generate_tracks(scene, catalog, TrackOptions(frames=100, fps=5, people=1, seed=5, person_classes=("person",)),
+                        obstacles=Obstacles.from_triangles(ceiling))
+
+
+def test_vehicles_turn_on_a_turning_circle(generated):
+    """Vehicles turn on arcs of about their turning radius (3 m where the places leave room), not
+    on the spot: between frames where a vehicle drives at least 0.2 m its heading turns by at
+    most the step over 1.8 m (the arcs' 5-degree chords make a frame's estimate low by up to
+    a third). Backing out of a bay runs on a 3 m arc too."""
+    tight = []
+    for t in generated.tracks:
+        if t.kind not in ("arriving", "leaving"):
+            continue
+        idx = np.flatnonzero(t.present)
+        step = np.linalg.norm(np.diff(t.position[idx, :2], axis=0), axis=1)
+        turn = np.abs(np.angle(np.exp(1j * np.diff(t.yaw[idx]))))
+        driving = (step > 0.2) & (turn < math.pi / 2)  # not the switch from reverse to forward
+        tight += list(step[driving & (turn > 0)] / turn[driving & (turn > 0)])
+    assert len(tight) > 10 and min(tight) > 1.8

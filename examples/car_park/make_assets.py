@@ -7,7 +7,8 @@
   ``place.bay_A3.on`` (a parking bay), ``place.lane_A3.on`` (the driving lane in front of it),
   ``place.walkway_A3.on`` (the footpath behind it).
 * ``source/vehicle.usda``: a vehicle, Y up and in centimetres (as many DCC exports are), with
-  the variant sets ``model`` (sedan, hatchback, van) and ``paint`` (five colours).
+  the variant sets ``model`` (sedan, hatchback, van) and ``paint`` (five colours); its front
+  (the bonnet, the cabin set back from it) faces +X, as many exporters leave a car.
 * ``source/pedestrian.usda``: a standing person, Z up, metres, variant set ``appearance``.
 
 Nothing here is usdscene-specific except the place names: the files then go through
@@ -162,6 +163,7 @@ def write_vehicle(path: Path) -> Path:
             body = trimesh.creation.box(extents=(length, width, body_h))
             body.apply_translation((0.0, 0.0, clearance + body_h / 2))
             cabin = trimesh.creation.box(extents=(cabin_l, width - 16.0, cabin_h))
+            # The cabin sits behind the middle: the bonnet, the front, is towards +X.
             cabin.apply_translation((-0.08 * length if name != "van" else -0.04 * length, 0.0,
                                      clearance + body_h + cabin_h / 2))
             wheels = []

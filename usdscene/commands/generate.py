@@ -49,9 +49,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="people standing for the whole sequence (tracks)")
     moving.add_argument("--vehicles", type=non_negative_int, default=0, help="vehicles (tracks)")
     moving.add_argument("--person-classes", nargs="+", metavar="NAME", default=(),
-                        help="classes of the people (default: the catalog's person classes)")
+                        help="classes of the people (default: every class of the catalog with walk_* pose "
+                             "variants or a person word in its name, rigid ones without a walk cycle too)")
     moving.add_argument("--vehicle-classes", nargs="+", metavar="NAME", default=(),
-                        help="classes of the vehicles (default: the catalog's vehicle classes)")
+                        help="classes of the vehicles (default: the catalog's vehicle classes); each drives "
+                             "towards its -Y, the catalog's front (usdscene assets add --forward-axis)")
 
 
 def _fps(text: str) -> float:

@@ -16,21 +16,29 @@ environment (and those the setup declares as cuboids) by the words of their name
 
 Routes run through the chain of touching places found by the shortest path between their
 centres; the points a route passes are the portals between consecutive places (the point of
-one box nearest the other), corners rounded (Chaikin's corner cutting). The route stays on the
-support surface of its places (z interpolated between them): movers stay on the ground and
-upright (rotation about world Z only).
+one box nearest the other), corners rounded into circular arcs (turning circles). The route
+stays on the support surface of its places (z interpolated between them): movers stay on the
+ground and upright (rotation about world Z only).
 
 Walkers enter at one entrance, walk to another at a constant speed drawn from
 ``speed_range_m_s`` (0.8-1.8 m/s), offset sideways within the narrowest place of their route,
 and leave. Standing people stand at random spots of the walk places for the whole sequence.
 Vehicles either arrive (enter at a vehicle entrance at cruise speed, drive along the lanes into
 a free bay nose first and stop there, braking at :data:`VEHICLE_DECEL_M_S2`) or leave (parked
-at frame 0, reverse out of the bay into the lane, then drive to an entrance); every vehicle
+at frame 0, reverse out of the bay into the lane, stop for :data:`SHIFT_PAUSE_S`, then drive
+to an entrance); every vehicle
 uses its own bay. No two movers overlap at any frame: each is its asset's footprint rectangle
 (plus :data:`PERSON_MARGIN_M` around people) and a candidate route that would touch an earlier
 one at some frame is drawn again (new times, speed, entrances, offset), up to
-:data:`MAX_TRIES` times; then the space holds no more and the generator says so. The
-environment's own obstacles (pillars, walls) are not modelled: routes follow the places.
+:data:`MAX_TRIES` times; then the space holds no more and the generator says so.
+
+**Obstacles.** The places say where movers may go, not what stands there: a pillar at a
+footpath's edge, a wall beside an entrance. The environment's visible surfaces are recorded as
+occupied cubes of :data:`OBSTACLE_CELL_M` (:class:`Obstacles`, from :func:`environment_obstacles`),
+and a drawn route whose footprint meets geometry from :data:`STEP_HEIGHT_M` above its ground up
+to the mover's height (kerbs and paint are stepped over, a roof above is not in the way) at a
+frame where it is present is drawn again like an overlapping one; so walkers keep to the walk
+places minus the obstacles' footprints. When every draw meets an obstacle the error says so.
 
 **Walk cycle.** The phase of a walker is the distance walked over its stride,
 ``phase = (s / stride) mod 1``. A person class whose ``pose`` variant set has ``walk_0`` ..
@@ -45,9 +53,14 @@ speed of 0.8-1.8 m/s locks, at 10 fps only walkers from 1.125 m/s do (the others
 slide about as far as they walk). A class without a walk cycle slides its whole distance (1.0). Composition selects one ``pose`` variant per object: the per-frame variant is in
 the document and the annotations, and a renderer that switches variants per frame follows it.
 
-**Facing.** People (the person classes) face -Y (the asset library's convention) whatever
-their footprint; a vehicle class whose footprint is longer along X than 1.5 times along Y is
-treated as facing +X (its long axis), any other as facing -Y.
+**Facing.** Every mover faces -Y, the catalog's contract: the shipped library is modelled so,
+and ``usdscene assets add --forward-axis`` turns an imported asset whose front faces another
+way to face it (recording ``forward_axis``). A walker's or vehicle's yaw is its heading plus a
+quarter turn (:data:`FRONT_YAW`), so the asset's -Y points where it goes. An entry without a
+recorded ``forward_axis`` was added saying its front already faces -Y, and is taken at its word;
+no guess from the mesh is made (a long axis tells no front from back). A vehicle class longer
+across (x) than along (y) by more than :data:`SIDEWAYS_RATIO` would drive sideways: the
+generator warns and names ``--forward-axis``.
 
 Every moving object gets per frame ``pose_matrix4x4`` (the time-sampled transform of the
 stage) and the vec ``ground_position_m`` ``[x, y, z]``: where it stands on the ground (the
@@ -101,9 +114,26 @@ VEHICLE_DECEL_M_S2 = 1.5
 REVERSE_SPEED_M_S = 1.0
 REVERSE_RUN_M = 3.0
 """How far a leaving vehicle backs along the lane past the bay's lane spot."""
+SHIFT_PAUSE_S = 1.0
+"""A leaving vehicle's stop between backing out and driving off (shifting into drive), seconds."""
 WALK_TURN_RADIUS_M = 0.8
 VEHICLE_TURN_RADIUS_M = 3.0
+"""Turning radius of a vehicle's origin (the middle of its footprint) in metres, where the
+places leave room for it (a car park's bay ends 3.4 m from the lane's centre line)."""
+ARC_STEP_DEG = 5.0
+"""Angle between the points of a rounded corner."""
+OBSTACLE_CELL_M = 0.1
+"""Edge of the cubes in which the environment's surfaces are recorded as obstacles (metres);
+an obstacle is found to within about one of them."""
+STEP_HEIGHT_M = 0.3
+"""Geometry up to this height above a mover's ground is stepped or driven over (kerbs, paint)."""
+MAX_OBSTACLE_CELLS = 30_000_000
+"""Most cubes of an obstacle grid; a larger environment gets coarser cubes."""
 MAX_TRIES = 200
+FRONT_YAW = math.pi / 2.0
+"""Yaw (rad) added to a heading so that an asset's front (-Y, the catalog's contract) points along it."""
+SIDEWAYS_RATIO = 1.5
+"""A vehicle class longer across (x) than this times along (y) is warned about (see the module doc)."""
 MAX_PEOPLE = 10000
 MAX_VEHICLES = 10000
 
@@ -258,11 +288,24 @@ def _nearest_in(area: Area, point: np.ndarray) -> np.ndarray:
     return area.centre[:2] + area.axes @ local
 
 
-def _portal(a: Area, b: Area) -> np.ndarray:
+def _portal(a: Area, b: Area, start: np.ndarray | None = None) -> np.ndarray:
     """A point (3,) where the route passes from a to b: the point of a nearest b's nearest point
-    to a's centre, at the mean height of the two."""
-    p = _nearest_in(a, _nearest_in(b, a.centre[:2]))
+    to ``start`` (2,) (default a's centre), at the mean height of the two."""
+    p = _nearest_in(a, _nearest_in(b, a.centre[:2] if start is None else start))
     return np.array([p[0], p[1], (a.centre[2] + b.centre[2]) / 2.0])
+
+
+def _end_point(area: Area, towards: Area) -> np.ndarray:
+    """Where a route starts or ends in a place (3,): its centre, except in an entrance, where it
+    is moved across the entrance (never along the way in) to line up with the centre line of the
+    place beyond: a 6 m vehicle gate serving two lanes is entered in line with each lane."""
+    if area.role != "entrance":
+        return area.centre
+    way_in = int(np.argmax(np.abs((towards.centre[:2] - area.centre[:2]) @ area.axes)))
+    local = (_on_centreline(towards, area.centre)[:2] - area.centre[:2]) @ area.axes
+    local[way_in] = 0.0
+    xy = area.centre[:2] + area.axes @ np.clip(local, -area.half, area.half)
+    return np.array([xy[0], xy[1], area.centre[2]])
 
 
 def _in_front(bay: Area, other: Area) -> bool:
@@ -320,14 +363,18 @@ def _on_centreline(area: Area, point: np.ndarray) -> np.ndarray:
 
 
 def _route_points(areas: Sequence[Area], path: Sequence[int]) -> np.ndarray:
-    """(P, 3) points of a route through places: the start centre, then per place passed the
-    portal in, its centre line from there to the portal out, the portal out; the end centre.
+    """(P, 3) points of a route through places: the start (:func:`_end_point`), then per place
+    passed the portal in, its centre line from there to the portal out, the portal out; the end.
     Collinear and repeated points are merged."""
+    first = _end_point(areas[path[0]], areas[path[1]])
+    final = _end_point(areas[path[-1]], areas[path[-2]])
     portals = [_portal(areas[i], areas[j]) for i, j in zip(path, path[1:])]
-    points = [areas[path[0]].centre]
+    portals[0] = _portal(areas[path[0]], areas[path[1]], first[:2])
+    portals[-1] = _portal(areas[path[-2]], areas[path[-1]], final[:2]) if len(path) > 2 else portals[-1]
+    points = [first]
     for k, i in enumerate(path[1:-1]):
         points += [portals[k], _on_centreline(areas[i], portals[k]), _on_centreline(areas[i], portals[k + 1])]
-    points += [portals[-1], areas[path[-1]].centre]
+    points += [portals[-1], final]
     return _simplified(np.asarray(points, dtype=np.float64))
 
 
@@ -347,34 +394,38 @@ def _simplified(pts: np.ndarray) -> np.ndarray:
     return np.asarray(out)
 
 
-def _rounded(points: np.ndarray, radius_m: float, iterations: int = 3) -> np.ndarray:
-    """Corners replaced by curves: each inner corner cut at up to ``radius_m`` along both of its
-    edges (at most half of each edge), then smoothed by corner cutting."""
+def _rounded(points: np.ndarray, radius_m: float) -> np.ndarray:
+    """(P, 3) → (Q, 3): every inner corner replaced by a circular arc of ``radius_m`` tangent to
+    both of its edges (a turning circle, points every :data:`ARC_STEP_DEG`), heights interpolated
+    along it. The arc starts at most ``radius_m`` before the corner (a turn sharper than a
+    quarter, up to turning back on the spot, gets a tighter arc), and where an edge is too
+    short for that (the whole of a first or last edge, half of an inner one, which the next
+    corner shares) it is tightened to fit."""
     if len(points) < 3:
         return points
     out = [points[0]]
-    for k in range(1, len(points) - 1):
+    last = len(points) - 2
+    for k in range(1, last + 1):
         a, b, c = points[k - 1], points[k], points[k + 1]
-        r = min(radius_m, 0.5 * float(np.linalg.norm(b[:2] - a[:2])), 0.5 * float(np.linalg.norm(c[:2] - b[:2])))
-        d_in = (b - a) / max(float(np.linalg.norm(b[:2] - a[:2])), 1e-12)
-        d_out = (c - b) / max(float(np.linalg.norm(c[:2] - b[:2])), 1e-12)
-        out += [b - r * d_in, b, b + r * d_out]
+        len_in, len_out = float(np.linalg.norm(b[:2] - a[:2])), float(np.linalg.norm(c[:2] - b[:2]))
+        d_in, d_out = (b[:2] - a[:2]) / len_in, (c[:2] - b[:2]) / len_out
+        turn = math.atan2(d_in[0] * d_out[1] - d_in[1] * d_out[0], float(d_in @ d_out))  # signed, radians
+        if abs(turn) < 1e-9:
+            out.append(b)
+            continue
+        half_tan = math.tan(abs(turn) / 2.0)
+        tangent = min(radius_m * min(half_tan, 1.0), len_in if k == 1 else len_in / 2.0,
+                      len_out if k == last else len_out / 2.0)
+        radius = tangent / half_tan
+        enter, leave = b - tangent * (b - a) / len_in, b + tangent * (c - b) / len_out
+        centre = enter[:2] + radius * math.copysign(1.0, turn) * np.array([-d_in[1], d_in[0]])
+        start = math.atan2(enter[1] - centre[1], enter[0] - centre[0])
+        t = np.linspace(0.0, 1.0, max(int(math.ceil(math.degrees(abs(turn)) / ARC_STEP_DEG)), 1) + 1)
+        angle = start + turn * t
+        out += list(np.stack([centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle),
+                              enter[2] + (leave[2] - enter[2]) * t], axis=1))
     out.append(points[-1])
-    return _chaikin(np.asarray(out), iterations)
-
-
-def _chaikin(points: np.ndarray, iterations: int) -> np.ndarray:
-    """Corner cutting: every inner corner replaced by two points at 1/4 and 3/4 of its edges."""
-    pts = points
-    for _ in range(iterations):
-        if len(pts) < 3:
-            return pts
-        q = 0.75 * pts[:-1] + 0.25 * pts[1:]
-        r = 0.25 * pts[:-1] + 0.75 * pts[1:]
-        inner = np.empty((2 * (len(pts) - 1), pts.shape[1]))
-        inner[0::2], inner[1::2] = q, r
-        pts = np.vstack([pts[:1], inner[1:-1], pts[-1:]])
-    return pts
+    return np.asarray(out)
 
 
 def _offset(points: np.ndarray, distance: float) -> np.ndarray:
@@ -395,6 +446,12 @@ class _Polyline:
     """Arc-length parametrised polyline: position (3,) and heading at a distance s."""
 
     def __init__(self, points: np.ndarray) -> None:
+        # Repeated points (an arc ending where its edge does) would make zero-length segments
+        # without a heading.
+        keep = np.concatenate([[True], np.linalg.norm(np.diff(points[:, :2], axis=0), axis=1) > 1e-9])
+        if keep.sum() < 2:
+            keep[-1] = True
+        points = points[keep]
         self.points = points
         seg = np.linalg.norm(np.diff(points[:, :2], axis=0), axis=1)
         self.s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -438,21 +495,145 @@ def vehicle_classes(catalog: Catalog) -> tuple[str, ...]:
                         if catalog[name].kind != "environment" and _has_word(name, VEHICLE_WORDS)))
 
 
-def _facing_offset(entry: AssetEntry, *, person: bool) -> float:
-    """Yaw (rad) to add to a heading to turn the asset's front along it (see the module doc).
-
-    People face -Y whatever their footprint: a person's shoulders (x) are wider than its
-    depth (y), so the footprint rule of vehicles would walk them sideways.
-    """
-    if person:
-        return math.pi / 2.0
+def _warn_sideways(name: str, entry: AssetEntry) -> None:
+    """Warn when a vehicle class looks turned: longer across its front (x) than along it (y)."""
     size = np.asarray(entry.extent_max_m) - np.asarray(entry.extent_min_m)
-    return 0.0 if size[0] > 1.5 * size[1] else math.pi / 2.0
+    if size[0] > SIDEWAYS_RATIO * size[1]:
+        log.warning("vehicle class %r is %.1f m across and %.1f m long (front towards -Y, forward_axis %s): it "
+                    "drives sideways; if its front faces +X or -X, add it again with usdscene assets add "
+                    "--forward-axis", name, size[0], size[1], entry.forward_axis)
 
 
 def _footprint(entry: AssetEntry, margin: float) -> tuple[np.ndarray, np.ndarray]:
     lo, hi = np.asarray(entry.extent_min_m[:2], float), np.asarray(entry.extent_max_m[:2], float)
     return (lo + hi) / 2.0, (hi - lo) / 2.0 + margin
+
+
+# --------------------------------------------------------------------------------------------
+# Obstacles of the environment
+
+
+@dataclass(frozen=True)
+class Obstacles:
+    """The environment's surfaces as occupied cubes of ``cell_m``: cube (i, j, k) spans
+    ``origin + cell_m · (i, j, k)`` to that plus ``cell_m``. ``below`` (NX, NY, NZ + 1) int32
+    counts, per column, the occupied cubes under each level (a running sum over z), so whether a
+    height band of a column holds geometry is one subtraction."""
+
+    origin: np.ndarray
+    cell_m: float
+    below: np.ndarray
+
+    @classmethod
+    def from_triangles(cls, triangles: np.ndarray, cell_m: float = OBSTACLE_CELL_M) -> "Obstacles":
+        """From (T, 3, 3) world triangles in metres (see :func:`environment_obstacles`); the
+        cubes double in size until there are at most :data:`MAX_OBSTACLE_CELLS`."""
+        tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+        if not len(tri):
+            return cls(np.zeros(3), cell_m, np.zeros((1, 1, 2), dtype=np.int32))
+        lo, hi = tri.reshape(-1, 3).min(axis=0), tri.reshape(-1, 3).max(axis=0)
+        while np.prod(np.floor(hi / cell_m) - np.floor(lo / cell_m) + 1) > MAX_OBSTACLE_CELLS:
+            cell_m *= 2.0
+        origin = np.floor(lo / cell_m) * cell_m
+        shape = np.floor((hi - origin) / cell_m).astype(np.int64) + 1
+        solid = np.zeros(int(np.prod(shape)), dtype=bool)
+        corner, scale = origin.astype(np.float32), np.float32(1.0 / cell_m)
+        for points in _surface_points(tri, cell_m):
+            idx = np.clip(((points - corner) * scale).astype(np.int32), 0, (shape - 1).astype(np.int32))
+            solid[(idx[:, 0].astype(np.int64) * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2]] = True
+        solid = solid.reshape(tuple(shape))
+        below = np.zeros((shape[0], shape[1], shape[2] + 1), dtype=np.int32)
+        np.cumsum(solid, axis=2, out=below[:, :, 1:])
+        return cls(origin, float(cell_m), below)
+
+    def blocked(self, centre: np.ndarray, axes: np.ndarray, half: np.ndarray, ground_z: np.ndarray,
+                height_m: float) -> np.ndarray:
+        """(N,) whether each footprint rectangle meets geometry from :data:`STEP_HEIGHT_M` to
+        ``height_m`` above its ground.
+
+        Args:
+            centre: (N, 2) rectangle centres; axes: (N, 2, 2) their x and y directions as
+                columns; half: (2,) half sizes (m); ground_z: (N,) ground heights (m).
+
+        The rectangle, shrunk by half a cube (a surface marks the whole cube it lies in), is
+        tested at points a cube apart (every cube inside it holds one); poses repeated to the
+        millimetre and milliradian (a parked car) are tested once.
+        """
+        centre, axes = np.asarray(centre, dtype=np.float64), np.asarray(axes, dtype=np.float64)
+        ground_z = np.asarray(ground_z, dtype=np.float64)
+        key = np.round(np.concatenate([centre, axes[:, :, 0], ground_z[:, None]], axis=1) * 1000.0)
+        _, first, back = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        centre, axes, ground_z = centre[first], axes[first], ground_z[first]
+        inner = np.maximum(np.asarray(half, dtype=np.float64) - self.cell_m / 2.0, 0.0)
+        n = np.ceil(2.0 * inner / self.cell_m).astype(np.int64) + 1
+        gx, gy = np.meshgrid(np.linspace(-inner[0], inner[0], n[0]), np.linspace(-inner[1], inner[1], n[1]),
+                             indexing="ij")
+        gx, gy = gx.ravel()[None, :, None], gy.ravel()[None, :, None]  # (1, K, 1)
+        world = centre[:, None, :] + gx * axes[:, None, :, 0] + gy * axes[:, None, :, 1]  # (N, K, 2)
+        cell = np.floor((world - self.origin[:2]) / self.cell_m).astype(np.int64)
+        nx, ny, levels = self.below.shape
+        inside = (cell[..., 0] >= 0) & (cell[..., 0] < nx) & (cell[..., 1] >= 0) & (cell[..., 1] < ny)
+        column = np.where(inside, cell[..., 0] * ny + cell[..., 1], 0)  # (N, K)
+        z = ground_z - self.origin[2]
+        k0 = np.clip(np.floor((z + STEP_HEIGHT_M) / self.cell_m), 0, levels - 1).astype(np.int64)[:, None]
+        k1 = np.clip(np.ceil((z + height_m) / self.cell_m), 0, levels - 1).astype(np.int64)[:, None]
+        flat = self.below.reshape(-1)
+        count = flat[column * levels + k1] - flat[column * levels + k0]
+        return np.any(inside & (count > 0), axis=1)[np.ravel(back)]
+
+
+def _surface_points(triangles: np.ndarray, spacing: float, most: int = 2_000_000):
+    """Points on the (T, 3, 3) triangles at most ``spacing`` apart along each edge, as float32
+    arrays (M, 3) (triangles of one subdivision count together, at most about ``most`` points
+    an array). With ``spacing`` one cube, every cube a surface crosses gets a point but those it
+    only grazes at a corner (a cube beside them does)."""
+    edges = np.stack([triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 1],
+                      triangles[:, 0] - triangles[:, 2]], axis=1)
+    counts = np.maximum(np.ceil(np.linalg.norm(edges, axis=2).max(axis=1) / spacing), 1).astype(np.int64)
+    for m in np.unique(counts):
+        i, j = np.meshgrid(np.arange(m + 1), np.arange(m + 1), indexing="ij")
+        keep = (i + j) <= m
+        u = (i[keep] / m).astype(np.float32)[None, :, None]
+        v = (j[keep] / m).astype(np.float32)[None, :, None]
+        group = triangles[counts == m].astype(np.float32)
+        step = max(1, most // int(keep.sum()))
+        for k in range(0, len(group), step):
+            t = group[k:k + step]
+            corner = t[:, None, 0]
+            yield (corner + u * (t[:, None, 1] - corner) + v * (t[:, None, 2] - corner)).reshape(-1, 3)
+
+
+def environment_obstacles(setup: SceneSpec, catalog: Catalog) -> Obstacles:
+    """The obstacles of the setup's environment: the environment alone (no objects, lights or
+    declared places) composed into a temporary stage, its visible meshes (place boxes are guides,
+    not geometry) recorded by :meth:`Obstacles.from_triangles`."""
+    import tempfile
+
+    from usdscene.scene.compose import compose_stage
+    from usdscene.scene.stage_geometry import environment_triangles
+
+    bare = replace(setup, objects=(), relations=(), places=(), lights=(), frame_end=setup.frame_start)
+    with tempfile.TemporaryDirectory(prefix="usdscene-obstacles-") as folder:
+        compose_stage(bare, catalog, folder)
+        triangles = environment_triangles(Path(folder) / "scene.usda")
+    return Obstacles.from_triangles(triangles)
+
+
+def _mover_height(entry: AssetEntry) -> float:
+    """Top of a class above its origin (m), the tallest of its variants."""
+    tops = [entry.extent_max_m[2]] + [hi[2] for by in entry.variant_extents.values() for _, hi in by.values()]
+    return float(max(tops))
+
+
+def _hits_obstacle(track: Track, obstacles: Obstacles | None, height_m: float, margin_m: float) -> bool:
+    """Whether the track's footprint (less the ``margin_m`` kept from other movers: swinging arms
+    brush a seat back, they do not walk through a pillar) meets an obstacle at a frame where it
+    is present."""
+    if obstacles is None:
+        return False
+    idx = np.flatnonzero(track.present)
+    centre, axes, half = _rects(track)
+    return bool(obstacles.blocked(centre[idx], axes[idx], half - margin_m, track.position[idx, 2], height_m).any())
 
 
 # --------------------------------------------------------------------------------------------
@@ -523,11 +704,10 @@ def _check_capacity(areas: Sequence[Area], routes_m: Sequence[float], options: T
 # Motion profiles
 
 
-def _timing(length: float, v_max: float, *, from_rest: bool, to_rest: bool, accel: float,
-            start_s: float, fps: float, frames: int) -> np.ndarray:
-    """Distance along a route (F,) at frames 0..F-1 for a mover that starts at time
-    ``start_s`` (seconds): cruise ``v_max``, accelerating from rest / braking to rest at
-    ``accel`` m/s² when asked. NaN before the start; ``length`` and beyond after the end."""
+def _profile(length: float, v_max: float, *, from_rest: bool, to_rest: bool,
+             accel: float) -> tuple[np.ndarray, np.ndarray]:
+    """Distances along a route (M,) every 2 cm and the seconds (M,) at which a mover reaches
+    them: cruise ``v_max``, accelerating from rest / braking to rest at ``accel`` m/s² when asked."""
     grid = np.linspace(0.0, length, max(int(length / 0.02), 2) + 1)
     v = np.full_like(grid, v_max)
     if to_rest:
@@ -536,7 +716,16 @@ def _timing(length: float, v_max: float, *, from_rest: bool, to_rest: bool, acce
         v = np.minimum(v, np.sqrt(2.0 * accel * grid))
     v = np.maximum(v, 0.05 * v_max)  # the ends: no division by zero
     dt = np.diff(grid) / ((v[:-1] + v[1:]) / 2.0)
-    t = start_s + np.concatenate([[0.0], np.cumsum(dt)])
+    return grid, np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _timing(length: float, v_max: float, *, from_rest: bool, to_rest: bool, accel: float,
+            start_s: float, fps: float, frames: int) -> np.ndarray:
+    """Distance along a route (F,) at frames 0..F-1 for a mover that starts at time
+    ``start_s`` (seconds) and moves as :func:`_profile` says. NaN before the start; ``length``
+    and beyond after the end."""
+    grid, t = _profile(length, v_max, from_rest=from_rest, to_rest=to_rest, accel=accel)
+    t = start_s + t
     times = np.arange(frames) / fps
     s = np.interp(times, t, grid)
     s[times < t[0]] = np.nan
@@ -607,7 +796,7 @@ def _check(setup: SceneSpec, catalog: Catalog, options: TrackOptions, areas: Seq
 
 
 def generate_tracks(setup: SceneSpec, catalog: Catalog, options: TrackOptions, *,
-                    setup_sha256: str = "") -> GeneratedTracks:
+                    setup_sha256: str = "", obstacles: Obstacles | None = None) -> GeneratedTracks:
     """The moving sequence of ``setup`` (see the module docstring).
 
     Args:
@@ -615,6 +804,8 @@ def generate_tracks(setup: SceneSpec, catalog: Catalog, options: TrackOptions, *
         catalog: asset catalog with the environment and the mover classes.
         options: counts, length, rate, seed.
         setup_sha256: recorded in the report.
+        obstacles: the environment's obstacles; default :func:`environment_obstacles` of the
+            setup (composes its environment: needs usd-core).
 
     Returns:
         The scene (setup + one object per track, frames 0 .. frames-1, ``fps``) and its report.
@@ -625,28 +816,38 @@ def generate_tracks(setup: SceneSpec, catalog: Catalog, options: TrackOptions, *
     """
     areas = ground_areas(catalog, setup)
     people_classes, car_classes = _check(setup, catalog, options, areas)
+    if obstacles is None and options.people + options.standing + options.vehicles:
+        obstacles = environment_obstacles(setup, catalog)
     rng = np.random.default_rng(options.seed)
     tracks: list[Track] = []
-    tracks += _vehicles(areas, catalog, car_classes, options, rng, tracks)
-    tracks += _standing(areas, catalog, people_classes, options, rng, tracks)
-    tracks += _walkers(areas, catalog, people_classes, options, rng, tracks)
+    tracks += _vehicles(areas, catalog, car_classes, options, rng, tracks, obstacles)
+    tracks += _standing(areas, catalog, people_classes, options, rng, tracks, obstacles)
+    tracks += _walkers(areas, catalog, people_classes, options, rng, tracks, obstacles)
     scene = _scene(setup, catalog, tracks, options)
     report = tracks_report(scene, tracks, catalog, options, setup_sha256=setup_sha256)
     return GeneratedTracks(scene=scene, tracks=tuple(tracks), report=report)
 
 
-def _draw_look(entry: AssetEntry, rng: np.random.Generator) -> str | None:
+def _draw_look(entry: AssetEntry, rng: np.random.Generator) -> tuple[str | None, AssetEntry]:
+    """One appearance of the class (None when it has none) and the entry with that variant's
+    extent: a van's footprint is longer than the class's default sedan's."""
     looks = entry.appearances
-    return looks[int(rng.integers(len(looks)))] if looks else None
+    look = looks[int(rng.integers(len(looks)))] if looks else None
+    return look, entry.for_variants({"appearance": look}) if look else entry
 
 
-def _full_fail(flag: str, placed: int, wanted: int, what: str) -> DocumentError:
-    return _problem(flag, f"only {placed} of {wanted} {what} fit without overlapping another mover at some "
-                          f"frame ({MAX_TRIES} tries for the next one); the space holds no more at once: "
+def _full_fail(flag: str, placed: int, wanted: int, what: str, blocked: int = 0) -> DocumentError:
+    if blocked == MAX_TRIES:
+        return _problem(flag, f"only {placed} of {wanted} {what} fit: every one of {MAX_TRIES} routes drawn for "
+                              f"the next one meets an obstacle of the environment (geometry from {STEP_HEIGHT_M:g} m "
+                              "above the ground to the mover's height); the places lead through walls or pillars")
+    return _problem(flag, f"only {placed} of {wanted} {what} fit without overlapping another mover or an obstacle "
+                          f"at some frame ({MAX_TRIES} tries for the next one); the space holds no more at once: "
                           "ask for fewer, a longer sequence or more space")
 
 
-def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track]) -> list[Track]:
+def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track],
+             obstacles: Obstacles | None) -> list[Track]:
     if not options.people:
         return []
     F, fps = options.frames, float(options.fps)
@@ -676,16 +877,17 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
     for k in range(options.people):
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        offset, half = _footprint(entry, PERSON_MARGIN_M)
-        facing = _facing_offset(entry, person=True)
-        across = half[0] if facing else half[1]  # facing -Y: the asset's x is across the path
+        look, sized = _draw_look(entry, rng)
+        offset, half = _footprint(sized, PERSON_MARGIN_M)
+        across = half[0]  # facing -Y: the asset's x is across the path
+        height, blocked = _mover_height(entry), 0
         for _ in range(MAX_TRIES):
             path = routes[int(rng.integers(len(routes)))]
             width = min(float(2 * areas[i].half.min()) for i in path if areas[i].role == "walk") \
                 if any(areas[i].role == "walk" for i in path) else 0.0
             room = max(0.0, width / 2.0 - float(across))
             side = float(rng.uniform(-room, room)) if room > 0 else 0.0
-            line = _Polyline(_offset(_rounded(_route_points(areas, path), WALK_TURN_RADIUS_M), side))
+            line = _Polyline(_rounded(_offset(_route_points(areas, path), side), WALK_TURN_RADIUS_M))
             speed = float(rng.uniform(low, high))
             duration_s = line.length / speed
             start_s = float(rng.uniform(-duration_s / 2.0, max(F / fps - duration_s / 2.0, 0.0)))
@@ -695,21 +897,25 @@ def _walkers(areas, catalog, classes, options: TrackOptions, rng, accepted: list
             if not present.any():
                 continue
             pos, heading = line.at(np.nan_to_num(s, nan=0.0))
-            track = Track("walking", cls, present, pos, heading + facing, np.where(present, s, 0.0), speed,
+            track = Track("walking", cls, present, pos, heading + FRONT_YAW, np.where(present, s, 0.0), speed,
                           route=tuple(areas[i].place for i in path), footprint=(offset, half),
                           stride_m=locked_stride(speed, fps, len(_walk_variants(entry))))
+            if _hits_obstacle(track, obstacles, height, PERSON_MARGIN_M):
+                blocked += 1
+                continue
             if not _collides(track, [*accepted, *out]):
-                track.appearance = _draw_look(entry, rng)
+                track.appearance = look
                 cycle = _walk_variants(entry)
                 track.pose_variant = cycle[0] if cycle else None
                 out.append(track)
                 break
         else:
-            raise _full_fail("--people", len(out), options.people, "walkers")
+            raise _full_fail("--people", len(out), options.people, "walkers", blocked)
     return out
 
 
-def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track]) -> list[Track]:
+def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track],
+              obstacles: Obstacles | None) -> list[Track]:
     if not options.standing:
         return []
     F = options.frames
@@ -718,7 +924,9 @@ def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
     for k in range(options.standing):
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        offset, half = _footprint(entry, PERSON_MARGIN_M)
+        look, sized = _draw_look(entry, rng)
+        offset, half = _footprint(sized, PERSON_MARGIN_M)
+        height, blocked = _mover_height(entry), 0
         for _ in range(MAX_TRIES):
             area = walk[int(rng.integers(len(walk)))]
             room = np.maximum(area.half - float(np.linalg.norm(half)), 0.0)
@@ -728,20 +936,26 @@ def _standing(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
             yaw = np.full(F, float(rng.uniform(-math.pi, math.pi)))
             track = Track("standing", cls, np.ones(F, dtype=bool), position, yaw, np.zeros(F), 0.0,
                           route=(area.place,), footprint=(offset, half))
+            if _hits_obstacle(track, obstacles, height, PERSON_MARGIN_M):
+                blocked += 1
+                continue
             if not _collides(track, [*accepted, *out]):
-                track.appearance = _draw_look(entry, rng)
+                track.appearance = look
                 idle = [v for v in entry.variants.get("pose", ()) if v.startswith(IDLE_VARIANTS)]
                 track.pose_variant = idle[int(rng.integers(len(idle)))] if idle else None
                 out.append(track)
                 break
         else:
-            raise _full_fail("--standing", len(out), options.standing, "standing people")
+            raise _full_fail("--standing", len(out), options.standing, "standing people", blocked)
     return out
 
 
-def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track]) -> list[Track]:
+def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: list[Track],
+              obstacles: Obstacles | None) -> list[Track]:
     if not options.vehicles:
         return []
+    for name in classes:
+        _warn_sideways(name, catalog[name])
     edges = _graph(areas, {"lane", "bay", "entrance"})
     bays = [i for i in edges if areas[i].role == "bay" and any(areas[j].role == "lane" for j in edges[i])]
     gates = [i for i in edges if areas[i].role == "entrance" and any(areas[j].role == "lane" for j in edges[i])]
@@ -758,31 +972,35 @@ def _vehicles(areas, catalog, classes, options: TrackOptions, rng, accepted: lis
     for k in range(options.vehicles):
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        offset, half = _footprint(entry, VEHICLE_MARGIN_M)
-        facing = _facing_offset(entry, person=False)
+        look, sized = _draw_look(entry, rng)
+        offset, half = _footprint(sized, VEHICLE_MARGIN_M)
+        height, blocked = _mover_height(entry), 0
         for _ in range(MAX_TRIES):
             bay = free[int(rng.integers(len(free)))]
             path = reachable[bay][int(rng.integers(len(reachable[bay])))]
             speed = float(rng.uniform(*VEHICLE_SPEED_RANGE_M_S))
             if rng.random() < 0.5:
-                track = _arriving(areas, path, speed, facing, options, rng)
+                track = _arriving(areas, path, speed, options, rng)
             else:
-                track = _leaving(areas, path, speed, facing, options, rng)
+                track = _leaving(areas, path, speed, options, rng)
             if track is None:
                 continue
             track.class_name = cls
             track.footprint = (offset, half)
+            if _hits_obstacle(track, obstacles, height, VEHICLE_MARGIN_M):
+                blocked += 1
+                continue
             if not _collides(track, [*accepted, *out]):
-                track.appearance = _draw_look(entry, rng)
+                track.appearance = look
                 out.append(track)
                 free.remove(bay)
                 break
         else:
-            raise _full_fail("--vehicles", len(out), options.vehicles, "vehicles")
+            raise _full_fail("--vehicles", len(out), options.vehicles, "vehicles", blocked)
     return out
 
 
-def _arriving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | None:
+def _arriving(areas, path, speed, options: TrackOptions, rng) -> Track | None:
     F, fps = options.frames, float(options.fps)
     line = _Polyline(_rounded(_route_points(areas, path), VEHICLE_TURN_RADIUS_M))
     duration_s = line.length / speed + speed / VEHICLE_DECEL_M_S2
@@ -792,11 +1010,11 @@ def _arriving(areas, path, speed, facing, options: TrackOptions, rng) -> Track |
     present = np.isfinite(s)  # parked after arriving: stays
     s = np.minimum(np.nan_to_num(s, nan=0.0), line.length)
     pos, heading = line.at(s)
-    return Track("arriving", "", present, pos, heading + facing, np.zeros(F), speed,
+    return Track("arriving", "", present, pos, heading + FRONT_YAW, np.zeros(F), speed,
                  route=tuple(areas[i].place for i in path))
 
 
-def _leaving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | None:
+def _leaving(areas, path, speed, options: TrackOptions, rng) -> Track | None:
     """Parked nose-in at frame 0, backs out past the bay's lane spot, then drives out."""
     F, fps = options.frames, float(options.fps)
     out_path = path[::-1]  # bay, lane ..., entrance
@@ -812,7 +1030,9 @@ def _leaving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | 
     depart_s = float(rng.uniform(0.0, max(F / fps * 0.8, 0.0)))
     s1 = _timing(reverse.length, REVERSE_SPEED_M_S, from_rest=True, to_rest=True, accel=VEHICLE_DECEL_M_S2,
                  start_s=depart_s, fps=fps, frames=F)
-    t1 = depart_s + 2.0 * reverse.length / REVERSE_SPEED_M_S  # generous: a pause after backing out
+    reversing_s = _profile(reverse.length, REVERSE_SPEED_M_S, from_rest=True, to_rest=True,
+                           accel=VEHICLE_DECEL_M_S2)[1][-1]
+    t1 = depart_s + reversing_s + SHIFT_PAUSE_S
     s2 = _timing(forward.length, speed, from_rest=True, to_rest=False, accel=VEHICLE_DECEL_M_S2, start_s=t1,
                  fps=fps, frames=F)
     pos1, head1 = reverse.at(np.minimum(np.nan_to_num(s1, nan=0.0), reverse.length))
@@ -822,7 +1042,7 @@ def _leaving(areas, path, speed, facing, options: TrackOptions, rng) -> Track | 
     # Backing out the nose points against the motion; the first reversing heading at rest.
     heading = np.where(moving_on, head2, head1 + math.pi)
     present = ~(moving_on & (s2 > forward.length))
-    return Track("leaving", "", present, pos, heading + facing, np.zeros(F), speed,
+    return Track("leaving", "", present, pos, heading + FRONT_YAW, np.zeros(F), speed,
                  route=tuple(areas[i].place for i in out_path))
 
 
