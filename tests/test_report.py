@@ -252,3 +252,17 @@ def test_balance_chart_and_coverage_map(output, tmp_path, capsys):
     assert (report / "coverage.png").read_bytes() == (document.parent / "coverage.png").read_bytes()
     assert index["imageRoot"] == os.path.relpath(output, report)
     assert str(report / "index.html") in capsys.readouterr().out
+
+
+def test_a_tracks_report_draws_no_balance_chart_and_warns_nothing(output, tmp_path, caplog):
+    """``generate tracks`` writes a report of tracks beside its document: not a balance report."""
+    document = tmp_path / "moving.openlabel.json"
+    document.write_text(json.dumps(_document()))
+    Path(f"{document}.report.json").write_text(json.dumps({
+        "strategy": "tracks", "frames": 3, "fps": 5.0, "tracks": {"1": {"frames": 3}}}))
+    with caplog.at_level("WARNING"):
+        assert main(["report", str(output), "-o", str(tmp_path / "report"), "--document", str(document)]) == 0
+    index = _script_data(tmp_path / "report" / "data" / "index.js", "usdsceneReportIndex")
+    assert "balance" not in index["pictures"]
+    assert not (tmp_path / "report" / "balance.png").exists()
+    assert not [r for r in caplog.records if "balance" in r.getMessage()]
