@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 # Revision of the rasterisation rules; kept labels computed under another revision are
 # computed anew (:class:`usdscene.dataset.annotation.ImageLabeller`). Raise it whenever a change can
 # move a projection's pixels.
-RASTER_REVISION = 4
+RASTER_REVISION = 5
 
 # Projected triangle edges of distorting lenses are curves; triangles are split until their
 # projected edges are at most this long (pixels), so the straight-edge raster stays within a
@@ -198,12 +198,14 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     """Rasterise every object's world-space triangles through one camera, all objects in one
     vectorised pass (see the module docstring for what is exact on each lens model).
 
-    Closed meshes (every edge shared by exactly two faces of opposite winding, after merging
-    equal vertices) are filled from the faces of one facing only when the camera lies outside
-    the object's bounding sphere (and beyond the near plane): a ray from the camera that meets
-    a closed surface enters it through a face of one facing and leaves it through a face of
-    the other, so either facing alone covers the pixels the whole mesh covers, with half the
-    triangles. Open meshes use every face.
+    Closed meshes (after merging equal vertices, every edge run along as often in one
+    direction as in the other: the faces' boundaries cancel, see :func:`_is_closed`) are
+    filled from the faces of one facing only when the camera lies outside the object's
+    bounding sphere (and beyond the near plane): the surface's winding number is 0 at the
+    camera and far along every ray, so a ray that meets the surface crosses it as often
+    through faces of one facing as through faces of the other (a surface that touches or
+    passes through itself included), and either facing alone covers the pixels the whole
+    mesh covers, with half the triangles. Open meshes use every face.
 
     Args:
         camera: the camera (intrinsics + pose at ``frame``).
@@ -425,16 +427,19 @@ def _indexed_mesh(triangles: np.ndarray) -> _IndexedMesh:
 
 def _is_closed(faces: np.ndarray, n_points: int) -> bool:
     """Whether (T, 3) faces over ``n_points`` vertices form closed, consistently wound
-    surfaces: faces with a repeated vertex (no area) aside, each directed edge occurs once
-    and its reverse once."""
+    surfaces: faces with a repeated vertex (no area) aside, every edge is run along as often
+    in one direction as in the other, so the faces' boundaries cancel.
+
+    That is what makes one facing cover the whole projection (see :func:`amodal_projections`);
+    a surface may touch itself: the baked people's posed bodies have distinct vertices at
+    equal positions, which merging equal vertices turns into faces without area and edges run
+    along twice in the same direction (and twice in the other).
+    """
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
     if not len(faces):
         return False
     start, end = faces.ravel(), faces[:, [1, 2, 0]].ravel()
-    forward = np.sort(start * n_points + end)
-    if (forward[1:] == forward[:-1]).any():
-        return False
-    return bool(np.array_equal(forward, np.sort(end * n_points + start)))
+    return bool(np.array_equal(np.sort(start * n_points + end), np.sort(end * n_points + start)))
 
 
 def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,
