@@ -282,26 +282,21 @@ def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray
         ``(uv, imaged, inside, clamped, faces, owner)`` with the split faces replaced by their
         pieces (the pieces' vertices appended after the given ones).
     """
-    from usdscene.labels.amodal_kernels import needs_split
+    from usdscene.labels.amodal_kernels import edge_midpoints, needs_split, split_faces
 
     split = needs_split(uv, imaged, clamped, faces, max_edge_px, MAX_CUT_EDGE_PX)
     if not split.any():
         return uv, imaged, inside, clamped, faces, owner
     # Pieces are vertex index triples into a pool that grows by each level's edge midpoints:
-    # a corner is projected once, not again in every piece that shares it.
+    # a corner or a midpoint is projected once, not again in every piece that shares it.
     pool = [points_cam, uv, imaged, inside, clamped]
     face_parts, owner_parts = [faces[~split]], [owner[~split]]
     pieces, piece_owner = faces[split], owner[split]
     for level in range(_MAX_SUBDIVISIONS):
-        a, b, c = pieces[:, 0], pieces[:, 1], pieces[:, 2]
-        points, count, k = pool[0], len(pool[0]), len(pieces)
-        midpoints = np.concatenate([(points[a] + points[b]) / 2, (points[b] + points[c]) / 2,
-                                    (points[c] + points[a]) / 2])
+        midpoints, edge = edge_midpoints(pool[0], pieces)
+        pieces = split_faces(pieces, edge, len(pool[0]))
         pool = [np.concatenate([old, new]) for old, new in
                 zip(pool, (midpoints, *_project_points(intrinsics, midpoints)))]
-        ab, bc, ca = (count + np.arange(k) + offset for offset in (0, k, 2 * k))
-        pieces = np.concatenate([np.stack(corners, axis=1) for corners in
-                                 ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
         piece_owner = np.tile(piece_owner, 4)
         # The last level keeps every piece, long or not.
         again = (needs_split(pool[1], pool[2], pool[4], pieces, max_edge_px, MAX_CUT_EDGE_PX)
