@@ -282,31 +282,44 @@ def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray
         ``(uv, imaged, inside, clamped, faces, owner)`` with the split faces replaced by their
         pieces (the pieces' vertices appended after the given ones).
     """
-    from usdscene.labels.amodal_kernels import edge_midpoints, needs_split, split_faces
+    from usdscene.labels.amodal_kernels import edge_midpoints, needs_split, partition_faces, split_faces
 
     split = needs_split(uv, imaged, clamped, faces, max_edge_px, MAX_CUT_EDGE_PX)
     if not split.any():
         return uv, imaged, inside, clamped, faces, owner
     # Pieces are vertex index triples into a pool that grows by each level's edge midpoints:
-    # a corner or a midpoint is projected once, not again in every piece that shares it.
+    # a corner or a midpoint is projected once, not again in every piece that shares it. The
+    # pool's arrays grow by doubling, not by a copy per level.
+    count = len(points_cam)
     pool = [points_cam, uv, imaged, inside, clamped]
-    face_parts, owner_parts = [faces[~split]], [owner[~split]]
-    pieces, piece_owner = faces[split], owner[split]
+    kept, kept_owner, pieces, piece_owner = partition_faces(faces, owner, split)
+    face_parts, owner_parts = [kept], [kept_owner]
     for level in range(_MAX_SUBDIVISIONS):
-        midpoints, edge = edge_midpoints(pool[0], pieces)
-        pieces = split_faces(pieces, edge, len(pool[0]))
-        pool = [np.concatenate([old, new]) for old, new in
-                zip(pool, (midpoints, *_project_points(intrinsics, midpoints)))]
-        piece_owner = np.tile(piece_owner, 4)
-        # The last level keeps every piece, long or not.
-        again = (needs_split(pool[1], pool[2], pool[4], pieces, max_edge_px, MAX_CUT_EDGE_PX)
-                 if level < _MAX_SUBDIVISIONS - 1 else np.zeros(len(pieces), dtype=bool))
-        face_parts.append(pieces[~again])
-        owner_parts.append(piece_owner[~again])
-        if not again.any():
+        midpoints, edge = edge_midpoints(pool[0][:count], pieces)
+        pieces, piece_owner = split_faces(pieces, piece_owner, edge, count)
+        end = count + len(midpoints)
+        if end > len(pool[0]):
+            grown = []
+            for array in pool:
+                bigger = np.empty((max(2 * end, 1024),) + array.shape[1:], dtype=array.dtype)
+                bigger[:count] = array[:count]
+                grown.append(bigger)
+            pool = grown
+        for array, new in zip(pool, (midpoints, *_project_points(intrinsics, midpoints))):
+            array[count:end] = new
+        count = end
+        if level == _MAX_SUBDIVISIONS - 1:  # the last level keeps every piece, long or not
+            face_parts.append(pieces)
+            owner_parts.append(piece_owner)
             break
-        pieces, piece_owner = pieces[again], piece_owner[again]
-    _, uv, imaged, inside, clamped = pool
+        again = needs_split(pool[1][:count], pool[2][:count], pool[4][:count], pieces, max_edge_px,
+                            MAX_CUT_EDGE_PX)
+        kept, kept_owner, pieces, piece_owner = partition_faces(pieces, piece_owner, again)
+        face_parts.append(kept)
+        owner_parts.append(kept_owner)
+        if not len(pieces):
+            break
+    _, uv, imaged, inside, clamped = (array[:count] for array in pool)
     return uv, imaged, inside, clamped, np.concatenate(face_parts), np.concatenate(owner_parts)
 
 

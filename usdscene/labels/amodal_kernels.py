@@ -158,20 +158,21 @@ def edge_midpoints(points, pieces):
 
 
 @njit(nogil=True)
-def split_faces(pieces, edge, first):
+def split_faces(pieces, piece_owner, edge, first):
     """Each face split into four at its edge midpoints.
 
     Args:
-        pieces: (K, 3) int64 faces ``(a, b, c)``.
+        pieces: (K, 3) int64 faces ``(a, b, c)``; ``piece_owner`` (K,) their objects.
         edge: (K, 3) int64 their edges' midpoints (:func:`edge_midpoints`), whose vertices
             are numbered from ``first`` on.
 
     Returns:
-        (4K, 3) int64: the corner pieces ``(a, ab, ca)`` of every face, then ``(ab, b, bc)``,
-        then ``(ca, bc, c)``, then the middle pieces ``(ab, bc, ca)``.
+        ``(faces (4K, 3), owner (4K,))``: the corner pieces ``(a, ab, ca)`` of every face,
+        then ``(ab, b, bc)``, then ``(ca, bc, c)``, then the middle pieces ``(ab, bc, ca)``.
     """
     k = pieces.shape[0]
     out = np.empty((4 * k, 3), dtype=np.int64)
+    out_owner = np.empty(4 * k, dtype=np.int64)
     for t in range(k):
         a, b, c = pieces[t, 0], pieces[t, 1], pieces[t, 2]
         ab, bc, ca = first + edge[t, 0], first + edge[t, 1], first + edge[t, 2]
@@ -179,7 +180,32 @@ def split_faces(pieces, edge, first):
         out[k + t, 0], out[k + t, 1], out[k + t, 2] = ab, b, bc
         out[2 * k + t, 0], out[2 * k + t, 1], out[2 * k + t, 2] = ca, bc, c
         out[3 * k + t, 0], out[3 * k + t, 1], out[3 * k + t, 2] = ab, bc, ca
-    return out
+        for j in range(4):
+            out_owner[j * k + t] = piece_owner[t]
+    return out, out_owner
+
+
+@njit(nogil=True)
+def partition_faces(faces, owner, chosen):
+    """``(faces[~chosen], owner[~chosen], faces[chosen], owner[chosen])`` in one pass."""
+    n = faces.shape[0]
+    k = 0
+    for t in range(n):
+        if chosen[t]:
+            k += 1
+    rest, rest_owner = np.empty((n - k, 3), dtype=np.int64), np.empty(n - k, dtype=np.int64)
+    picked, picked_owner = np.empty((k, 3), dtype=np.int64), np.empty(k, dtype=np.int64)
+    i = j = 0
+    for t in range(n):
+        if chosen[t]:
+            picked[j, 0], picked[j, 1], picked[j, 2] = faces[t, 0], faces[t, 1], faces[t, 2]
+            picked_owner[j] = owner[t]
+            j += 1
+        else:
+            rest[i, 0], rest[i, 1], rest[i, 2] = faces[t, 0], faces[t, 1], faces[t, 2]
+            rest_owner[i] = owner[t]
+            i += 1
+    return rest, rest_owner, picked, picked_owner
 
 
 @njit(nogil=True, inline="always")
