@@ -52,15 +52,13 @@ def keypoint_visibility(uv: np.ndarray, valid: np.ndarray, mask: np.ndarray, mas
         return out
     col = np.floor(x[inside] + 0.5).astype(np.int64)
     row = np.floor(y[inside] + 0.5).astype(np.int64)
-    seen = np.zeros(len(col), dtype=bool)
-    # The 3x3 neighbourhood, offsets that leave the image skipped.
-    for dr in range(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1):
-        for dc in range(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1):
-            r, c = row + dr, col + dc
-            ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-            hit = np.zeros(len(col), dtype=bool)
-            hit[ok] = mask[r[ok], c[ok]] == mask_id
-            seen |= hit
+    # The 3x3 neighbourhood of every keypoint at once (one pass, not nine: the call is per
+    # person and image), offsets that leave the image skipped.
+    offsets = np.arange(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1)
+    r = np.repeat(row[:, None] + offsets, len(offsets), axis=1)
+    c = np.tile(col[:, None] + offsets, len(offsets))
+    ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+    seen = (ok & (mask[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)] == mask_id)).any(axis=1)
     out[inside, 0], out[inside, 1] = x[inside], y[inside]
     out[inside, 2] = np.where(seen, VISIBLE, OCCLUDED)
     return out
