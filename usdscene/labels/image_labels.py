@@ -368,7 +368,7 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
             from usdscene.labels.keypoints import keypoint_visibility
 
             flagged = keypoint_visibility(*keypoints[uid], mask, int(mask_id))
-            points = tuple((round(float(x), 3) + 0.0, round(float(y), 3) + 0.0, int(v)) for x, y, v in flagged)
+            points = tuple((round(x, 3) + 0.0, round(y, 3) + 0.0, int(v)) for x, y, v in flagged.tolist())
         labels.append(ObjectLabel(uid=uid, class_name=classes.get(uid, ""), mask_id=int(mask_id),
                                   box=visible_box, pixel_count=pixel_count, contours=contours,
                                   amodal_box=amodal_box, amodal_pixel_count=amodal_count,
