@@ -336,17 +336,19 @@ def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray) -> tuple[np.
         ``(uv (N, 2) float64, imaged (N,), inside (N,), clamped (N,))``, bool arrays: the lens
         images the point; it lies within the field-of-view cone; it was moved onto the cone.
     """
-    from usdscene.labels.projection import project_camera_points
+    from usdscene.labels.projection import project_camera_points, project_camera_points_with_angle
 
     cone = _fisheye_cone_rad(intrinsics)
-    none = np.zeros(len(points_cam), dtype=bool)
     if cone is None:
+        none = np.zeros(len(points_cam), dtype=bool)
         uv, ok = project_camera_points(intrinsics, points_cam)
         return np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool), ~none, none
-    x, y, z = points_cam[:, 0], points_cam[:, 1], points_cam[:, 2]
-    inside = np.arctan2(np.hypot(x, y), z) <= cone
-    uv, ok = project_camera_points(intrinsics if inside.all() else _without_fov(intrinsics), points_cam)
-    uv, ok = np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool)
+    # The model without the limit puts every point where the limited one does, and the angles
+    # it computes on the way tell which points lie inside the cone.
+    uv, ok, theta = project_camera_points_with_angle(_without_fov(intrinsics), points_cam)
+    inside = theta <= cone
+    if inside.all() and not ok.all():  # the limited lens's own word (an OpenCV fisheye beyond 180°)
+        uv, ok = project_camera_points(intrinsics, points_cam)
     clamped = ~ok & ~inside
     if clamped.any():
         uv[clamped], ok[clamped] = project_camera_points(intrinsics, _onto_cone(points_cam[clamped], cone))
