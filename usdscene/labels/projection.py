@@ -41,6 +41,7 @@ from usdscene.document.model import Camera, Intrinsics, LensModel
 __all__ = [
     "project_points",
     "project_camera_points",
+    "project_camera_points_with_angle",
     "pixel_rays",
     "remap_grids",
     "undistorted_render_intrinsics",
