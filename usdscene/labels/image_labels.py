@@ -318,6 +318,19 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
     if unknown:
         log.warning("%s frame %d: mask ids %s have no object; ignored", camera, frame, unknown)
 
+    # Every person's keypoints flagged in one call (a call per person cost more than the test).
+    flagged_of = {}
+    people = [(uid, mask_id) for mask_id, uid in ids.items() if keypoints and uid in keypoints]
+    if people:
+        from usdscene.labels.keypoints import keypoint_visibility
+
+        uv = [np.asarray(keypoints[uid][0], dtype=np.float64).reshape(-1, 2) for uid, _ in people]
+        valid = np.concatenate([np.asarray(keypoints[uid][1], dtype=bool).reshape(-1) for uid, _ in people])
+        owner = np.repeat([int(mask_id) for _, mask_id in people], [len(points) for points in uv])
+        rows = keypoint_visibility(np.concatenate(uv), valid, mask, owner).tolist()
+        starts = np.cumsum([0] + [len(points) for points in uv]).tolist()
+        flagged_of = {mask_id: rows[a:b] for (_, mask_id), a, b in zip(people, starts[:-1], starts[1:])}
+
     labels = []
     for mask_id, uid in sorted(ids.items()):
         visible_box = boxes.get(mask_id)
@@ -364,11 +377,8 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
         if fraction is not None and fraction < min_visible_fraction:
             continue
         points = None
-        if keypoints and uid in keypoints:
-            from usdscene.labels.keypoints import keypoint_visibility
-
-            flagged = keypoint_visibility(*keypoints[uid], mask, int(mask_id))
-            points = tuple((round(x, 3) + 0.0, round(y, 3) + 0.0, int(v)) for x, y, v in flagged.tolist())
+        if mask_id in flagged_of:
+            points = tuple((round(x, 3) + 0.0, round(y, 3) + 0.0, int(v)) for x, y, v in flagged_of[mask_id])
         labels.append(ObjectLabel(uid=uid, class_name=classes.get(uid, ""), mask_id=int(mask_id),
                                   box=visible_box, pixel_count=pixel_count, contours=contours,
                                   amodal_box=amodal_box, amodal_pixel_count=amodal_count,
