@@ -96,6 +96,11 @@ def _box_mesh(lo, hi) -> np.ndarray:
     return np.array([v[[a, b, c]] for a, b, c, d in quads] + [v[[a, c, d]] for a, b, c, d in quads])
 
 
+def _touching_boxes() -> np.ndarray:
+    """(24, 3, 3) triangles of two closed boxes that share the face x = -0.7."""
+    return np.concatenate([_box_mesh((-1.0, 0.3, 2.0), (-0.7, 0.7, 2.6)), _box_mesh((-0.7, 0.3, 2.0), (-0.4, 0.7, 2.6))])
+
+
 def test_closed_meshes_are_recognised():
     from usdscene.labels.amodal import _indexed_mesh
 
@@ -107,6 +112,11 @@ def test_closed_meshes_are_recognised():
     assert not _indexed_mesh(flipped).closed
     assert not _indexed_mesh(np.concatenate([box, box[:1]])).closed  # an edge used three times
     assert _indexed_mesh(box[:, ::-1].copy()).closed  # wound inwards everywhere: still closed
+    # Two boxes sharing a face (a surface touching itself, as a posed body's does): the shared
+    # face's edges are run along twice each way, and the boundaries still cancel.
+    pair = _touching_boxes()
+    assert len(_indexed_mesh(pair).points) == 12 and _indexed_mesh(pair).closed
+    assert not _indexed_mesh(pair[1:].copy()).closed
 
 
 @pytest.mark.parametrize("lens, distortion, fov", [
@@ -122,7 +132,7 @@ def test_one_facing_of_a_closed_mesh_covers_what_every_face_covers(lens, distort
     # Boxes seen from several sides, one of them cut by the image border.
     meshes = {"a": _box_mesh((-0.3, -0.2, 1.5), (0.2, 0.3, 2.5)),
               "b": _box_mesh((0.5, 0.1, 1.0), (1.6, 0.6, 1.8)),
-              "c": _box_mesh((-1.2, -0.9, 0.8), (-0.6, -0.5, 1.4))}
+              "c": _box_mesh((-1.2, -0.9, 0.8), (-0.6, -0.5, 1.4)), "d": _touching_boxes()}
     if inwards:
         meshes = {uid: tris[:, ::-1].copy() for uid, tris in meshes.items()}
     fast = amodal.amodal_projections(camera, meshes)

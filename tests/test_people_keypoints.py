@@ -180,3 +180,9 @@ def test_visibility_flags_on_a_synthetic_mask():
     assert flags[:, 2].tolist() == [2, 2, 1, 0, 1, 0]
     assert flags[3, :2].tolist() == [0, 0] and flags[5, :2].tolist() == [0, 0]
     assert flags[0, :2].tolist() == [4.0, 3.0]
+    # Two people flagged in one call, an id per keypoint: as if each were flagged alone.
+    both = keypoint_visibility(np.concatenate([uv, uv]), np.concatenate([valid, valid]), mask,
+                               np.repeat([5, 9], len(uv)))
+    assert np.array_equal(both[:len(uv)], flags)
+    assert np.array_equal(both[len(uv):], keypoint_visibility(uv, valid, mask, 9))
+    assert both[len(uv) + 2, 2] == 2  # on the other object's pixels: seen for that one

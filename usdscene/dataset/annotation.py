@@ -196,8 +196,13 @@ class ImageLabeller:
             amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
             if self._keypoints is None or self._keypoints[0] != frame:
                 self._keypoints = (frame, self.geometry.keypoints(frame, set(self.ids.values())))
-            # The same lens model and pose as the amodal projections.
-            keypoints = {uid: project_points(camera, points, frame) for uid, points in self._keypoints[1].items()}
+            # The same lens model and pose as the amodal projections; every person's in one call.
+            people = self._keypoints[1]
+            keypoints = {}
+            if people:
+                uv, valid = project_points(camera, np.concatenate(list(people.values())), frame)
+                starts = np.cumsum([0] + [len(points) for points in people.values()])
+                keypoints = {uid: (uv[a:b], valid[a:b]) for uid, a, b in zip(people, starts[:-1], starts[1:])}
         return label_image(mask, self.ids, amodal_masks, classes=self.classes, camera=camera_name,
                            frame=frame, epsilon_px=self.epsilon_px,
                            min_visible_fraction=self.min_visible_fraction, keypoints=keypoints)

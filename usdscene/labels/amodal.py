@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 # Revision of the rasterisation rules; kept labels computed under another revision are
 # computed anew (:class:`usdscene.dataset.annotation.ImageLabeller`). Raise it whenever a change can
 # move a projection's pixels.
-RASTER_REVISION = 4
+RASTER_REVISION = 5
 
 # Projected triangle edges of distorting lenses are curves; triangles are split until their
 # projected edges are at most this long (pixels), so the straight-edge raster stays within a
@@ -198,12 +198,14 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     """Rasterise every object's world-space triangles through one camera, all objects in one
     vectorised pass (see the module docstring for what is exact on each lens model).
 
-    Closed meshes (every edge shared by exactly two faces of opposite winding, after merging
-    equal vertices) are filled from the faces of one facing only when the camera lies outside
-    the object's bounding sphere (and beyond the near plane): a ray from the camera that meets
-    a closed surface enters it through a face of one facing and leaves it through a face of
-    the other, so either facing alone covers the pixels the whole mesh covers, with half the
-    triangles. Open meshes use every face.
+    Closed meshes (after merging equal vertices, every edge run along as often in one
+    direction as in the other: the faces' boundaries cancel, see :func:`_is_closed`) are
+    filled from the faces of one facing only when the camera lies outside the object's
+    bounding sphere (and beyond the near plane): the surface's winding number is 0 at the
+    camera and far along every ray, so a ray that meets the surface crosses it as often
+    through faces of one facing as through faces of the other (a surface that touches or
+    passes through itself included), and either facing alone covers the pixels the whole
+    mesh covers, with half the triangles. Open meshes use every face.
 
     Args:
         camera: the camera (intrinsics + pose at ``frame``).
@@ -280,36 +282,44 @@ def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray
         ``(uv, imaged, inside, clamped, faces, owner)`` with the split faces replaced by their
         pieces (the pieces' vertices appended after the given ones).
     """
-    from usdscene.labels.amodal_kernels import needs_split
+    from usdscene.labels.amodal_kernels import edge_midpoints, needs_split, partition_faces, split_faces
 
     split = needs_split(uv, imaged, clamped, faces, max_edge_px, MAX_CUT_EDGE_PX)
     if not split.any():
         return uv, imaged, inside, clamped, faces, owner
     # Pieces are vertex index triples into a pool that grows by each level's edge midpoints:
-    # a corner is projected once, not again in every piece that shares it.
+    # a corner or a midpoint is projected once, not again in every piece that shares it. The
+    # pool's arrays grow by doubling, not by a copy per level.
+    count = len(points_cam)
     pool = [points_cam, uv, imaged, inside, clamped]
-    face_parts, owner_parts = [faces[~split]], [owner[~split]]
-    pieces, piece_owner = faces[split], owner[split]
+    kept, kept_owner, pieces, piece_owner = partition_faces(faces, owner, split)
+    face_parts, owner_parts = [kept], [kept_owner]
     for level in range(_MAX_SUBDIVISIONS):
-        a, b, c = pieces[:, 0], pieces[:, 1], pieces[:, 2]
-        points, count, k = pool[0], len(pool[0]), len(pieces)
-        midpoints = np.concatenate([(points[a] + points[b]) / 2, (points[b] + points[c]) / 2,
-                                    (points[c] + points[a]) / 2])
-        pool = [np.concatenate([old, new]) for old, new in
-                zip(pool, (midpoints, *_project_points(intrinsics, midpoints)))]
-        ab, bc, ca = (count + np.arange(k) + offset for offset in (0, k, 2 * k))
-        pieces = np.concatenate([np.stack(corners, axis=1) for corners in
-                                 ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
-        piece_owner = np.tile(piece_owner, 4)
-        # The last level keeps every piece, long or not.
-        again = (needs_split(pool[1], pool[2], pool[4], pieces, max_edge_px, MAX_CUT_EDGE_PX)
-                 if level < _MAX_SUBDIVISIONS - 1 else np.zeros(len(pieces), dtype=bool))
-        face_parts.append(pieces[~again])
-        owner_parts.append(piece_owner[~again])
-        if not again.any():
+        midpoints, edge = edge_midpoints(pool[0][:count], pieces)
+        pieces, piece_owner = split_faces(pieces, piece_owner, edge, count)
+        end = count + len(midpoints)
+        if end > len(pool[0]):
+            grown = []
+            for array in pool:
+                bigger = np.empty((max(2 * end, 1024),) + array.shape[1:], dtype=array.dtype)
+                bigger[:count] = array[:count]
+                grown.append(bigger)
+            pool = grown
+        for array, new in zip(pool, (midpoints, *_project_points(intrinsics, midpoints))):
+            array[count:end] = new
+        count = end
+        if level == _MAX_SUBDIVISIONS - 1:  # the last level keeps every piece, long or not
+            face_parts.append(pieces)
+            owner_parts.append(piece_owner)
             break
-        pieces, piece_owner = pieces[again], piece_owner[again]
-    _, uv, imaged, inside, clamped = pool
+        again = needs_split(pool[1][:count], pool[2][:count], pool[4][:count], pieces, max_edge_px,
+                            MAX_CUT_EDGE_PX)
+        kept, kept_owner, pieces, piece_owner = partition_faces(pieces, piece_owner, again)
+        face_parts.append(kept)
+        owner_parts.append(kept_owner)
+        if not len(pieces):
+            break
+    _, uv, imaged, inside, clamped = (array[:count] for array in pool)
     return uv, imaged, inside, clamped, np.concatenate(face_parts), np.concatenate(owner_parts)
 
 
@@ -326,17 +336,19 @@ def _project_points(intrinsics: Intrinsics, points_cam: np.ndarray) -> tuple[np.
         ``(uv (N, 2) float64, imaged (N,), inside (N,), clamped (N,))``, bool arrays: the lens
         images the point; it lies within the field-of-view cone; it was moved onto the cone.
     """
-    from usdscene.labels.projection import project_camera_points
+    from usdscene.labels.projection import project_camera_points, project_camera_points_with_angle
 
     cone = _fisheye_cone_rad(intrinsics)
-    none = np.zeros(len(points_cam), dtype=bool)
     if cone is None:
+        none = np.zeros(len(points_cam), dtype=bool)
         uv, ok = project_camera_points(intrinsics, points_cam)
         return np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool), ~none, none
-    x, y, z = points_cam[:, 0], points_cam[:, 1], points_cam[:, 2]
-    inside = np.arctan2(np.hypot(x, y), z) <= cone
-    uv, ok = project_camera_points(intrinsics if inside.all() else _without_fov(intrinsics), points_cam)
-    uv, ok = np.asarray(uv, dtype=np.float64), np.asarray(ok, dtype=bool)
+    # The model without the limit puts every point where the limited one does, and the angles
+    # it computes on the way tell which points lie inside the cone.
+    uv, ok, theta = project_camera_points_with_angle(_without_fov(intrinsics), points_cam)
+    inside = theta <= cone
+    if inside.all() and not ok.all():  # the limited lens's own word (an OpenCV fisheye beyond 180°)
+        uv, ok = project_camera_points(intrinsics, points_cam)
     clamped = ~ok & ~inside
     if clamped.any():
         uv[clamped], ok[clamped] = project_camera_points(intrinsics, _onto_cone(points_cam[clamped], cone))
@@ -425,16 +437,19 @@ def _indexed_mesh(triangles: np.ndarray) -> _IndexedMesh:
 
 def _is_closed(faces: np.ndarray, n_points: int) -> bool:
     """Whether (T, 3) faces over ``n_points`` vertices form closed, consistently wound
-    surfaces: faces with a repeated vertex (no area) aside, each directed edge occurs once
-    and its reverse once."""
+    surfaces: faces with a repeated vertex (no area) aside, every edge is run along as often
+    in one direction as in the other, so the faces' boundaries cancel.
+
+    That is what makes one facing cover the whole projection (see :func:`amodal_projections`);
+    a surface may touch itself: the baked people's posed bodies have distinct vertices at
+    equal positions, which merging equal vertices turns into faces without area and edges run
+    along twice in the same direction (and twice in the other).
+    """
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
     if not len(faces):
         return False
     start, end = faces.ravel(), faces[:, [1, 2, 0]].ravel()
-    forward = np.sort(start * n_points + end)
-    if (forward[1:] == forward[:-1]).any():
-        return False
-    return bool(np.array_equal(forward, np.sort(end * n_points + start)))
+    return bool(np.array_equal(np.sort(start * n_points + end), np.sort(end * n_points + start)))
 
 
 def _clip_near(points_cam: np.ndarray, faces: np.ndarray, owner: np.ndarray,

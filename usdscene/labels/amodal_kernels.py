@@ -117,6 +117,109 @@ def needs_split(uv, imaged, clamped, faces, max_edge, max_cut_edge):
     return out
 
 
+@njit(nogil=True)
+def edge_midpoints(points, pieces):
+    """The midpoints of the edges of faces to split, each edge once although the faces on
+    both sides of it are split (a corner is shared the same way): half the points to project.
+
+    Args:
+        points: (P, 3) float64 vertices.
+        pieces: (K, 3) int64 faces to split.
+
+    Returns:
+        ``(midpoints (E, 3), edge (K, 3))``: ``(points[a] + points[b]) / 2`` of every edge
+        ``{a, b}``, in the order first met, and for each face the index into ``midpoints`` of
+        its edges from corner 0 to 1, 1 to 2 and 2 to 0.
+    """
+    k = pieces.shape[0]
+    size = 16
+    while size < 6 * k:  # open addressing, at most half full
+        size *= 2
+    slot_lo = np.full(size, -1, dtype=np.int64)
+    slot_hi = np.empty(size, dtype=np.int64)
+    slot_edge = np.empty(size, dtype=np.int64)
+    edge = np.empty((k, 3), dtype=np.int64)
+    midpoints = np.empty((3 * k, 3), dtype=np.float64)
+    n = 0
+    for t in range(k):
+        for j in range(3):
+            a, b = pieces[t, j], pieces[t, (j + 1) % 3]
+            lo, hi = min(a, b), max(a, b)
+            h = (lo * 1000003 + hi * 998244353) & (size - 1)
+            while slot_lo[h] >= 0 and not (slot_lo[h] == lo and slot_hi[h] == hi):
+                h = (h + 1) & (size - 1)
+            if slot_lo[h] < 0:
+                slot_lo[h], slot_hi[h], slot_edge[h] = lo, hi, n
+                for d in range(3):  # the sum is the same either way round: the same midpoint
+                    midpoints[n, d] = (points[lo, d] + points[hi, d]) / 2.0
+                n += 1
+            edge[t, j] = slot_edge[h]
+    return midpoints[:n], edge
+
+
+@njit(nogil=True)
+def split_faces(pieces, piece_owner, edge, first):
+    """Each face split into four at its edge midpoints.
+
+    Args:
+        pieces: (K, 3) int64 faces ``(a, b, c)``; ``piece_owner`` (K,) their objects.
+        edge: (K, 3) int64 their edges' midpoints (:func:`edge_midpoints`), whose vertices
+            are numbered from ``first`` on.
+
+    Returns:
+        ``(faces (4K, 3), owner (4K,))``: the corner pieces ``(a, ab, ca)`` of every face,
+        then ``(ab, b, bc)``, then ``(ca, bc, c)``, then the middle pieces ``(ab, bc, ca)``.
+    """
+    k = pieces.shape[0]
+    out = np.empty((4 * k, 3), dtype=np.int64)
+    out_owner = np.empty(4 * k, dtype=np.int64)
+    for t in range(k):
+        a, b, c = pieces[t, 0], pieces[t, 1], pieces[t, 2]
+        ab, bc, ca = first + edge[t, 0], first + edge[t, 1], first + edge[t, 2]
+        out[t, 0], out[t, 1], out[t, 2] = a, ab, ca
+        out[k + t, 0], out[k + t, 1], out[k + t, 2] = ab, b, bc
+        out[2 * k + t, 0], out[2 * k + t, 1], out[2 * k + t, 2] = ca, bc, c
+        out[3 * k + t, 0], out[3 * k + t, 1], out[3 * k + t, 2] = ab, bc, ca
+        for j in range(4):
+            out_owner[j * k + t] = piece_owner[t]
+    return out, out_owner
+
+
+@njit(nogil=True)
+def partition_faces(faces, owner, chosen):
+    """``(faces[~chosen], owner[~chosen], faces[chosen], owner[chosen])`` in one pass."""
+    n = faces.shape[0]
+    k = 0
+    for t in range(n):
+        if chosen[t]:
+            k += 1
+    rest, rest_owner = np.empty((n - k, 3), dtype=np.int64), np.empty(n - k, dtype=np.int64)
+    picked, picked_owner = np.empty((k, 3), dtype=np.int64), np.empty(k, dtype=np.int64)
+    i = j = 0
+    for t in range(n):
+        if chosen[t]:
+            picked[j, 0], picked[j, 1], picked[j, 2] = faces[t, 0], faces[t, 1], faces[t, 2]
+            picked_owner[j] = owner[t]
+            j += 1
+        else:
+            rest[i, 0], rest[i, 1], rest[i, 2] = faces[t, 0], faces[t, 1], faces[t, 2]
+            rest_owner[i] = owner[t]
+            i += 1
+    return rest, rest_owner, picked, picked_owner
+
+
+@njit(nogil=True, inline="always")
+def _circle_span(py, circle):
+    """``(lo, hi)``: the columns of image row ``py`` whose pixel centres lie inside the image
+    circle (lo > hi: none). The span only shrinks as rows move away from the circle's centre."""
+    dy = (py - circle[1]) / circle[3]
+    room = circle[4] * circle[4] - dy * dy
+    if room < 0.0:
+        return 1, 0
+    half = circle[2] * math.sqrt(room)
+    return int(math.ceil(circle[0] - half)), int(math.floor(circle[0] + half))
+
+
 @njit(nogil=True, inline="always")
 def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base, circle):
     """Set the pixels of one object's (h, w) crop (at ``crops[base:]``, image origin
@@ -133,26 +236,24 @@ def _fill_face(uv, a, b, c, x0, y0, w, h, crops, base, circle):
     px1 = min(int(math.floor(max(ax, bx, cx))), x0 + w - 1)
     py0 = max(int(math.ceil(min(ay, by, cy))), y0)
     py1 = min(int(math.floor(max(ay, by, cy))), y0 + h - 1)
+    clip = circle[4] > 0.0 and py0 <= py1
+    if clip:  # most faces lie inside the circle: its first and last rows' spans tell
+        lo0, hi0 = _circle_span(py0, circle)
+        lo1, hi1 = _circle_span(py1, circle)
+        clip = not (lo0 <= px0 and px1 <= hi0 and lo1 <= px0 and px1 <= hi1)
     for py in range(py0, py1 + 1):
         row = base + (py - y0) * w - x0
         lo, hi = px0, px1
-        if circle[4] > 0.0:  # the row's span inside the image circle
-            dy = (py - circle[1]) / circle[3]
-            room = circle[4] * circle[4] - dy * dy
-            if room < 0.0:
-                continue
-            half = circle[2] * math.sqrt(room)
-            lo = max(lo, int(math.ceil(circle[0] - half)))
-            hi = min(hi, int(math.floor(circle[0] + half)))
+        if clip:  # the row's span inside the image circle
+            lo_circle, hi_circle = _circle_span(py, circle)
+            lo, hi = max(lo, lo_circle), min(hi, hi_circle)
         for px in range(lo, hi + 1):
-            # Edge functions at the pixel centre, oriented so the interior is >= 0.
-            if ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0:
-                continue
-            if ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0:
-                continue
-            if ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0:
-                continue
-            crops[row + px] = True
+            # Edge functions at the pixel centre, oriented so the interior is >= 0; one test
+            # without branches, which the compiler turns into vector code (a third faster).
+            outside = ((((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * sign < 0.0)
+                       | (((cx - bx) * (py - by) - (cy - by) * (px - bx)) * sign < 0.0)
+                       | (((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * sign < 0.0))
+            crops[row + px] |= not outside
 
 
 @njit(nogil=True)
@@ -202,6 +303,8 @@ def rasterize_objects(uv, imaged, inside, clamped, faces, owner, n_objects, widt
             continue
         if min_x < -0.5 or min_y < -0.5 or max_x > width - 0.5 or max_y > height - 0.5:
             truncated[o] = True
+        if math.ceil(min_x) > math.floor(max_x) or math.ceil(min_y) > math.floor(max_y):
+            continue  # no pixel centre in its box (a third of the faces of a far person)
         drawn[t] = True
         lo_x[o] = min(lo_x[o], max(0, int(math.ceil(min_x))))
         lo_y[o] = min(lo_y[o], max(0, int(math.ceil(min_y))))

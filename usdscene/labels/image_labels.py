@@ -168,23 +168,30 @@ class Annotations:
 # Mask → labels
 
 
-def _boxes_of_ids(mask: np.ndarray, ids: np.ndarray) -> dict[int, PixelBox]:
-    """Tight boxes of every id in ``ids`` present in ``mask``, in one compiled pass over the
-    image instead of one full-image pass per object."""
-    lo_x, lo_y, hi_x, hi_y = _id_bounds_kernel()(np.ascontiguousarray(mask), int(mask.max()) + 1)
-    return {i: PixelBox(int(lo_x[i]), int(lo_y[i]), int(hi_x[i]), int(hi_y[i]))
-            for i in ids.tolist() if hi_x[i] >= 0}
+def _ids_of_mask(mask: np.ndarray) -> tuple[np.ndarray, dict[int, PixelBox]]:
+    """Pixel count of every id of an integer mask and the tight box of every id present but 0
+    (the background), in one compiled pass over the image instead of one full-image pass per
+    object.
+
+    Returns:
+        ``(counts (max id + 1,) int64, mask id → PixelBox)``.
+    """
+    count = int(mask.max()) + 1 if mask.size else 1
+    counts, lo_x, lo_y, hi_x, hi_y = _id_bounds_kernel()(np.ascontiguousarray(mask), count)
+    return counts, {i: PixelBox(int(lo_x[i]), int(lo_y[i]), int(hi_x[i]), int(hi_y[i]))
+                    for i in np.flatnonzero(counts).tolist() if i}
 
 
 @functools.cache
 def _id_bounds_kernel():
-    """Compiled (numba, cached on disk): per id of a (H, W) integer mask, the first and last
-    column and row holding it (``hi_x = -1`` for absent ids)."""
+    """Compiled (numba, cached on disk): per id of a (H, W) integer mask, its pixel count and
+    the first and last column and row holding it (``hi_x = -1`` for absent ids)."""
     from usdscene.compiled import njit
 
     @njit(nogil=True)
     def id_bounds(mask, count):
         height, width = mask.shape
+        counts = np.zeros(count, dtype=np.int64)
         lo_x = np.full(count, width, dtype=np.int64)
         lo_y = np.full(count, height, dtype=np.int64)
         hi_x = np.full(count, -1, dtype=np.int64)
@@ -192,6 +199,7 @@ def _id_bounds_kernel():
         for y in range(height):
             for x in range(width):
                 i = mask[y, x]
+                counts[i] += 1
                 if x < lo_x[i]:
                     lo_x[i] = x
                 if x > hi_x[i]:
@@ -199,7 +207,7 @@ def _id_bounds_kernel():
                 if y < lo_y[i]:
                     lo_y[i] = y
                 hi_y[i] = y
-        return lo_x, lo_y, hi_x, hi_y
+        return counts, lo_x, lo_y, hi_x, hi_y
 
     return id_bounds
 
@@ -303,14 +311,25 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
     height, width = mask.shape
     classes = classes or {}
     amodal_masks = amodal_masks or {}
-    counts = np.bincount(mask.reshape(-1), minlength=1)
+    counts, boxes = _ids_of_mask(mask)
     present = np.flatnonzero(counts)
     present = present[present != 0]
     unknown = [int(i) for i in present if int(i) not in ids]
     if unknown:
         log.warning("%s frame %d: mask ids %s have no object; ignored", camera, frame, unknown)
-    known = np.array([i for i in present.tolist() if i in ids], dtype=np.int64)
-    boxes = _boxes_of_ids(mask, known) if known.size else {}
+
+    # Every person's keypoints flagged in one call (a call per person cost more than the test).
+    flagged_of = {}
+    people = [(uid, mask_id) for mask_id, uid in ids.items() if keypoints and uid in keypoints]
+    if people:
+        from usdscene.labels.keypoints import keypoint_visibility
+
+        uv = [np.asarray(keypoints[uid][0], dtype=np.float64).reshape(-1, 2) for uid, _ in people]
+        valid = np.concatenate([np.asarray(keypoints[uid][1], dtype=bool).reshape(-1) for uid, _ in people])
+        owner = np.repeat([int(mask_id) for _, mask_id in people], [len(points) for points in uv])
+        rows = keypoint_visibility(np.concatenate(uv), valid, mask, owner).tolist()
+        starts = np.cumsum([0] + [len(points) for points in uv]).tolist()
+        flagged_of = {mask_id: rows[a:b] for (_, mask_id), a, b in zip(people, starts[:-1], starts[1:])}
 
     labels = []
     for mask_id, uid in sorted(ids.items()):
@@ -358,11 +377,8 @@ def label_image(mask: np.ndarray, ids: Mapping[int, str],
         if fraction is not None and fraction < min_visible_fraction:
             continue
         points = None
-        if keypoints and uid in keypoints:
-            from usdscene.labels.keypoints import keypoint_visibility
-
-            flagged = keypoint_visibility(*keypoints[uid], mask, int(mask_id))
-            points = tuple((round(float(x), 3) + 0.0, round(float(y), 3) + 0.0, int(v)) for x, y, v in flagged)
+        if mask_id in flagged_of:
+            points = tuple((round(x, 3) + 0.0, round(y, 3) + 0.0, int(v)) for x, y, v in flagged_of[mask_id])
         labels.append(ObjectLabel(uid=uid, class_name=classes.get(uid, ""), mask_id=int(mask_id),
                                   box=visible_box, pixel_count=pixel_count, contours=contours,
                                   amodal_box=amodal_box, amodal_pixel_count=amodal_count,

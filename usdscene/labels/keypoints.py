@@ -27,7 +27,7 @@ VISIBLE, OCCLUDED, OUTSIDE = 2, 1, 0
 MASK_TOLERANCE_PX = 1
 
 
-def keypoint_visibility(uv: np.ndarray, valid: np.ndarray, mask: np.ndarray, mask_id: int) -> np.ndarray:
+def keypoint_visibility(uv: np.ndarray, valid: np.ndarray, mask: np.ndarray, mask_id: int | np.ndarray) -> np.ndarray:
     """Flag projected keypoints against an instance mask.
 
     Args:
@@ -35,7 +35,8 @@ def keypoint_visibility(uv: np.ndarray, valid: np.ndarray, mask: np.ndarray, mas
         valid: (K,) bool, True where the point is in front of the camera and in the lens's
             field of view (:func:`usdscene.labels.projection.project_points`).
         mask: (H, W) instance ids.
-        mask_id: the person's id in ``mask``.
+        mask_id: the person's id in ``mask``, or (K,) ids, one per keypoint (several people's
+            keypoints flagged in one call).
 
     Returns:
         (K, 3) float64 rows ``(x, y, v)``; ``v`` in {0, 1, 2} (module docstring), ``x = y = 0``
@@ -52,15 +53,14 @@ def keypoint_visibility(uv: np.ndarray, valid: np.ndarray, mask: np.ndarray, mas
         return out
     col = np.floor(x[inside] + 0.5).astype(np.int64)
     row = np.floor(y[inside] + 0.5).astype(np.int64)
-    seen = np.zeros(len(col), dtype=bool)
-    # The 3x3 neighbourhood, offsets that leave the image skipped.
-    for dr in range(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1):
-        for dc in range(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1):
-            r, c = row + dr, col + dc
-            ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-            hit = np.zeros(len(col), dtype=bool)
-            hit[ok] = mask[r[ok], c[ok]] == mask_id
-            seen |= hit
+    # The 3x3 neighbourhood of every keypoint at once (one pass, not nine: the call is per
+    # person and image), offsets that leave the image skipped.
+    offsets = np.arange(-MASK_TOLERANCE_PX, MASK_TOLERANCE_PX + 1)
+    r = np.repeat(row[:, None] + offsets, len(offsets), axis=1)
+    c = np.tile(col[:, None] + offsets, len(offsets))
+    ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+    owner = np.broadcast_to(np.asarray(mask_id), (len(uv),))[inside][:, None]
+    seen = (ok & (mask[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)] == owner)).any(axis=1)
     out[inside, 0], out[inside, 1] = x[inside], y[inside]
     out[inside, 2] = np.where(seen, VISIBLE, OCCLUDED)
     return out

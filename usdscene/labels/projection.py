@@ -41,6 +41,7 @@ from usdscene.document.model import Camera, Intrinsics, LensModel
 __all__ = [
     "project_points",
     "project_camera_points",
+    "project_camera_points_with_angle",
     "pixel_rays",
     "remap_grids",
     "undistorted_render_intrinsics",
@@ -83,10 +84,19 @@ def project_camera_points(intrinsics: Intrinsics,
 
     See :func:`project_points`.
     """
+    return project_camera_points_with_angle(intrinsics, points_cam)[:2]
+
+
+def project_camera_points_with_angle(intrinsics: Intrinsics, points_cam: np.ndarray
+                                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`project_camera_points`, and for the fisheye models the angle ``θ`` of each
+    point off the optical axis (radians, (N,)), which they compute anyway; None for the
+    other models."""
     p = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
-    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    x, y, z = np.ascontiguousarray(p.T)  # contiguous columns: the element-wise passes run faster
     lens = LensModel(intrinsics.lens)
     fx, fy, cx, cy = intrinsics.fx_px, intrinsics.fy_px, intrinsics.cx_px, intrinsics.cy_px
+    theta = None
     with np.errstate(divide="ignore", invalid="ignore"):
         if lens is LensModel.ORTHOGRAPHIC:
             xn, yn = x, y
@@ -111,9 +121,11 @@ def project_camera_points(intrinsics: Intrinsics,
             safe_rho = np.where(rho > 0, rho, 1.0)
             xn = np.where(rho > 0, radius * x / safe_rho, 0.0)
             yn = np.where(rho > 0, radius * y / safe_rho, 0.0)
-    uv = np.stack([fx * xn + cx, fy * yn + cy], axis=1)
-    valid = valid & np.isfinite(uv).all(axis=1)
-    return uv, valid
+        uv = np.empty((len(p), 2))
+        uv[:, 0] = fx * xn + cx
+        uv[:, 1] = fy * yn + cy
+        valid = valid & np.isfinite(uv[:, 0]) & np.isfinite(uv[:, 1])
+    return uv, valid, theta
 
 
 def _half_fov_rad(intrinsics: Intrinsics, lens: LensModel) -> float:
