@@ -575,9 +575,9 @@ def _extra_pictures(target: Path, document, coverage_map) -> dict[str, str]:
     if balance is not None and balance.is_file():
         try:
             report = json.loads(balance.read_text(encoding="utf-8"))
-            # ``generate tracks`` writes a report of tracks (lengths, people per frame), not of
-            # class balance: there is no balance to draw, and nothing is wrong.
-            if not (isinstance(report, dict) and report.get("strategy") == "tracks"):
+            # Only a balance report has per-class counts; another generator's report (``generate
+            # tracks``: track lengths, people per frame) has no balance to draw, and nothing is wrong.
+            if not isinstance(report, dict) or "classes" in report:
                 write_png_atomic(target / "balance.png", draw_balance_chart(report))
                 found["balance"] = "balance.png"
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:

@@ -97,17 +97,14 @@ def bundle_stage(stage_path: Path) -> StageBundle:
     Raises:
         RenderError: an asset path of the stage does not resolve here.
     """
-    from pxr import Sdf
+    from usdscene.render.stage_reader import stage_dependencies
 
-    from usdscene.render.stage_reader import stage_dependencies, world_hdri_path
-
-    files, unresolved = stage_dependencies(stage_path)
-    if unresolved:
+    found = stage_dependencies(stage_path)
+    if found.unresolved:
         raise RenderError([Problem(str(stage_path), f"asset path {u!r} does not resolve; a Ray task could not "
-                                                    "load it either") for u in unresolved])
-    hdri = world_hdri_path([Sdf.Layer.FindOrOpen(str(p)) for p in files if p.suffix in (".usd", ".usda", ".usdc")])
-    return StageBundle({_mirrored(p): p.read_bytes() for p in files}, _mirrored(Path(stage_path)),
-                       _mirrored(hdri) if hdri is not None else None)
+                                                    "load it either") for u in found.unresolved])
+    return StageBundle({_mirrored(p): p.read_bytes() for p in found.files}, _mirrored(Path(stage_path)),
+                       _mirrored(found.hdri) if found.hdri is not None else None)
 
 
 def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):

@@ -13,6 +13,7 @@ import json
 import logging
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
+from typing import NamedTuple
 
 from usdscene.document import stage_schema as names
 from usdscene.errors import Problem, RenderError, usd_error_text
@@ -155,15 +156,24 @@ def recorded_source(stage_path: str | Path) -> tuple[Path | None, str]:
     return (Path(source) if source else None), str(data.get("sourceSha256", ""))
 
 
-def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
+class StageFiles(NamedTuple):
+    """What :func:`stage_dependencies` finds.
+
+    Attributes:
+        files: absolute paths of existing files, root layer first (the HDRI among them).
+        unresolved: asset paths that could not be resolved (as written in the layers).
+        hdri: the world's HDRI when it exists (also in ``files``), else None.
+    """
+
+    files: list[Path]
+    unresolved: list[str]
+    hdri: Path | None
+
+
+def stage_dependencies(stage_path: str | Path) -> StageFiles:
     """Every file a render of the stage reads: its layers, the layers they reference or
     sublayer (assets) and other assets they name (textures), found by following composition,
-    and the world's HDRI (:func:`world_hdri_path`).
-
-    Returns:
-        ``(files, unresolved)``: absolute paths of existing files, root layer first, and the
-        asset paths that could not be resolved (as written in the layers).
-    """
+    and the world's HDRI (:func:`world_hdri_path`)."""
     from pxr import UsdUtils
 
     layers, assets, unresolved_paths = UsdUtils.ComputeAllDependencies(str(Path(stage_path).resolve()))
@@ -174,13 +184,12 @@ def stage_dependencies(stage_path: str | Path) -> tuple[list[Path], list[str]]:
         if item and path.is_file() and path not in files:
             files.append(path)
     hdri = world_hdri_path(layers)
-    if hdri is not None:
-        if hdri.is_file():
-            if hdri not in files:
-                files.append(hdri)
-        else:
-            unresolved.append(str(hdri))
-    return files, unresolved
+    if hdri is not None and not hdri.is_file():
+        unresolved.append(str(hdri))
+        hdri = None
+    if hdri is not None and hdri not in files:
+        files.append(hdri)
+    return StageFiles(files, unresolved, hdri)
 
 
 def world_hdri_path(layers) -> Path | None:
@@ -212,7 +221,7 @@ def stage_digest(stage_path: str | Path) -> str:
     import hashlib
 
     digest = hashlib.sha256()
-    for path in stage_dependencies(stage_path)[0]:
+    for path in stage_dependencies(stage_path).files:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
