@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdscene.converters.usd_stage import scene_from_stage
+from usdscene.converters.stage.usd_stage import scene_from_stage
 from usdscene.document import model as m
 from usdscene.scene.catalog import load_catalog
 from usdscene.scene.compose import compose_stage

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from usdscene.converters.openlabel import write_openlabel
-from usdscene.converters.openlabel_annotations import add_annotations
+from usdscene.converters.openlabel.annotations import add_annotations
 from usdscene.labels.cross_camera import cross_camera_table, object_densities
 from usdscene.labels.image_labels import ImageLabels, ObjectLabel, PixelBox, label_images
 from usdscene.document.model import Camera, Intrinsics, LensModel, Pose, SceneObject, SceneSpec

@@ -3,7 +3,7 @@
 Writes the cabin setup of ``examples/aircraft_cabin/make_campaign.py`` into a temporary folder,
 then times, each as one in-process call:
 
-* ``generate``: ``usdscene.dataset.sequences.generate_document`` (500 frames, 30 % of the seats
+* ``generate``: ``usdscene.generate.sequences.generate_document`` (500 frames, 30 % of the seats
   taken), which includes reading the setup, writing the document and its report, and the
   placement check that the document composes;
 * ``validate``: ``python -m usdscene validate DOC`` wall time (a fresh process, as a user runs it);
@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     from make_campaign import write_setup
 
     from usdscene.pipeline import compose_document
-    from usdscene.dataset.sequences import GenerateOptions, generate_document
+    from usdscene.generate.sequences import GenerateOptions, generate_document
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -2,7 +2,7 @@
 
 Times, each as one in-process call on ``examples/car_park/setup_moving.openlabel.json``:
 
-* ``generate``: ``usdscene.dataset.motion.generate_tracks_document``, 1,000 frames at 10 fps with
+* ``generate``: ``usdscene.generate.motion.generate_tracks_document``, 1,000 frames at 10 fps with
   50 walkers and 8 vehicles (reading the setup, drawing collision-free tracks, writing the
   document and its report, and the placement check that the document composes); target < 10 s;
 * ``compose``: ``usdscene.pipeline.compose_document`` of that document (per-frame time samples of
@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     from usdscene.dataset.export import export_formats
-    from usdscene.dataset.motion import TrackOptions, generate_tracks_document
+    from usdscene.generate.motion import TrackOptions, generate_tracks_document
     from usdscene.pipeline import compose_document
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -38,7 +38,7 @@ def main() -> int:
 
     from usdscene.cli import main as cli
     from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
-    from usdscene.dataset.motion import TrackOptions, generate_tracks_document
+    from usdscene.generate.motion import TrackOptions, generate_tracks_document
     from usdscene.scene.catalog import load_catalog
     from usdscene.scene.compose import compose_stage, frame_pose_data
     from usdscene.scene.stage_geometry import StageGeometry

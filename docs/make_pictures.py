@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from usdscene.converters.openlabel import load_document
-from usdscene.converters.openlabel_annotations import image_records, labels_in
+from usdscene.converters.openlabel.annotations import image_records, labels_in
 from usdscene.document import output_layout as layout
 from usdscene.dataset.contact_sheet import contact_sheet
 from usdscene.dataset.statistics import draw_chart, label_statistics
@@ -36,7 +36,7 @@ def draw_labels(image: np.ndarray, labels: list[dict], scale: int = 2) -> np.nda
 
     Args:
         image: (H, W, 3) uint8 BGR.
-        labels: :func:`usdscene.converters.openlabel_annotations.labels_in` records.
+        labels: :func:`usdscene.converters.openlabel.annotations.labels_in` records.
     """
     big = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     subpixel_bits = 4  # OpenCV's fixed-point drawing: coordinates in 1/16 px

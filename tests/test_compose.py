@@ -240,7 +240,7 @@ def test_lights_units_and_shapes(composed):
 def test_lighting_rigs_are_a_variant_set(composed, tmp_path):
     from pxr import Usd, UsdLux
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     stage = Usd.Stage.Open(str(composed.root_layer))
     rigs = stage.GetPrimAtPath(ss.LIGHTS).GetVariantSets().GetVariantSet(ss.VARIANT_SET_LIGHTING)

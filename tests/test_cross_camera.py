@@ -90,7 +90,7 @@ def rendered(tmp_path_factory):
 
 def test_rendered_table_is_in_the_document_and_valid(rendered, openlabel_schema_path):
     from usdscene.converters.openlabel import schema_problems
-    from usdscene.converters.openlabel_annotations import cross_camera_rows
+    from usdscene.converters.openlabel.annotations import cross_camera_rows
 
     _, document = rendered
     assert schema_problems(document, openlabel_schema_path) == []

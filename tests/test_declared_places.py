@@ -50,7 +50,7 @@ def test_declared_place_reads_writes_back_and_passes_the_schema(openlabel_schema
 def test_objects_rest_on_a_declared_place_and_the_stage_reads_it_back(tmp_path):
     from usdscene.scene.catalog import load_catalog
     from usdscene.scene.compose import compose_stage
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
     from usdscene.validation import validate_document
 
     path = tmp_path / "scene.openlabel.json"

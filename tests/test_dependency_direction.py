@@ -25,11 +25,12 @@ RANKS: tuple[tuple[str, ...], ...] = (
     ("usdscene.document",),    # the SceneSpec model, stage names, output layout, containment
     ("usdscene.scene",),       # catalog, places, placement, composition
     ("usdscene.labels",),      # projection, amodal, boxes and polygons, pixel density
-    ("usdscene.converters",),  # OpenLABEL / USD stage ↔ SceneSpec, COCO / YOLO / ROI writers
+    ("usdscene.converters",),  # openlabel/ and stage/ ↔ SceneSpec; exports/ (COCO, YOLO, MOT ...)
     ("usdscene.validation",),  # the gate: schema, catalog and placement checks of a document
     ("usdscene.render",),      # Blender workers, executors, the render driver
     ("usdscene.assetgen",),    # building the shipped library, importing users' files
-    ("usdscene.dataset",),     # annotation, export, statistics, sequence generators
+    ("usdscene.generate",),    # design-time document generators: sequences, motion
+    ("usdscene.dataset",),     # annotation, export, statistics, report of a rendered run
     ("usdscene.design",),      # coverage and camera planning
     ("usdscene.pipeline",),    # the whole job
     ("usdscene.commands", "usdscene.cli", "usdscene.__main__"),  # the command line
@@ -154,4 +155,4 @@ def test_the_checks_see_a_circle_and_a_wrong_direction():
     assert strongly_connected({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert rank_of("usdscene.document.model") < rank_of("usdscene.scene.compose")
     assert rank_of("usdscene.commands.run") > rank_of("usdscene.pipeline")
-    assert rank_of("usdscene.converters.coco") == rank_of("usdscene.converters")
+    assert rank_of("usdscene.converters.exports.coco") == rank_of("usdscene.converters")

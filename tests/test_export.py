@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdscene.converters.coco import coco_dataset, export_coco
-from usdscene.converters.openlabel_annotations import add_annotations, image_records, labels_in
-from usdscene.converters.yolo import export_yolo
+from usdscene.converters.exports.coco import coco_dataset, export_coco
+from usdscene.converters.openlabel.annotations import add_annotations, image_records, labels_in
+from usdscene.converters.exports.yolo import export_yolo
 from usdscene.labels.amodal import AmodalProjection
 from usdscene.labels.image_labels import box_of, label_image, label_images, rasterize_contours, Contour
 from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
@@ -309,7 +309,7 @@ def test_moving_camera_keeps_one_exact_transform_per_frame(tmp_path):
 
 
 def test_resolve_places_follows_chains_and_stops_at_cycles():
-    from usdscene.converters.openlabel_annotations import resolve_places
+    from usdscene.converters.openlabel.annotations import resolve_places
     from usdscene.document.model import FrameInterval, PlaceRef, Relation
 
     objects = tuple(SceneObject(uid, uid, "backpack", (FrameInterval(0, 5),)) for uid in "abcxy")

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from usdscene.converters.openlabel import write_openlabel
-from usdscene.converters.openlabel_annotations import add_annotations
-from usdscene.converters.rois import export_rois, plan_rois, region_corners
+from usdscene.converters.openlabel.annotations import add_annotations
+from usdscene.converters.exports.rois import export_rois, plan_rois, region_corners
 from usdscene.scene.catalog import load_catalog
 from usdscene.labels.image_labels import ImageLabels, label_images
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, PlaceRef, Pose, Relation,

@@ -185,7 +185,7 @@ def test_randomize_scene_reports_what_it_drew():
 
 @pytest.mark.usd
 def test_generate_draws_world_and_sensor_per_frame_and_reports_them(tmp_path, monkeypatch):
-    from usdscene.dataset.sequences import GenerateOptions, generate_document
+    from usdscene.generate.sequences import GenerateOptions, generate_document
 
     car_park = REPO / "examples" / "car_park"
     monkeypatch.setenv("USDSCENE_ASSET_PATH", str(car_park))

@@ -74,7 +74,7 @@ def output(tmp_path_factory):
 
 
 def test_seat_hides_the_stowed_laptop(output):
-    from usdscene.converters.openlabel_annotations import labels_in
+    from usdscene.converters.openlabel.annotations import labels_in
 
     document = json.loads((output / "annotations.openlabel.json").read_text())
     assert document["openlabel"]["metadata"]["name"] == "labels_cabin"  # the source document

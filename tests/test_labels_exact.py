@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from usdscene.converters.coco import LabelFilter, coco_dataset
-from usdscene.converters.openlabel_annotations import add_annotations
-from usdscene.converters.yolo import yolo_lines
+from usdscene.converters.exports.coco import LabelFilter, coco_dataset
+from usdscene.converters.openlabel.annotations import add_annotations
+from usdscene.converters.exports.yolo import yolo_lines
 from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
 from usdscene.labels.amodal import AmodalProjection
 from usdscene.labels.image_labels import label_image, label_images

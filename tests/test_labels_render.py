@@ -67,9 +67,9 @@ def test_partly_hidden_sphere_visible_fraction_matches_geometry(annotated):
 
 
 def test_rendered_labels_reach_the_document_and_exports(annotated, openlabel_schema_path):
-    from usdscene.converters.coco import coco_dataset
+    from usdscene.converters.exports.coco import coco_dataset
     from usdscene.converters.openlabel import schema_problems
-    from usdscene.converters.openlabel_annotations import labels_in
+    from usdscene.converters.openlabel.annotations import labels_in
 
     out, document, _ = annotated
     document = json.loads(json.dumps(document))

@@ -14,7 +14,7 @@ from usdscene.scene.catalog import load_catalog
 from usdscene.converters.openlabel import read_openlabel, write_openlabel
 from usdscene.errors import DocumentError
 from usdscene.document.model import DeclaredRegion, PlaceRef, Pose
-from usdscene.dataset.motion import (OBSTACLE_CELL_M, PERSON_MARGIN_M, STEP_HEIGHT_M, VEHICLE_MARGIN_M, Obstacles,
+from usdscene.generate.motion import (OBSTACLE_CELL_M, PERSON_MARGIN_M, STEP_HEIGHT_M, VEHICLE_MARGIN_M, Obstacles,
                                      STRIDE_M, TrackOptions, environment_obstacles, foot_sliding, generate_tracks,
                                      ground_areas, locked_stride, overlapping_frames, walk_phases)
 
@@ -281,11 +281,11 @@ def test_a_vehicle_class_longer_across_than_along_is_warned_about(setup, caplog)
     turned = dataclasses.replace(entry, extent_min_m=(lo[1], lo[0], lo[2]), extent_max_m=(hi[1], hi[0], hi[2]),
                                  forward_axis="-Y")
     catalog = dataclasses.replace(catalog, entries={**catalog.entries, "vehicle": turned})
-    with caplog.at_level("WARNING", logger="usdscene.dataset.motion"):
+    with caplog.at_level("WARNING", logger="usdscene.generate.motion"):
         generate_tracks(scene, catalog, TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
     assert "--forward-axis" in caplog.text and "'vehicle'" in caplog.text
     caplog.clear()
-    with caplog.at_level("WARNING", logger="usdscene.dataset.motion"):
+    with caplog.at_level("WARNING", logger="usdscene.generate.motion"):
         generate_tracks(scene, setup[1], TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
     assert "--forward-axis" not in caplog.text
 

@@ -42,7 +42,7 @@ def _mover_classes() -> set[str]:
     """The classes ``generate tracks`` draws movers from (no ``--person-classes`` or
     ``--vehicle-classes`` given): the code's own rule over the setup's catalog."""
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.dataset.motion import person_classes, vehicle_classes
+    from usdscene.generate.motion import person_classes, vehicle_classes
     from usdscene.scene.catalog import load_catalog
 
     scene = read_openlabel(CAR_PARK / "setup_moving.openlabel.json")
@@ -55,7 +55,7 @@ def _document(out: Path) -> dict:
 
 
 def test_mot_layout_and_one_id_per_uid_in_every_camera(run):
-    from usdscene.converters.tracks import track_ids
+    from usdscene.converters.exports.tracks import track_ids
 
     document = _document(run)
     tracks = json.loads((run / "exports" / "mot" / "tracks.json").read_text())
@@ -138,7 +138,7 @@ def test_two_ids_swapped_from_frame_k_give_two_switches(run):
 
 
 def test_position_ids_round_trip_exactly(run):
-    from usdscene.converters.multiview import GroundGrid
+    from usdscene.converters.exports.multiview import GroundGrid
 
     info = json.loads((run / "exports" / "multiview" / "grid.json").read_text())
     g = info["grid"]
@@ -156,7 +156,7 @@ def test_position_ids_round_trip_exactly(run):
 def test_every_position_projects_into_its_boxes_through_the_written_calibration(run):
     import cv2
 
-    from usdscene.converters.multiview import GroundGrid, ground_positions, project_with_calibration
+    from usdscene.converters.exports.multiview import GroundGrid, ground_positions, project_with_calibration
 
     root = run / "exports" / "multiview"
     info = json.loads((root / "grid.json").read_text())
@@ -233,7 +233,7 @@ def test_export_mot_without_tracks_is_one_error_and_writes_nothing(run, tmp_path
 
 def test_projection_through_a_calibration_reads_strided_points():
     """The first three columns of homogeneous points (a strided view) project like a copy."""
-    from usdscene.converters.multiview import project_with_calibration
+    from usdscene.converters.exports.multiview import project_with_calibration
 
     K = np.array([[40.0, 0.0, 63.5], [0.0, 40.0, 47.5], [0.0, 0.0, 1.0]])
     rvec, tvec = np.array([0.1, 0.2, 0.3]), np.array([0.0, 0.0, 5.0])

@@ -53,7 +53,7 @@ def test_stage_states_the_rate_only_when_the_document_does(tmp_path):
 
     from usdscene.scene.catalog import load_catalog
     from usdscene.scene.compose import compose_stage
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     catalog = load_catalog()
     with_rate = compose_stage(_scene(25.0), catalog, tmp_path / "a")

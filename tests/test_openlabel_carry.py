@@ -1,5 +1,5 @@
 """Other people's data survives conversion: what the scene model does not represent is kept in
-the ``extra`` fields and written back unchanged (``usdscene.converters.openlabel_carry``)."""
+the ``extra`` fields and written back unchanged (``usdscene.converters.openlabel.carry``)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from usdscene.cli import main
 from usdscene.converters.openlabel import load_document, read_openlabel, schema_problems, write_openlabel
-from usdscene.converters.openlabel_objects import OBJECT_DATA, POSE_DATA
+from usdscene.converters.openlabel.objects import OBJECT_DATA, POSE_DATA
 from usdscene.document.model import Provenance, canonical_json, extra_data
 
 ROOT_SECTIONS = ("actions", "events", "contexts", "ontologies", "resources", "tags")

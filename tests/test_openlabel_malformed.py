@@ -455,7 +455,7 @@ def test_fast_schema_screen_agrees_with_the_full_validator(openlabel_schema_path
     comes from jsonschema)."""
     import fastjsonschema
 
-    from usdscene.converters.openlabel_checks import _validator
+    from usdscene.converters.openlabel.checks import _validator
 
     fast, full = _validator(str(openlabel_schema_path.resolve()))
     assert fast is not None
@@ -481,7 +481,7 @@ def test_the_compiled_schema_check_is_cached_and_a_bad_cache_is_regenerated(open
                                                                            monkeypatch):
     import fastjsonschema
 
-    from usdscene.converters.openlabel_checks import _compiled_check
+    from usdscene.converters.openlabel.checks import _compiled_check
 
     monkeypatch.setenv("USDSCENE_CACHE_DIR", str(tmp_path / "cache"))
     schema_bytes = openlabel_schema_path.read_bytes()

@@ -13,7 +13,7 @@ import pytest
 
 from usdscene.labels.amodal import AmodalProjection
 from usdscene.cli import main
-from usdscene.converters.openlabel_annotations import add_annotations, labels_in
+from usdscene.converters.openlabel.annotations import add_annotations, labels_in
 from usdscene.labels.image_labels import image_labels_to_json, label_image, label_images
 from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
 from usdscene.dataset.report import THUMB_WIDTH_PX, build_report, picture_paths

@@ -63,7 +63,7 @@ def _visible(browser, selector: str) -> list:
 
 def _labels(out: Path) -> dict[tuple[int, str], list[dict]]:
     """(frame, camera) → labels of the annotations document (what the page must show)."""
-    from usdscene.converters.openlabel_annotations import LabelIndex, image_records
+    from usdscene.converters.openlabel.annotations import LabelIndex, image_records
 
     document = json.loads((out / "annotations.openlabel.json").read_text())
     index = LabelIndex(document)

@@ -20,10 +20,10 @@ from usdscene.scene.catalog import load_catalog
 from usdscene.cli import main
 from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
 from usdscene.errors import DocumentError
-from usdscene.dataset.balance import balance_report
-from usdscene.dataset.combinations import Combination, fitting_combinations
-from usdscene.dataset.sequence_plans import plan_random
-from usdscene.dataset.sequences import GenerateOptions, check_composes, generate_sequence, report_path
+from usdscene.generate.balance import balance_report
+from usdscene.generate.combinations import Combination, fitting_combinations
+from usdscene.generate.sequence_plans import plan_random
+from usdscene.generate.sequences import GenerateOptions, check_composes, generate_sequence, report_path
 
 CLASSES = {  # class: (extent min, extent max, appearance variants)
     "crate": ((-0.3, -0.2, 0.0), (0.3, 0.2, 0.4), ("wood", "plastic")),
@@ -385,8 +385,8 @@ def test_the_command_offers_exactly_the_library_strategies():
     import argparse
 
     from usdscene.cli import build_parser
-    from usdscene.dataset.motion import STRATEGY as TRACKS
-    from usdscene.dataset.sequences import STRATEGIES
+    from usdscene.generate.motion import STRATEGY as TRACKS
+    from usdscene.generate.sequences import STRATEGIES
 
     commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     strategy = next(a for a in commands.choices["generate"]._actions if a.dest == "strategy")

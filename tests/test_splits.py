@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from usdscene.converters.openlabel import write_openlabel
-from usdscene.converters.openlabel_annotations import add_annotations
+from usdscene.converters.openlabel.annotations import add_annotations
 from usdscene.errors import DocumentError
 from usdscene.dataset.export import ExportOptions, export_dataset, export_formats
 from usdscene.files import write_json_atomic

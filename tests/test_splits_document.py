@@ -63,7 +63,7 @@ def test_export_uses_the_documents_rule_unless_the_command_line_gives_one(tmp_pa
 def test_generate_writes_the_split_rule_into_the_document(tmp_path, monkeypatch):
     from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import write_document
-    from usdscene.dataset.sequences import GenerateOptions, generate_sequence
+    from usdscene.generate.sequences import GenerateOptions, generate_sequence
     from test_compose_support import look_at_cv, pinhole
     from usdscene.document import model as m
 

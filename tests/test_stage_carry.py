@@ -1,6 +1,6 @@
 """Other people's content survives the route through the USD stage: document → compose →
 (DCC edit) → ``usdscene export-openlabel`` keeps what usdscene does not model (the ``extra``
-fields, ``usdscene.converters.openlabel_carry``), carried in the stage's customData."""
+fields, ``usdscene.converters.openlabel.carry``), carried in the stage's customData."""
 
 from __future__ import annotations
 
@@ -123,7 +123,7 @@ def test_renamed_prim_keeps_its_carry_and_a_deleted_one_loses_it(tmp_path, catal
     """What a DCC user does: rename (move) one object prim, delete another."""
     from pxr import Sdf
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     scene = read_openlabel(_foreign_document())
     result = compose_stage(scene, catalog, tmp_path / "stage")
@@ -145,7 +145,7 @@ def test_renamed_prim_keeps_its_carry_and_a_deleted_one_loses_it(tmp_path, catal
 def test_malformed_carry_is_reported(tmp_path, catalog):
     from pxr import Sdf
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
     from usdscene.errors import DocumentError
 
     scene = read_openlabel(_foreign_document())
@@ -166,7 +166,7 @@ def test_one_frame_range_keeps_presence_and_intervals(tmp_path, catalog):
     absent, and every object's intervals beyond the range come back as the document gives them."""
     from pxr import Usd
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     document = write_openlabel(small_scene())
     document["openlabel"]["metadata"]["usdscene"]["frame_range"] = {"frame_start": 0, "frame_end": 0}
@@ -189,7 +189,7 @@ def test_one_frame_range_keeps_presence_and_intervals(tmp_path, catalog):
 def test_edited_visibility_decides_the_range_and_the_document_the_rest(tmp_path, catalog):
     from pxr import Sdf, Usd, UsdGeom
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     document = write_openlabel(small_scene())
     document["openlabel"]["metadata"]["usdscene"]["frame_range"] = {"frame_start": 0, "frame_end": 0}

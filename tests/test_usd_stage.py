@@ -137,7 +137,7 @@ def random_scenes(draw) -> m.SceneSpec:
 @given(scene=random_scenes())
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_random_scene_stage_round_trip(catalog, scene):
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     with tempfile.TemporaryDirectory() as tmp:
         result = compose_stage(scene, catalog, Path(tmp) / "stage")
@@ -159,7 +159,7 @@ def test_tolerance_helper_sees_small_differences():
 def test_document_to_stage_to_document(tmp_path, workdir, catalog):
     """OpenLABEL document → SceneSpec → stage → SceneSpec → OpenLABEL document → SceneSpec."""
     from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     write_document(tmp_path / "in.json", write_openlabel(dataclasses.replace(small_scene(), roi_ignore=("passenger",))))
     scene = read_openlabel(tmp_path / "in.json")
@@ -197,7 +197,7 @@ def test_stage_edited_in_a_dcc_tool(tmp_path, catalog):
     re-lensed camera, a light re-posed with TRS ops, a moved object."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     result = compose_stage(small_scene(), catalog, tmp_path / "stage")
     edits = Sdf.Layer.CreateNew(str(tmp_path / "stage" / "edits.usda"))
@@ -245,7 +245,7 @@ def test_y_up_centimetre_stage(tmp_path):
     converted; object frames are asset frames (Z up), cameras and lights look down their -Z."""
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     stage = Usd.Stage.CreateNew(str(tmp_path / "yup.usda"))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
@@ -299,7 +299,7 @@ def test_transform_authored_only_as_one_time_sample(tmp_path):
     default value: it must read back as that transform, not as the identity."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     stage = Usd.Stage.CreateNew(str(tmp_path / "sampled.usda"))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
@@ -360,7 +360,7 @@ def test_blender_import_and_export(tmp_path, catalog):
     the light intensities as the document's watts and the colour opinions and appearance
     variants into the materials; the stages Blender exports (Z-up metres and Y-up centimetres)
     read back to the same cameras, lights and objects."""
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     scene = small_scene()
     result = compose_stage(scene, catalog, tmp_path / "stage")
@@ -446,7 +446,7 @@ EXAMPLES = sorted((Path(__file__).resolve().parent.parent / "examples").glob("**
 def test_shipped_example_document_to_stage_to_document(tmp_path, document):
     """Every shipped example composes with the shipped library and comes back equal."""
     from usdscene.converters.openlabel import read_openlabel, write_document, write_openlabel
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
     from usdscene.scene.catalog import load_catalog
 
     scene = read_openlabel(document)

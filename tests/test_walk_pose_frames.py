@@ -142,7 +142,7 @@ def test_render_draws_the_pose_of_each_frame(rendered):
 
 @pytest.mark.usd
 def test_stage_to_document_keeps_the_pose_per_frame(stage, tmp_path):
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
     from usdscene.scene.catalog import load_catalog
     from usdscene.scene.compose import compose_stage, frame_pose_data
 

@@ -41,7 +41,7 @@ _LAZY = {
     "load_catalog": ("usdscene.scene.catalog", "load_catalog"),
     "compose_stage": ("usdscene.scene.compose", "compose_stage"),
     "compose_document": ("usdscene.pipeline", "compose_document"),
-    "scene_from_stage": ("usdscene.converters.usd_stage", "scene_from_stage"),
+    "scene_from_stage": ("usdscene.converters.stage.usd_stage", "scene_from_stage"),
     # rendering (Blender worker processes), labels, training sets
     "render_stage": ("usdscene.render.driver", "render"),
     "annotate_output": ("usdscene.dataset.annotation", "annotate_output"),
@@ -57,10 +57,10 @@ _LAZY = {
     "RunSummary": ("usdscene.pipeline", "RunSummary"),
     "RunOptions": ("usdscene.pipeline", "RunOptions"),
     # design time: sequence documents and camera systems
-    "generate_document": ("usdscene.dataset.sequences", "generate_document"),
-    "generate_sequence": ("usdscene.dataset.sequences", "generate_sequence"),
-    "GenerateOptions": ("usdscene.dataset.sequences", "GenerateOptions"),
-    "balance_report": ("usdscene.dataset.balance", "balance_report"),
+    "generate_document": ("usdscene.generate.sequences", "generate_document"),
+    "generate_sequence": ("usdscene.generate.sequences", "generate_sequence"),
+    "GenerateOptions": ("usdscene.generate.sequences", "GenerateOptions"),
+    "balance_report": ("usdscene.generate.balance", "balance_report"),
     "plan_cameras": ("usdscene.design.camera_design", "plan_cameras"),
     "PlanRequest": ("usdscene.design.plan_request", "PlanRequest"),
     "verify_plan": ("usdscene.design.camera_design", "verify_plan"),

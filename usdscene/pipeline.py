@@ -87,7 +87,7 @@ def compose_document(document: str | Path, stage_dir: str | Path, *, seed: int |
     path = Path(document)
     scene = read_openlabel(path)
     if scene.world is not None:
-        from usdscene.converters.openlabel_imaging import document_hdri_problems
+        from usdscene.converters.openlabel.imaging import document_hdri_problems
         from usdscene.errors import DocumentError
 
         hdri = document_hdri_problems(scene, path)

@@ -91,7 +91,7 @@ def validate_document(path: str | os.PathLike, *,
     if scene is not None and catalog is not None:
         problems.extend(_composition_input_problems(scene, catalog))
     if scene is not None and scene.world is not None:
-        from usdscene.converters.openlabel_imaging import document_hdri_problems
+        from usdscene.converters.openlabel.imaging import document_hdri_problems
 
         problems.extend(document_hdri_problems(scene, path))
     if problems:

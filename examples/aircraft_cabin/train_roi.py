@@ -66,7 +66,7 @@ PROG = "train_roi.py"
 INSTALL_HINT = "pip install 'usdscene[train]' (in a checkout: pip install -e '.[train]')"
 TRAIN_SETS = ("balanced", "random", "single-class")
 TEST_SET = "test"
-EMPTY_LABEL = "empty"  # usdscene.converters.rois.EMPTY_LABEL, without importing the library early
+EMPTY_LABEL = "empty"  # usdscene.converters.exports.rois.EMPTY_LABEL, without importing the library early
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
 # ImageNet statistics: what torchvision's EfficientNet-B0 weights expect.
 MEAN_RGB = np.array([0.485, 0.456, 0.406], dtype=np.float32)

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
             raise OutputError([Problem("--grid-origin/--grid-cell/--grid-size",
                                        "a ground grid needs all three: --grid-origin X Y --grid-cell M "
                                        "--grid-size NX NY")])
-        from usdscene.converters.multiview import GroundGrid
+        from usdscene.converters.exports.multiview import GroundGrid
 
         grid = GroundGrid(tuple(args.grid_origin), args.grid_cell, tuple(args.grid_size))
     if args.dataset is None:

@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     if source.is_dir():  # a composed stage folder
         suffix = ".usda"
     if suffix in USD_SUFFIXES:
-        from usdscene.converters.usd_stage import scene_from_stage
+        from usdscene.converters.stage.usd_stage import scene_from_stage
 
         scene = scene_from_stage(source)
     elif suffix == ".blend":

@@ -1,5 +1,5 @@
 """``usdscene generate STRATEGY --setup SETUP -o DOC``: a balanced sequence document from a
-camera setup (see ``usdscene.dataset.sequences`` and ``docs/generating.md``)."""
+camera setup (see ``usdscene.generate.sequences`` and ``docs/generating.md``)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ NAME = "generate"
 HELP = "generate a sequence document (single-class, balanced, appearance, random, tracks) from a setup document"
 ORDER = 8
 
-_STRATEGIES = ("single-class", "balanced", "appearance", "random")  # usdscene.dataset.sequences.STRATEGIES, without its import
-_TRACKS = "tracks"  # usdscene.dataset.motion: people and vehicles that move
+_STRATEGIES = ("single-class", "balanced", "appearance", "random")  # usdscene.generate.sequences.STRATEGIES, without its import
+_TRACKS = "tracks"  # usdscene.generate.motion: people and vehicles that move
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,8 +69,8 @@ def _fps(text: str) -> float:
 def _run_tracks(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from usdscene.dataset.motion import TrackOptions, generate_tracks_document
-    from usdscene.dataset.sequences import report_path
+    from usdscene.generate.motion import TrackOptions, generate_tracks_document
+    from usdscene.generate.sequences import report_path
 
     options = TrackOptions(frames=args.frames or 100, fps=args.fps or 10.0, people=args.people,
                            vehicles=args.vehicles, standing=args.standing, seed=args.seed,
@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
             return 2
     from rich.console import Console
 
-    from usdscene.dataset.sequences import GenerateOptions, generate_document, report_path
+    from usdscene.generate.sequences import GenerateOptions, generate_document, report_path
 
     options = GenerateOptions(strategy=args.strategy, frames=args.frames, seed=args.seed,
                               classes=tuple(args.classes), place_patterns=tuple(args.places),

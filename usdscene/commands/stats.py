@@ -2,7 +2,7 @@
 what a scene document will hold.
 
 Given a scene document (a file) instead of an output folder, it prints the balance report of
-:func:`usdscene.dataset.balance.balance_report` (instance-frames per class, class × relation,
+:func:`usdscene.generate.balance.balance_report` (instance-frames per class, class × relation,
 place kinds) and draws it at ``DOC.stats.png`` (or ``--chart``).
 
 Reads ``OUT/annotations.openlabel.json`` and prints per-class and per-camera counts and the
@@ -40,7 +40,7 @@ def _document_stats(args: argparse.Namespace) -> int:
 
     from usdscene.scene.catalog import load_catalog
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.dataset.balance import balance_report
+    from usdscene.generate.balance import balance_report
     from usdscene.files import write_png_atomic
     from usdscene.dataset.statistics import draw_balance_chart
 

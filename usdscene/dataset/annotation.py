@@ -281,7 +281,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
     """
     from usdscene.document import output_layout as layout
     from usdscene.converters.openlabel import load_document, read_openlabel, write_openlabel
-    from usdscene.converters.openlabel_annotations import add_annotations
+    from usdscene.converters.openlabel.annotations import add_annotations
     from usdscene.errors import OutputError
     from usdscene.labels.image_labels import label_images
 
@@ -302,7 +302,7 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         document = load_document(document_path)
         scene = read_openlabel(document)
     else:
-        from usdscene.converters.usd_stage import scene_from_stage
+        from usdscene.converters.stage.usd_stage import scene_from_stage
 
         # Keep the stage's scene (its uids are the mask map's) even where the writer has to
         # renumber uids for OpenLABEL; add_annotations matches those by name and class.

@@ -3,13 +3,13 @@
 Exporters read only the annotated document (and the asset catalog for class lists and place
 regions), never internal state:
 
-* ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`usdscene.converters.coco`);
-* ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`usdscene.converters.yolo`);
-* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`usdscene.converters.rois`);
-* ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.mot`);
+* ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`usdscene.converters.exports.coco`);
+* ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`usdscene.converters.exports.yolo`);
+* ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`usdscene.converters.exports.rois`);
+* ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.exports.mot`);
 * ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
-  calibrations (see :mod:`usdscene.converters.multiview`); persons are the catalog's person
-  classes (:func:`usdscene.dataset.motion.person_classes`).
+  calibrations (see :mod:`usdscene.converters.exports.multiview`); persons are the catalog's person
+  classes (:func:`usdscene.generate.motion.person_classes`).
 
 ``mot`` and ``multiview`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
@@ -49,8 +49,8 @@ def load_export_catalog(document: dict, out_dir, extra_folders=()):
     from pathlib import Path
 
     from usdscene.scene.catalog import load_catalog
-    from usdscene.converters.openlabel_load import DocumentBody
-    from usdscene.converters.openlabel_metadata import read_metadata
+    from usdscene.converters.openlabel.load import DocumentBody
+    from usdscene.converters.openlabel.metadata import read_metadata
     from usdscene.errors import DocumentError
 
     # Only the metadata's asset paths: reading the whole scene (every frame's labels) would
@@ -154,7 +154,7 @@ class ExportOptions:
         min_pixels: COCO/YOLO keep visible labels of at least this many pixels (0: all).
         min_visible_fraction: COCO/YOLO keep labels at least this visible (0: all).
         rle_below_px: COCO segmentation as RLE for objects of fewer pixels (0: polygons only).
-        grid: the multi-view ground grid (:class:`usdscene.converters.multiview.GroundGrid`);
+        grid: the multi-view ground grid (:class:`usdscene.converters.exports.multiview.GroundGrid`);
             None = the default grid over the annotated positions.
     """
 
@@ -200,28 +200,28 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     loaded = _load_annotated(out, options.extra_assets,
                              need_catalog="rois" in ordered or not options.document_classes)
     if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
-        from usdscene.converters.tracks import require_tracks
+        from usdscene.converters.exports.tracks import require_tracks
 
         require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
     if "rois" in ordered:
-        from usdscene.converters.rois import export_rois
+        from usdscene.converters.exports.rois import export_rois
 
         written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=options.min_roi_px)
     if "mot" in ordered or "multiview" in ordered:
-        from usdscene.converters.openlabel_annotations import LabelIndex
+        from usdscene.converters.openlabel.annotations import LabelIndex
 
         index = LabelIndex(loaded[0])  # each frame's labels read once for both exports
     if "mot" in ordered:
-        from usdscene.converters.mot import export_mot
+        from usdscene.converters.exports.mot import export_mot
 
         written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], options.document_classes),
                                     copy_images=options.copy_images, index=index)
     if "multiview" in ordered:
-        from usdscene.converters.multiview import export_multiview
-        from usdscene.dataset.motion import person_classes
+        from usdscene.converters.exports.multiview import export_multiview
+        from usdscene.generate.motion import person_classes
 
         people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
         written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
@@ -257,9 +257,9 @@ def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = Expo
     import os
     from pathlib import Path
 
-    from usdscene.converters.coco import COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries
-    from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
-    from usdscene.converters.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
+    from usdscene.converters.exports.coco import COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries
+    from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
+    from usdscene.converters.exports.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
     from usdscene.errors import OutputError
     from usdscene.files import write_json_atomic, write_text_atomic
     from usdscene.document.splits import ImageKey, SplitRule, assign_splits, parse_split, split_counts

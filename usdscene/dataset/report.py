@@ -30,7 +30,7 @@ document yet) they come from the labels kept per image in ``OUT/labels/`` (see
 without labels.
 
 Keypoints are read from ``point2d`` object data named ``<camera>_kp_<joint>``
-(:func:`usdscene.converters.openlabel_annotations.keypoint_name`) with an optional ``num``
+(:func:`usdscene.converters.openlabel.annotations.keypoint_name`) with an optional ``num``
 attribute ``visibility`` (COCO flags: 0 outside, 1 occluded, 2 visible).
 The track id of an object is its uid, the same in every frame and camera.
 """
@@ -43,7 +43,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from usdscene.converters.openlabel_annotations import KEYPOINT_INFIX
+from usdscene.converters.openlabel.annotations import KEYPOINT_INFIX
 from usdscene.dataset.statistics import HISTOGRAM_BINS
 from usdscene.document import output_layout as layout
 
@@ -229,7 +229,7 @@ def _images_from_document(out: Path, path: Path) -> list[dict]:
     """Every labelled image of the annotations document with its labels (see :func:`_image`)."""
     import json
 
-    from usdscene.converters.openlabel_annotations import (RESOLVED_PLACE, RESOLVED_RELATION, LabelIndex,
+    from usdscene.converters.openlabel.annotations import (RESOLVED_PLACE, RESOLVED_RELATION, LabelIndex,
                                                            image_records)
 
     from usdscene.errors import OutputError
@@ -567,7 +567,7 @@ def _extra_pictures(target: Path, document, coverage_map) -> dict[str, str]:
     import json
 
     from usdscene.files import write_bytes_atomic, write_png_atomic
-    from usdscene.dataset.sequences import report_path
+    from usdscene.generate.sequences import report_path
     from usdscene.dataset.statistics import draw_balance_chart
 
     found: dict[str, str] = {}

@@ -26,7 +26,7 @@ def label_statistics(document: dict) -> dict:
         visible fractions in [0, 0.1), ..., [0.9, 1.0]], "visibility_unknown": int}``; classes and
         cameras sorted by name. Hidden objects count in the first visibility bin.
     """
-    from usdscene.converters.openlabel_annotations import LabelIndex, image_records
+    from usdscene.converters.openlabel.annotations import LabelIndex, image_records
 
     classes: dict[str, dict] = {}
     cameras: dict[str, dict] = {}
@@ -66,7 +66,7 @@ def cross_camera_statistics(document: dict) -> dict:
         (None when unknown), "best_dori" (None when unknown, "" below the lowest class)}}}``;
         classes sorted by name. Empty counts for a document without the table.
     """
-    from usdscene.converters.openlabel_annotations import cross_camera_rows
+    from usdscene.converters.openlabel.annotations import cross_camera_rows
 
     rows = cross_camera_rows(document)
     counts = [len(r["cameras"]) for r in rows]

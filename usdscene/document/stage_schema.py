@@ -37,7 +37,7 @@ RENDER_PRODUCTS = "/Render/Products"
 CUSTOM_UID = "usdscene:uid"
 CUSTOM_CLASS = "usdscene:class"
 CUSTOM_NAME = "usdscene:name"
-# Other people's content of the element (usdscene.converters.openlabel_carry): string,
+# Other people's content of the element (usdscene.converters.openlabel.carry): string,
 # canonical JSON of ``Camera.extra`` / ``SceneObject.extra``; absent when there is none.
 CUSTOM_EXTRA = "usdscene:extra"
 # string, canonical JSON {"<frame>": <carried frames[f].objects[uid] content>} of
@@ -125,7 +125,7 @@ ATTR_PLACE_KIND = "usdscene:place:kind"        # token on the place prim: seat, 
 ATTR_PLACE_RELATION = "usdscene:place:relation"  # token on the region prim: is_on, ...
 ATTR_PLACE_SIZE = "usdscene:place:size"        # double3 on the region prim, metres
 
-# Composition (usdscene.scene.compose) and Scene2VCD (usdscene.converters.usd_stage). customData is authored
+# Composition (usdscene.scene.compose) and Scene2VCD (usdscene.converters.stage.usd_stage). customData is authored
 # nested ({usdscene = {uid, class, name}}), i.e. read it with prim.GetCustomDataByKey(CUSTOM_UID).
 ATTR_USER_NAME = "userProperties:usdscene_name"            # string
 ATTR_USER_MASK_ID = "userProperties:usdscene_mask_id"      # int, same as ATTR_MASK_ID

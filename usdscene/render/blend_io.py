@@ -8,7 +8,7 @@
   exporter writes neither customData nor customLayerData, where the stage keeps places,
   relations, ROI rules, render settings, world, sensors and other people's content.
 * :func:`scene_from_blend`: a (possibly edited) .blend back to a SceneSpec, through Blender's
-  USD export and :func:`usdscene.converters.usd_stage.scene_from_stage`. Blender's USD exporter writes
+  USD export and :func:`usdscene.converters.stage.usd_stage.scene_from_stage`. Blender's USD exporter writes
   only perspective cameras, so cameras (pose per frame and lens) are read from the .blend
   itself. A camera whose Blender lens settings are unchanged keeps its exact calibration
   (including OpenCV distortion); an edited one gets the model of its Blender settings. The
@@ -83,7 +83,7 @@ def _stage_document(stage_path: Path) -> str | None:
     the .blend to keep; None (and a warning) for a stage that route cannot read: the project
     still serves camera design, and reads back as Blender exports it."""
     from usdscene.converters.openlabel import write_openlabel
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     try:
         return json.dumps(write_openlabel(scene_from_stage(stage_path)), separators=(",", ":"))
@@ -101,7 +101,7 @@ def scene_from_blend(path: str | Path) -> SceneSpec:
         DocumentError: the exported stage is malformed (from ``scene_from_stage``), or the
             document the .blend carries (``stage_schema.BLEND_DOCUMENT``) is unreadable.
     """
-    from usdscene.converters.usd_stage import scene_from_stage
+    from usdscene.converters.stage.usd_stage import scene_from_stage
 
     from usdscene.render.driver import run_job
 

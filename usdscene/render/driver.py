@@ -133,7 +133,7 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
         settings[key] = str(settings[key]).lower()
         if settings[key] not in allowed:
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} is not one of {list(allowed)}"))
-    from usdscene.converters.openlabel_metadata import DENOISING_INPUT_PASSES, FAST_GI_METHODS, SAMPLING_PATTERNS
+    from usdscene.converters.openlabel.metadata import DENOISING_INPUT_PASSES, FAST_GI_METHODS, SAMPLING_PATTERNS
 
     for key, allowed in (("denoising_input_passes", DENOISING_INPUT_PASSES), ("sampling_pattern", SAMPLING_PATTERNS),
                          ("fast_gi_method", FAST_GI_METHODS)):

@@ -57,8 +57,8 @@ Conventions of the authored stage:
   a class without one gets no colour, with a warning), to ``primvars:displayColor`` for viewers and, exact, to
   ``userProperties:usdscene_color``.
 
-Content usdscene does not model (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`)
-is kept in the stage for :func:`usdscene.converters.usd_stage.scene_from_stage`: a camera's and an
+Content usdscene does not model (the ``extra`` fields, :mod:`usdscene.converters.openlabel.carry`)
+is kept in the stage for :func:`usdscene.converters.stage.usd_stage.scene_from_stage`: a camera's and an
 object's in the prim's customData (``usdscene:extra``, per frame ``usdscene:frameExtra``), the
 scene's in the root layer's ``customLayerData`` (``extraJson``), a place's and a relation's in
 ``placesJson`` and ``relationsJson``; an
@@ -252,7 +252,7 @@ def draw_looks(scene: SceneSpec, catalog: Catalog,
                 rng: np.random.Generator) -> dict[str, tuple[str | None, tuple[float, float, float] | None]]:
     """uid → (appearance variant, colour) as composed.
 
-    The first draws of a composition (document order), before placement; ``usdscene.dataset.sequences``
+    The first draws of a composition (document order), before placement; ``usdscene.generate.sequences``
     replays them to check that a generated document composes. A class that cannot be
     recoloured (:attr:`usdscene.scene.catalog.AssetEntry.recolourable`) gets no colour.
     """

@@ -25,7 +25,7 @@ from typing import Any, Mapping
 from usdscene.errors import ProblemCollector
 from usdscene.document.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
 
-from usdscene.converters.openlabel_values import (
+from usdscene.converters.openlabel.values import (
     IMAGE_SIDE_LIMIT,
     INVALID,
     describe,

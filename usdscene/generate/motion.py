@@ -1239,7 +1239,7 @@ def generate_tracks_document(setup_path: str | os.PathLike, out_path: str | os.P
         AssetError: bad asset catalog.
     """
     from usdscene.bulk import paused_collection
-    from usdscene.dataset.sequences import read_setup, write_generated
+    from usdscene.generate.sequences import read_setup, write_generated
 
     setup_path, out_path = Path(setup_path), Path(out_path)
     with paused_collection():

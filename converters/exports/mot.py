@@ -11,7 +11,7 @@ Challenge's multi-camera tracks, whose frame numbers agree across cameras)::
 
 * **Frames**: MOT frame = document frame - first labelled frame + 1 (1-based, the same number in
   every camera; gaps in the rendered frames stay gaps), ``seqLength`` = last - first + 1.
-* **Track ids** (:func:`usdscene.converters.tracks.track_ids`, the rule every export of usdscene uses): the document's
+* **Track ids** (:func:`usdscene.converters.exports.tracks.track_ids`, the rule every export of usdscene uses): the document's
   objects that are neither lights nor places, ordered by uid (integer uids by value, then other
   uids by text), numbered 1, 2, ... in that order. The uid is the object's identity in every
   camera and frame, so the id is too.
@@ -36,9 +36,9 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from usdscene.document import output_layout as layout
-from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
-from usdscene.converters.tracks import ID_RULE, require_tracks, track_ids
-from usdscene.converters.yolo import link_or_copy
+from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
+from usdscene.converters.exports.tracks import ID_RULE, require_tracks, track_ids
+from usdscene.converters.exports.yolo import link_or_copy
 from usdscene.errors import OutputError
 from usdscene.files import dumps_json, staged_folder
 

@@ -32,10 +32,10 @@ from usdscene.document.model import (
     SceneObject,
 )
 
-from usdscene.converters.openlabel_carry import OBJECT_KEYS, element_residue, frame_residues
-from usdscene.converters.openlabel_load import DocumentBody
-from usdscene.converters.openlabel_poses import pose_from_object_data
-from usdscene.converters.openlabel_values import (
+from usdscene.converters.openlabel.carry import OBJECT_KEYS, element_residue, frame_residues
+from usdscene.converters.openlabel.load import DocumentBody
+from usdscene.converters.openlabel.poses import pose_from_object_data
+from usdscene.converters.openlabel.values import (
     INVALID,
     describe,
     read_bool,

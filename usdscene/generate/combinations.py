@@ -4,7 +4,7 @@ A *region* is one support region of the environment (a place and one of its rela
 *combination* puts one class into one region. :func:`fitting_combinations` lists those whose
 region holds the class (:func:`usdscene.scene.placement.fits_region`), and
 :func:`region_conflicts` which regions overlap, so that they take one object between them per
-frame. The design of the generators is in :mod:`usdscene.dataset.sequences`.
+frame. The design of the generators is in :mod:`usdscene.generate.sequences`.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ whole metres.
 
 **Positions** are the objects' per-frame ``ground_position_m`` (where they stand, written by
 ``usdscene generate tracks``); objects without one are not exported. **Ids** are those of every
-usdscene export (:func:`usdscene.converters.tracks.track_ids`). **Views** are the cameras in name
+usdscene export (:func:`usdscene.converters.exports.tracks.track_ids`). **Views** are the cameras in name
 order (``viewNum`` 0, 1, ...) whose lens OpenCV models: perspective and OpenCV pinhole
 (``distortion_model`` ``pinhole``, the 5 or 8 Brown-Conrady coefficients, ``cv2.projectPoints``),
 equidistant fisheye, OpenCV fisheye and VCD kannala (``fisheye``, 4 coefficients,
@@ -46,9 +46,9 @@ from typing import Iterable
 import numpy as np
 
 from usdscene.document import output_layout as layout
-from usdscene.converters.tracks import require_tracks, track_ids
-from usdscene.converters.openlabel_annotations import LabelIndex, image_records
-from usdscene.converters.yolo import link_or_copy
+from usdscene.converters.exports.tracks import require_tracks, track_ids
+from usdscene.converters.openlabel.annotations import LabelIndex, image_records
+from usdscene.converters.exports.yolo import link_or_copy
 from usdscene.errors import DocumentError, OutputError
 from usdscene.files import dumps_json, staged_folder
 from usdscene.document.model import Camera, LensModel, RenderSettings
@@ -184,8 +184,8 @@ def _write_storage(path: Path, values: dict) -> None:
 
 
 def _cameras(document: dict) -> list[Camera]:
-    from usdscene.converters.openlabel_cameras import read_cameras
-    from usdscene.converters.openlabel_load import DocumentBody
+    from usdscene.converters.openlabel.cameras import read_cameras
+    from usdscene.converters.openlabel.load import DocumentBody
 
     body = DocumentBody(document["openlabel"])
     cameras = read_cameras(body, RenderSettings())

@@ -1,9 +1,9 @@
 """Plans of the sequence generators: per frame, the combinations it holds.
 
-One function per strategy of :mod:`usdscene.dataset.sequences`: ``single-class``
+One function per strategy of :mod:`usdscene.generate.sequences`: ``single-class``
 (:func:`plan_single_class`), ``balanced`` and ``appearance`` (:func:`plan_balanced`) and the
 naive ablation ``random`` (:func:`plan_random`). A plan is a list of frames, each a list of
-:class:`usdscene.dataset.combinations.Combination`; draws come from the generator passed in.
+:class:`usdscene.generate.combinations.Combination`; draws come from the generator passed in.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from usdscene.dataset.combinations import Combination, Region
+from usdscene.generate.combinations import Combination, Region
 
 log = logging.getLogger(__name__)
 

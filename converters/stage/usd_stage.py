@@ -16,7 +16,7 @@ What a stage cannot say comes back as defaults: a stage without the composer's
 ``customLayerData`` has no places and relations; a flattened stage has no variant selections
 left, so appearances come back empty.
 
-Other people's content (the ``extra`` fields, :mod:`usdscene.converters.openlabel_carry`) comes
+Other people's content (the ``extra`` fields, :mod:`usdscene.converters.openlabel.carry`) comes
 back from where compose put it: a camera's and an object's from the prim's customData
 (``usdscene:extra``; per frame ``usdscene:frameExtra``, joined with the pose the pose children
 show), the scene's from the root layer's ``customLayerData`` (``extraJson``), a place's and a

@@ -11,8 +11,8 @@ from typing import Any
 
 from usdscene.document.model import MAX_BOUNCES, MAX_FPS, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
 
-from usdscene.converters.openlabel_load import SCHEMA_VERSION, DocumentBody
-from usdscene.converters.openlabel_values import (
+from usdscene.converters.openlabel.load import SCHEMA_VERSION, DocumentBody
+from usdscene.converters.openlabel.values import (
     describe,
     read_bool,
     read_int,
@@ -128,7 +128,7 @@ def read_metadata(doc: DocumentBody) -> dict:
     if "render" in block:
         out["render"] = read_render(block["render"], f"{where}.render", problems)
     if "world" in block:
-        from usdscene.converters.openlabel_imaging import read_world
+        from usdscene.converters.openlabel.imaging import read_world
 
         out["world"] = read_world(block["world"], f"{where}.world", problems)
     return out

@@ -13,10 +13,10 @@ from typing import Mapping
 
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, Relation
 
-from usdscene.converters.openlabel_carry import relation_residue
-from usdscene.converters.openlabel_load import DocumentBody
-from usdscene.converters.openlabel_objects import UID_PATTERN
-from usdscene.converters.openlabel_values import describe, read_intervals
+from usdscene.converters.openlabel.carry import relation_residue
+from usdscene.converters.openlabel.load import DocumentBody
+from usdscene.converters.openlabel.objects import UID_PATTERN
+from usdscene.converters.openlabel.values import describe, read_intervals
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +28,7 @@ def read_relations(doc: DocumentBody, uids: Mapping[str, str]) -> list[Relation]
     Args:
         doc: the document; problems are recorded in it.
         uids: uid → ``"light"``, ``"place"``, ``"object"`` or ``"other"`` of every object, as
-            :func:`usdscene.converters.openlabel_objects.read_objects` returns it.
+            :func:`usdscene.converters.openlabel.objects.read_objects` returns it.
 
     Returns:
         Relations with one subject and one object; those involving actions, events or contexts

@@ -32,13 +32,13 @@ from usdscene.bulk import paused_collection
 from usdscene.errors import DocumentError, Problem
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, LightKind, Provenance, SceneSpec, union_intervals
 
-from usdscene.converters.openlabel_cameras import read_cameras
-from usdscene.converters.openlabel_carry import scene_residue
-from usdscene.converters.openlabel_load import DocumentBody, load_with_provenance
-from usdscene.converters.openlabel_metadata import read_metadata
-from usdscene.converters.openlabel_objects import read_objects
-from usdscene.converters.openlabel_relations import check_frame_relations, read_relations
-from usdscene.converters.openlabel_values import read_intervals, suggest
+from usdscene.converters.openlabel.cameras import read_cameras
+from usdscene.converters.openlabel.carry import scene_residue
+from usdscene.converters.openlabel.load import DocumentBody, load_with_provenance
+from usdscene.converters.openlabel.metadata import read_metadata
+from usdscene.converters.openlabel.objects import read_objects
+from usdscene.converters.openlabel.relations import check_frame_relations, read_relations
+from usdscene.converters.openlabel.values import read_intervals, suggest
 
 if TYPE_CHECKING:
     from usdscene.scene.catalog import Catalog

@@ -1,6 +1,6 @@
 """COCO export of an annotated OpenLABEL document. Pure (json + numpy).
 
-Reads only the document written by :func:`usdscene.converters.openlabel_annotations.add_annotations`
+Reads only the document written by :func:`usdscene.converters.openlabel.annotations.add_annotations`
 (never internal state), so any annotated document can be exported.
 
 * One image record per (frame, camera), with the extra fields ``camera`` and ``frame``;
@@ -19,7 +19,7 @@ Reads only the document written by :func:`usdscene.converters.openlabel_annotati
   an uncompressed RLE of those pixels instead (``{"size": [h, w], "counts": [...]}``).
   Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``, and for a moving
   sequence (a document with ``metadata.usdscene.fps``) ``track_id``, the object's id in every
-  export (:func:`usdscene.converters.tracks.track_ids`).
+  export (:func:`usdscene.converters.exports.tracks.track_ids`).
   People (labels with keypoints) also get ``keypoints`` (17 ``x, y, v`` triples in COCO's
   pixel convention, ``0, 0, 0`` where v = 0) and ``num_keypoints`` (v > 0); their category
   gets ``keypoints`` (the COCO-17 names) and ``skeleton``, supercategory ``person``.
@@ -36,8 +36,8 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from usdscene.converters.tracks import document_fps, track_ids
-from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
+from usdscene.converters.exports.tracks import document_fps, track_ids
+from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
 from usdscene.labels.image_labels import bridge_rings

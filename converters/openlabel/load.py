@@ -22,7 +22,7 @@ from typing import Any, Iterator, Mapping
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import MAX_FRAME, Provenance
 
-from usdscene.converters.openlabel_values import describe
+from usdscene.converters.openlabel.values import describe
 
 SCHEMA_VERSION = "1.0.0"
 

@@ -290,7 +290,7 @@ def _canonical_cameras(root: dict, scene: SceneSpec) -> None:
     exact camera → world pose under the document's root coordinate system, and per-frame
     transforms for moving cameras. Stream ``uri``/``description`` of the input are kept; a camera
     whose coordinate system hangs below another (non-root) system is left as given."""
-    from usdscene.converters.openlabel_write import write_openlabel
+    from usdscene.converters.openlabel.write import write_openlabel
 
     written = write_openlabel(SceneSpec(name=scene.name, frame_start=scene.frame_start,
                                         frame_end=scene.frame_end, cameras=scene.cameras))["openlabel"]

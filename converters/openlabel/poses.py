@@ -22,8 +22,8 @@ from typing import Any, Mapping
 from usdscene.errors import ProblemCollector
 from usdscene.document.model import Pose, euler_zyx_to_rotation, quaternion_to_rotation
 
-from usdscene.converters.openlabel_load import DocumentBody
-from usdscene.converters.openlabel_values import (
+from usdscene.converters.openlabel.load import DocumentBody
+from usdscene.converters.openlabel.values import (
     INVALID,
     axis_rotation,
     describe,
@@ -292,7 +292,7 @@ def pose_from_object_data(items: Mapping[str, tuple[str, Any, str]], problems: P
 
     Args:
         items: name → (kind, value, JSON path of the value), as
-            :func:`usdscene.converters.openlabel_objects.read_object_data` returns them.
+            :func:`usdscene.converters.openlabel.objects.read_object_data` returns them.
     """
     P = problems
     if "pose_matrix4x4" in items:

@@ -26,8 +26,8 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from usdscene.converters.coco import KEEP_ALL, LabelFilter, corner_box, object_rings
-from usdscene.converters.openlabel_annotations import LabelIndex, image_records, label_classes
+from usdscene.converters.exports.coco import KEEP_ALL, LabelFilter, corner_box, object_rings
+from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_bytes_atomic, write_text_atomic
 from usdscene.labels.image_labels import bridge_rings

@@ -10,7 +10,7 @@ from __future__ import annotations
 import collections
 from typing import Mapping
 
-from usdscene.dataset.laps import lap_place_name
+from usdscene.generate.laps import lap_place_name
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, SceneSpec
 from usdscene.scene.catalog import Catalog
 
@@ -36,7 +36,7 @@ def balance_report(scene: SceneSpec, catalog: Catalog | None = None) -> dict:
         "places": {place: n}, "place_kinds": {kind: n}}``, every mapping sorted by key.
         ``relation`` is ``"none"`` for objects without a placement relation in that frame.
     """
-    from usdscene.converters.openlabel_annotations import resolve_places_over
+    from usdscene.converters.openlabel.annotations import resolve_places_over
 
     place_names = {p.uid: p.name for p in scene.places}
     kinds: Mapping[str, str] = {}

@@ -15,17 +15,17 @@ Strategies (:data:`STRATEGIES`):
   has the same number of instance-frames (within 1); each class first takes every combination
   it fits, in random order, then random extra ones (relation first, uniform, then place), so
   every fitting combination occurs at least once when the frame count allows
-  (:func:`usdscene.dataset.combinations.frames_for_coverage`); the report lists those that do
+  (:func:`usdscene.generate.combinations.frames_for_coverage`); the report lists those that do
   not.
 * ``appearance``: like ``balanced``, with a random appearance variant and a random colour per
   object, and each object used for at most :data:`APPEARANCE_LIFETIME_FRAMES` frames.
 * ``random``: the naive generator, the ablation of ``balanced``
-  (:func:`usdscene.dataset.sequence_plans.plan_random`): each instance a uniformly random class
+  (:func:`usdscene.generate.sequence_plans.plan_random`): each instance a uniformly random class
   at a uniformly random free place where it fits; no equal counts, no coverage.
 
-The modules beside this one hold the parts: :mod:`usdscene.dataset.combinations` (what fits
-where), :mod:`usdscene.dataset.sequence_plans` (the per-frame plan of each strategy),
-:mod:`usdscene.dataset.laps` (seated passengers' laps) and :mod:`usdscene.dataset.balance` (the
+The modules beside this one hold the parts: :mod:`usdscene.generate.combinations` (what fits
+where), :mod:`usdscene.generate.sequence_plans` (the per-frame plan of each strategy),
+:mod:`usdscene.generate.laps` (seated passengers' laps) and :mod:`usdscene.generate.balance` (the
 balance report).
 
 Capacity: a support region (one relation of one place) holds at most one generated object per
@@ -63,12 +63,12 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from usdscene.dataset.balance import balance_report
-from usdscene.dataset.combinations import (Combination, Region, fitting_combinations, frames_for_coverage,
+from usdscene.generate.balance import balance_report
+from usdscene.generate.combinations import (Combination, Region, fitting_combinations, frames_for_coverage,
                                            most_combinations, region_conflicts, selected_places)
-from usdscene.dataset.laps import (PASSENGER_RELATION, Lap, lap_combinations, lap_place_name, passenger_seats,
+from usdscene.generate.laps import (PASSENGER_RELATION, Lap, lap_combinations, lap_place_name, passenger_seats,
                                    with_lap_places)
-from usdscene.dataset.sequence_plans import plan_balanced, plan_random, plan_single_class
+from usdscene.generate.sequence_plans import plan_balanced, plan_random, plan_single_class
 from usdscene.scene.catalog import COMBINED_SETS, Catalog, PlaceRegion
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec

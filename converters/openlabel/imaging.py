@@ -28,7 +28,7 @@ from usdscene.document.imaging import (
     spec_to_json,
 )
 
-from usdscene.converters.openlabel_values import describe, is_number, read_object, suggest
+from usdscene.converters.openlabel.values import describe, is_number, read_object, suggest
 
 # name → (kind, low, high, low is exclusive); kinds: number, int, bool, text, rgb.
 # The ranges are Blender's own limits where Blender has one (sky densities 0..10, altitude

@@ -40,10 +40,10 @@ from usdscene.document.model import (
     union_intervals,
 )
 
-from usdscene.converters.openlabel_carry import merge_element, merge_scene, merge_stream
-from usdscene.converters.openlabel_intrinsics import EQUISOLID_KB_COEFFS
-from usdscene.converters.openlabel_load import SCHEMA_VERSION
-from usdscene.converters.openlabel_objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
+from usdscene.converters.openlabel.carry import merge_element, merge_scene, merge_stream
+from usdscene.converters.openlabel.intrinsics import EQUISOLID_KB_COEFFS
+from usdscene.converters.openlabel.load import SCHEMA_VERSION
+from usdscene.converters.openlabel.objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
 
 log = logging.getLogger(__name__)
 
@@ -355,7 +355,7 @@ def _metadata(scene: SceneSpec) -> dict:
     if scene.fps is not None:
         block["fps"] = float(scene.fps)
     if scene.world is not None:
-        from usdscene.converters.openlabel_imaging import world_json
+        from usdscene.converters.openlabel.imaging import world_json
 
         block["world"] = world_json(scene.world)
     meta: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "name": scene.name}
@@ -419,7 +419,7 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
     if cam.custom:
         friendly["custom"] = dict(cam.custom)
     if cam.sensor is not None:
-        from usdscene.converters.openlabel_imaging import sensor_json
+        from usdscene.converters.openlabel.imaging import sensor_json
 
         friendly["sensor"] = sensor_json(cam.sensor)
     props["usdscene"] = friendly
@@ -444,7 +444,7 @@ def write_document(path: str | os.PathLike, document: dict, *, schema: str | os.
     from usdscene.files import write_json_atomic
 
     if schema is not None:
-        from usdscene.converters.openlabel_checks import schema_problems
+        from usdscene.converters.openlabel.checks import schema_problems
 
         problems = schema_problems(document, schema)
         if problems:

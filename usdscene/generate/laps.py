@@ -1,7 +1,7 @@
 """Seated passengers as supports: the seats that seat a passenger class and the laps they offer.
 
 A seated passenger's declared support place (its ``lap``, per pose variant) becomes a *lap
-place* ``<seat>/lap`` that the generators of :mod:`usdscene.dataset.sequences` fill like any
+place* ``<seat>/lap`` that the generators of :mod:`usdscene.generate.sequences` fill like any
 region while somebody sits there.
 """
 
@@ -13,7 +13,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.dataset.combinations import OPEN_HEIGHT_M, Combination, Region, selected_places
+from usdscene.generate.combinations import OPEN_HEIGHT_M, Combination, Region, selected_places
 from usdscene.document.model import Pose
 from usdscene.scene.catalog import Catalog, Place, PlaceRegion
 from usdscene.scene.placement import fits_region
@@ -80,7 +80,7 @@ def lap_combinations(catalog: Catalog, classes: Sequence[str], laps: Mapping[Reg
 
 def with_lap_places(catalog: Catalog, environment: str, laps: Mapping[Region, Lap]) -> Catalog:
     """``catalog`` whose environment also has one place per lap, its region the box around the
-    lap of every pose (for :func:`usdscene.dataset.combinations.region_conflicts`: whatever pose
+    lap of every pose (for :func:`usdscene.generate.combinations.region_conflicts`: whatever pose
     is drawn, a lap object stays inside it)."""
     entry = catalog[environment]
     places = dict(entry.places)

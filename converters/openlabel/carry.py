@@ -5,7 +5,7 @@ reads past as canonical JSON text in the ``extra`` fields of :class:`usdscene.do
 :class:`~usdscene.document.model.Camera`, :class:`~usdscene.document.model.SceneObject`,
 :class:`~usdscene.document.model.PlaceRef` and :class:`~usdscene.document.model.Relation`
 (:func:`usdscene.document.model.canonical_json`), the writer merges it back unchanged, and the
-composed stage keeps it (``usdscene.scene.compose``, read back by ``usdscene.converters.usd_stage``):
+composed stage keeps it (``usdscene.scene.compose``, read back by ``usdscene.converters.stage.usd_stage``):
 
 * per object: object data of names outside usdscene's vocabulary (bboxes, cuboids, poly2d, a
   vec ``Position``, ...), their ``object_data_pointers``, other keys of the element

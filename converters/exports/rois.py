@@ -13,7 +13,7 @@ and cropped from the image when the camera sees it:
 Label of a crop: the document's ``roi_rules`` (``metadata.usdscene.roi_rules``) applied to the
 relation of the region when some present object is in it at that frame, directly or through a
 chain of relations (``bag is_on suitcase is_below seat_03A`` is in seat_03A's ``is_below``
-region, see :func:`usdscene.converters.openlabel_annotations.resolve_places`) (rule keys
+region, see :func:`usdscene.converters.openlabel.annotations.resolve_places`) (rule keys
 ``"<place kind>:<relation>"`` win over ``"<relation>"``; without a rule the relation name
 itself), and ``empty`` when no object is there. Example rules for taxi, take-off and landing:
 ``{"is_below": "correct", "is_on": "incorrect", "is_in_front_of": "incorrect"}``.
@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdscene.converters.openlabel_annotations import image_records, resolve_places_over
+from usdscene.converters.openlabel.annotations import image_records, resolve_places_over
 from usdscene.document import output_layout as layout
 from usdscene.scene.catalog import Catalog, PlaceRegion
 from usdscene.errors import AssetError, DocumentError, OutputError
@@ -144,7 +144,7 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
             in the catalog.
     """
     from usdscene.converters.openlabel import read_openlabel
-    from usdscene.converters.openlabel_read import roi_ignored_classes
+    from usdscene.converters.openlabel.read import roi_ignored_classes
 
     scene = read_openlabel(document)
     if not scene.places:

@@ -1,9 +1,9 @@
 """Camera streams of an OpenLABEL document → :class:`usdscene.document.model.Camera`. Pure module.
 
 A camera is a ``stream`` of type ``camera`` with its intrinsics in ``stream_properties``
-(:mod:`usdscene.converters.openlabel_intrinsics`) and its pose from the coordinate system of
+(:mod:`usdscene.converters.openlabel.intrinsics`) and its pose from the coordinate system of
 the same name, or from the friendly ``position_m`` + ``orientation_deg`` / ``target_m``
-(:mod:`usdscene.converters.openlabel_poses`). Streams of other types are read past.
+(:mod:`usdscene.converters.openlabel.poses`). Streams of other types are read past.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from typing import Mapping
 
 from usdscene.document.model import Camera, Pose, RenderSettings
 
-from usdscene.converters.openlabel_carry import stream_residue
-from usdscene.converters.openlabel_intrinsics import FRIENDLY_KEYS, read_intrinsics
-from usdscene.converters.openlabel_load import DocumentBody
-from usdscene.converters.openlabel_poses import CoordinateSystems, read_coordinate_systems, read_friendly_pose
-from usdscene.converters.openlabel_values import (
+from usdscene.converters.openlabel.carry import stream_residue
+from usdscene.converters.openlabel.intrinsics import FRIENDLY_KEYS, read_intrinsics
+from usdscene.converters.openlabel.load import DocumentBody
+from usdscene.converters.openlabel.poses import CoordinateSystems, read_coordinate_systems, read_friendly_pose
+from usdscene.converters.openlabel.values import (
     INVALID,
     describe,
     read_numbers,
@@ -124,7 +124,7 @@ def _read_camera(doc: DocumentBody, name: str, stream: Mapping, where: str, rend
         custom = read_object(friendly["custom"], f"{where_f}.custom", problems) or {}
     sensor = None
     if "sensor" in friendly:
-        from usdscene.converters.openlabel_imaging import read_sensor
+        from usdscene.converters.openlabel.imaging import read_sensor
 
         sensor = read_sensor(friendly["sensor"], f"{where_f}.sensor", problems)
     description = stream.get("description", "")

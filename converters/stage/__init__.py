@@ -1,0 +1,2 @@
+"""The USD stage route back to the document: any composed or DCC-edited stage ↔
+:class:`usdscene.document.model.SceneSpec` (``usd_stage.scene_from_stage``)."""
