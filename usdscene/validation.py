@@ -103,12 +103,12 @@ def _composition_input_problems(scene, catalog) -> list:
     """What composition would refuse before drawing anything (appearances that are not
     variants, relations to unknown places, cyclic relations...): validate is the gate, so a
     document it accepts composes."""
-    from usdscene.errors import CompositionError
-    from usdscene.scene.placement import check_placement_inputs
+    from usdscene.errors import AssetError, CompositionError
+    from usdscene.scene.compose import check_composition_inputs
 
     try:
-        check_placement_inputs(scene, catalog)
-    except CompositionError as exc:
+        check_composition_inputs(scene, catalog)
+    except (CompositionError, AssetError) as exc:
         return list(exc.problems)
     return []
 

@@ -33,6 +33,11 @@ _SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
 _SURROGATE = re.compile("[\ud800-\udfff]")
 
 
+MAX_DOCUMENT_BYTES = 512 * 1024 * 1024
+"""The largest scene document read (512 MiB): parsed, a JSON document takes about ten times its
+size in memory, and this keeps the whole gate under about 6 GB."""
+
+
 def load_document(source: str | os.PathLike | Mapping) -> dict:
     """Read an OpenLABEL 1.0.0 or VCD 4.3 document into ``{"openlabel": {...}}``.
 
@@ -80,6 +85,11 @@ def load_with_provenance(source: str | os.PathLike | Mapping) -> tuple[dict, Pro
         path = Path(source)
         label = str(path)
         try:
+            size = path.stat().st_size
+            if size > MAX_DOCUMENT_BYTES:
+                raise DocumentError(f"the document is {size:,} bytes, over the {MAX_DOCUMENT_BYTES:,} bytes "
+                                    "(MAX_DOCUMENT_BYTES) usdscene reads in one piece; a longer sequence is "
+                                    "split into documents of frame ranges", where=label)
             raw = path.read_bytes()
         except OSError as exc:
             raise DocumentError(f"cannot read the document: {exc.strerror or exc}", where=label) from None

@@ -97,6 +97,34 @@ class CoordinateSystems:
         return self.world_pose(name), frames
 
 
+def _break_parent_loops(parents: dict[str, str], report) -> None:
+    """Make a root of every system whose parent chain loops, reporting each one.
+
+    Systems are walked in document order; ``report(name, through)`` is called for a system
+    whose chain comes back to ``through``, and that system becomes a root. Linear in the number
+    of systems: a walk stops at the first system already known to reach a root, so a chain
+    20,000 deep is walked once, not once per system.
+    """
+    reaches_root: set[str] = set()
+    for name in parents:
+        if name in reaches_root:
+            continue
+        path: list[str] = []
+        on_path: set[str] = set()
+        current = name
+        while current and current not in reaches_root:
+            if current in on_path:
+                report(name, current)
+                parents[name] = ""
+                # only `name` is known to be a root now; the others are walked again later
+                path = [name]
+                break
+            path.append(current)
+            on_path.add(current)
+            current = parents.get(current, "")
+        reaches_root.update(path)
+
+
 def read_coordinate_systems(doc: DocumentBody) -> CoordinateSystems:
     """``coordinate_systems`` and the per-frame ``transforms`` of ``doc``.
 
@@ -133,18 +161,8 @@ def read_coordinate_systems(doc: DocumentBody) -> CoordinateSystems:
             read = read_transform(cs["pose_wrt_parent"], f"{where}.pose_wrt_parent", doc.problems)
             pose = read if read is not None else pose
         static[name] = pose
-    # cycles
-    for name in parents:
-        seen = {name}
-        current = parents[name]
-        while current:
-            if current in seen:
-                doc.add(f"{R}.coordinate_systems.{name}.parent",
-                        f"the parent chain of {name!r} loops through {current!r}")
-                parents[name] = ""
-                break
-            seen.add(current)
-            current = parents.get(current, "")
+    _break_parent_loops(parents, lambda name, through: doc.add(
+        f"{R}.coordinate_systems.{name}.parent", f"the parent chain of {name!r} loops through {through!r}"))
     per_frame: dict[int, dict[str, Pose]] = {}
     indirect: list[tuple[int, str, str, str, Pose]] = []
     for number, frame in doc.frames().items():

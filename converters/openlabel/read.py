@@ -23,6 +23,8 @@ relations that involve actions, events or contexts (their uids are still checked
 
 from __future__ import annotations
 
+import bisect
+
 import difflib
 import os
 import re
@@ -111,6 +113,8 @@ def _frame_range(doc: DocumentBody, explicit: FrameInterval | None, elements) ->
     root_intervals = None
     if "frame_intervals" in doc.body:
         root_intervals = read_intervals(doc.body["frame_intervals"], f"{doc.root}.frame_intervals", doc.problems)
+    if root_intervals:
+        _check_frames_inside(doc, root_intervals)
     if explicit is not None:
         return explicit.frame_start, explicit.frame_end
     if root_intervals:
@@ -121,6 +125,25 @@ def _frame_range(doc: DocumentBody, explicit: FrameInterval | None, elements) ->
     if not merged:
         return 0, 0
     return merged[0].frame_start, merged[-1].frame_end
+
+
+def _check_frames_inside(doc: DocumentBody, root_intervals: list[FrameInterval]) -> None:
+    """One problem when ``frames`` holds frames outside the root ``frame_intervals``: OpenLABEL's
+    root intervals are the frames the document has, and a reader that trusts them (ours did,
+    reporting a 250,000-frame document as "frames 0..1") would silently drop the rest."""
+    merged = union_intervals(root_intervals)
+    starts = [iv.frame_start for iv in merged]
+    outside = []
+    for frame in doc.frames():
+        k = bisect.bisect_right(starts, frame) - 1
+        if k < 0 or frame > merged[k].frame_end:
+            outside.append(frame)
+    if outside:
+        spans = ", ".join(f"{iv.frame_start}..{iv.frame_end}" for iv in merged[:5])
+        more = f" and {len(merged) - 5} more" if len(merged) > 5 else ""
+        doc.add(f"{doc.root}.frames",
+                f"{len(outside)} frame(s) lie outside the root frame_intervals ({spans}{more}), "
+                f"first {min(outside)}, last {max(outside)}: widen frame_intervals or drop those frames")
 
 
 def roi_ignored_classes(names: Iterable[str], catalog: Catalog, where: str) -> tuple[frozenset[str], list[Problem]]:

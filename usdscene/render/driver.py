@@ -228,6 +228,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     _remove_stale_temporaries(out_dir, camera_list)
     remove_stale_scratch()
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
+    _check_free_space(out_dir, plan, todo, float(settings["resolution_scale"]), keep_clean)
     total = len(frame_list) * len(camera_list)
     skipped = total - len(todo)
     write_json_atomic(out_dir / layout.ID_MAP_FILE, {
@@ -261,6 +262,14 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
                         totals["render_s"], totals["post_s"], totals["import_s"], totals["startup_s"],
                         totals["render_cpu_s"], totals["worker_cpu_s"], executor.name,
                         int(totals["retries"]), tally.nodes)
+
+
+def _check_free_space(out_dir: Path, plan, todo, scale: float, keep_clean: bool) -> None:
+    """Refuse, before rendering, a run whose estimated output does not fit on the disk."""
+    from usdscene.render.disk_space import check_free_space
+
+    sizes = {c.name: scale_intrinsics(c.intrinsics, scale) for c in plan.cameras}
+    check_free_space(out_dir, ((sizes[c].width_px, sizes[c].height_px) for _, c in todo), keep_clean=keep_clean)
 
 
 def _checked_selection(plan, stage_path: Path, frames: Sequence[int] | None, cameras: Sequence[str] | None, *,

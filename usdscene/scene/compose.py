@@ -173,18 +173,12 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
     if scene.frame_end < scene.frame_start:
         raise CompositionError(f"frame range [{scene.frame_start}, {scene.frame_end}] is empty",
                                where="frame_end")
-    check_placement_inputs(scene, catalog)
-    _check_frame_poses(scene, catalog)
-    _check_prim_names(scene)
-    _check_asset_arcs(scene, catalog)
+    check_composition_inputs(scene, catalog)
     choices = draw_looks(scene, catalog, rng)
     placements = place_objects(_with_drawn_bodies(scene, catalog, choices), catalog, rng,
                                appearances={uid: look[0] for uid, look in choices.items()})
     resolved = resolved_scene(scene, placements, choices, catalog)
-    try:
-        ids = mask_ids(scene)
-    except ValueError as exc:
-        raise CompositionError(str(exc), where="objects") from None
+    ids = mask_ids(scene)
 
     if Path(out_dir).is_symlink():  # writing through it would put the stage anywhere
         raise OutputError(f"the stage folder is a symbolic link to {os.readlink(out_dir)!r}; "
@@ -480,6 +474,25 @@ def frame_pose_data(obj) -> dict[int, str]:
             if item.get("name") == ss.FRAME_POSE_DATA and isinstance(item.get("val"), str):
                 by_frame[int(frame)] = item["val"]
     return by_frame
+
+
+def check_composition_inputs(scene: SceneSpec, catalog: Catalog) -> None:
+    """Everything :func:`compose_stage` refuses before it draws anything, in the order it
+    checks: unknown classes, places and relations, per-frame pose variants, prim names, asset
+    arcs and the mask id limit. ``usdscene validate`` calls this too, so that a document the
+    gate accepts composes (and one it refuses gets compose's own message).
+
+    Raises:
+        CompositionError or AssetError: the first group of problems found.
+    """
+    check_placement_inputs(scene, catalog)
+    _check_frame_poses(scene, catalog)
+    _check_prim_names(scene)
+    _check_asset_arcs(scene, catalog)
+    try:
+        mask_ids(scene)
+    except ValueError as exc:
+        raise CompositionError(str(exc), where="objects") from None
 
 
 def _check_frame_poses(scene: SceneSpec, catalog: Catalog) -> None:
