@@ -300,3 +300,10 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
     if off_grid:
         log.warning("%d person-frames lie off the ground grid (positionID -1)", off_grid)
     return target
+
+
+def write_multiview(job) -> Path:
+    """The registry's writer (:mod:`usdscene.converters.exports.registry`): :func:`export_multiview`
+    of an :class:`~usdscene.converters.exports.registry.ExportJob`."""
+    return export_multiview(job.document, job.out_dir, grid=job.options.grid, classes=job.person_classes(),
+                            index=job.label_index())
