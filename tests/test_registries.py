@@ -1,5 +1,6 @@
 """A new export format is one writer module plus one registry entry: the command line, the
-document's validation and ``export_formats`` take it with no other module touched."""
+document's validation and ``export_formats`` take it with no other module touched. A new lens
+is one class and one ``register`` call: projection, rays and the render's remap follow it."""
 
 from __future__ import annotations
 
@@ -115,3 +116,64 @@ def test_built_in_formats_are_the_registry():
     for fmt in FORMATS.values():
         assert set(fmt.options) <= known, fmt.name
 
+
+@pytest.fixture
+def toy_lens():
+    import numpy as np
+
+    from usdscene.lens import LENSES, register
+    from usdscene.lens.fisheye import RadialLens
+
+    class Stereographic(RadialLens):
+        name = "toy_stereographic"
+
+        def radius(self, theta, coeffs):
+            return 2.0 * np.tan(theta / 2.0), theta < np.pi
+
+        def angle(self, radius, intrinsics, iterations):
+            return 2.0 * np.arctan(radius / 2.0), np.ones(len(radius), dtype=bool)
+
+    register(Stereographic())
+    yield "toy_stereographic"
+    del LENSES["toy_stereographic"]
+
+
+def test_toy_lens_projects_and_renders_through_the_registry_alone(toy_lens):
+    import math
+
+    import numpy as np
+
+    from usdscene.document.model import Intrinsics, LensModel
+    from usdscene.labels.projection import (native_renderable, pixel_rays, project_camera_points, remap_grids,
+                                            undistorted_render_intrinsics)
+
+    intr = Intrinsics(toy_lens, 64, 48, 20.0, 20.0, 31.5, 23.5, fov_deg=200.0)
+    theta = np.radians([0.0, 30.0, 60.0, 95.0, 120.0])
+    points = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], axis=1)
+    uv, valid = project_camera_points(intr, points)
+    assert valid.tolist() == [True, True, True, True, False]  # 120° lies beyond the 100° half field
+    assert np.allclose(uv[:4, 0] - 31.5, 2.0 * 20.0 * np.tan(theta[:4] / 2.0))
+    rays, ok = pixel_rays(intr, uv[:4])
+    assert ok.all() and np.allclose(rays, points[:4])
+    assert not native_renderable(intr)
+    render = undistorted_render_intrinsics(intr)
+    # The image's corners see 90° off the axis: an equidistant render holds that and a margin.
+    assert render.lens is LensModel.FISHEYE_EQUIDISTANT and 180.0 <= render.fov_deg <= 184.0
+    map_x, map_y = remap_grids(intr, render)
+    for u, v in ((32, 24), (63, 24), (5, 40)):
+        dx, dy = u - 31.5, v - 23.5
+        r = math.hypot(dx, dy)
+        seen = 20.0 * 2.0 * math.atan(r / 40.0)  # the equidistant radius of the pixel's ray
+        assert math.isclose(float(map_x[v, u]), render.cx_px + dx / r * seen, abs_tol=1e-3)
+        assert math.isclose(float(map_y[v, u]), render.cy_px + dy / r * seen, abs_tol=1e-3)
+
+
+def test_a_lens_name_is_registered_once():
+    from usdscene.lens import Lens, lens_for, register
+    from usdscene.lens.pinhole import Perspective
+
+    assert lens_for("perspective") is lens_for(Perspective.name)
+    with pytest.raises(ValueError, match="registered already"):
+        register(Perspective())
+    with pytest.raises(ValueError, match="no name"):
+        register(Lens())

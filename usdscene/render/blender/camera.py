@@ -3,8 +3,6 @@ settings that determine an image (to detect a user's edits in a .blend)."""
 
 from __future__ import annotations
 
-import math
-
 
 def apply_intrinsics(scene, data, intr) -> None:
     """Set the render resolution and the Blender camera data for ``intr`` (a native lens).
@@ -13,7 +11,7 @@ def apply_intrinsics(scene, data, intr) -> None:
     ``sensor_fit = 'HORIZONTAL'``) and puts an unshifted optical axis at the image centre,
     ``((W - 1) / 2, (H - 1) / 2)`` in OpenCV pixel coordinates; y shift points up.
     """
-    from usdscene.document.model import LensModel
+    from usdscene.lens import lens_for
 
     w, h = intr.width_px, intr.height_px
     scene.render.resolution_x = w
@@ -27,30 +25,9 @@ def apply_intrinsics(scene, data, intr) -> None:
     data.sensor_height = sensor_w * h / w
     data.shift_x = ((w - 1) / 2.0 - intr.cx_px) / w
     data.shift_y = (intr.cy_px - (h - 1) / 2.0) / w
-    lens = LensModel(intr.lens)
-    if lens is LensModel.PERSPECTIVE:
-        data.type = "PERSP"
-        data.lens = intr.fx_px * sensor_w / w
-    elif lens is LensModel.ORTHOGRAPHIC:
-        data.type = "ORTHO"
-        data.ortho_scale = w / intr.fx_px  # metres across the image width
-    elif lens is LensModel.FISHEYE_EQUISOLID:
-        data.type = "PANO"
-        data.panorama_type = "FISHEYE_EQUISOLID"
-        data.fisheye_lens = intr.fx_px * sensor_w / w
-        data.fisheye_fov = math.radians(min(intr.fov_deg or 360.0, 360.0))
-    elif lens is LensModel.FISHEYE_EQUIDISTANT:
-        # θ = -(k0 + k1·r) with r in millimetres on the sensor: equidistant is k1 = -1/f.
-        data.type = "PANO"
-        data.panorama_type = "FISHEYE_LENS_POLYNOMIAL"
-        data.fisheye_polynomial_k0 = 0.0
-        data.fisheye_polynomial_k1 = -w / (intr.fx_px * sensor_w)
-        data.fisheye_polynomial_k2 = 0.0
-        data.fisheye_polynomial_k3 = 0.0
-        data.fisheye_polynomial_k4 = 0.0
-        data.fisheye_fov = math.radians(min(intr.fov_deg or 360.0, 360.0))
-    else:
-        raise ValueError(f"lens {lens.value!r} is not native to Blender")
+    # Set in the order the lens gives (a panoramic type before its fisheye parameters).
+    for name, value in lens_for(intr).blender_camera(intr).items():
+        setattr(data, name, value)
 
 
 def camera_data_json(data) -> dict:

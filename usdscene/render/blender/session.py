@@ -307,8 +307,8 @@ class Session:
         import cv2
         import numpy as np
 
-        from usdscene.document.model import LensModel
         from usdscene.labels.projection import pixel_rays, remap_grids
+        from usdscene.lens import lens_for
         from usdscene.render.job import intrinsics_from_json
 
         cam_job = self.job["cameras"][camera]
@@ -320,7 +320,7 @@ class Session:
             map_x, map_y = self._remaps[camera]
             rgb = cv2.remap(rgb, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
             ids = cv2.remap(ids, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        elif intr.lens in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
+        elif lens_for(intr).radial:  # a native fisheye: black beyond its image circle
             if camera not in self._fov_masks:
                 vs, us = np.mgrid[0:intr.height_px, 0:intr.width_px]
                 _, valid = pixel_rays(intr, np.stack([us.ravel(), vs.ravel()], 1).astype(float))
