@@ -153,6 +153,11 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
     for key in ("light_tree", "path_guiding", "fast_gi", "auto_scrambling_distance"):
         if not isinstance(settings[key], bool):
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} must be true or false"))
+    from usdscene.converters.openlabel.metadata import DEPTH_FORMATS
+
+    if settings["depth"] is not None and settings["depth"] not in DEPTH_FORMATS:
+        problems.append(Problem("render.depth", f"unknown depth format {settings['depth']!r}; expected one of "
+                                                f"{', '.join(DEPTH_FORMATS)} (or null for no depth images)"))
     if not 0 < float(settings["resolution_scale"]) <= 4:
         problems.append(Problem("render.resolution_scale",
                                 f"resolution_scale {settings['resolution_scale']!r} must be in (0, 4]"))
@@ -225,6 +230,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
 
     cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
     manifest = _open_manifest(out_dir, plan, settings, cam_json, keep_clean=keep_clean)
+    manifest.depth_format = settings["depth"]
     _remove_stale_temporaries(out_dir, camera_list)
     remove_stale_scratch()
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]

@@ -93,6 +93,10 @@ class Session:
         self.hidden: dict[str, bool] = {}
         self._remaps: dict[str, tuple] = {}
         self._fov_masks: dict[str, object] = {}
+        # render.depth: (frame, camera) → the Z pass of a rendered image until it is written
+        self.depth_format = job["settings"].get("depth")
+        self._depths: dict[tuple, object] = {}
+        self._ray_cosines: dict[str, object] = {}
         self._setup_scene()
         # Before the import: a missing GPU is reported in a second, not after the stage loads.
         self.rendering = job.get("mode", "render") == "render"
@@ -225,6 +229,8 @@ class Session:
         scene.view_settings.gamma = 1.0
         view_layer = scene.view_layers[0]
         view_layer.use_pass_object_index = True
+        # Written from the first sample with the object index: the depth of the mask's surface.
+        view_layer.use_pass_z = bool(self.job["settings"].get("depth"))
         image = scene.render.image_settings
         image.media_type = "MULTI_LAYER_IMAGE"
         image.file_format = "OPEN_EXR_MULTILAYER"
@@ -405,7 +411,9 @@ class Session:
         started, cpu_started = time.perf_counter(), time.process_time()
         self.bpy.ops.render.render(write_still=True)
         rendered, cpu_rendered = time.perf_counter(), time.process_time()
-        rgb, ids = read_exr(self.exr_path)
+        rgb, ids, z_pass = read_exr(self.exr_path, depth=self.depth_format is not None)
+        if z_pass is not None:
+            self._depths[(frame, camera)] = z_pass
         if self.world_at is not None:
             rgb = self._display(rgb)
         return rgb, ids, {"render_s": rendered - started, "render_cpu_s": cpu_rendered - cpu_started,
@@ -443,6 +451,14 @@ class Session:
         import numpy as np
 
         started, cpu_started = time.perf_counter(), time.thread_time()
+        z_pass = self._depths.pop((frame, camera), None)
+        if z_pass is not None:  # before the mask: a pair counts as done once its mask exists
+            from usdscene.document import output_layout as layout
+            from usdscene.files import write_bytes_atomic
+            from usdscene.render.depth import encode_depth
+
+            write_bytes_atomic(layout.depth_path(self.job["out_dir"], camera, frame, self.depth_format),
+                               encode_depth(self._finish_depth(camera, z_pass, ids), self.depth_format))
         rgb, ids = self._finish(camera, rgb, ids)
         image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
         clean = None
@@ -464,6 +480,31 @@ class Session:
         """Render, decode and write one pair in sequence; returns its timings."""
         rgb, ids, timing = self.render_image(frame, camera)
         return {**timing, **self.write_image(frame, camera, rgb, ids)}
+
+    def _finish_depth(self, camera: str, z_pass, ids):
+        """Cycles' Z pass → distance to the image plane, remapped with the mask (``ids``: the
+        native render's object index)."""
+        from usdscene.render.depth import plane_depth, ray_cosines, remap_depth
+        from usdscene.render.job import intrinsics_from_json
+
+        cam_job = self.job["cameras"][camera]
+        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        if camera not in self._ray_cosines:
+            self._ray_cosines[camera] = ray_cosines(render)
+        depth = plane_depth(z_pass, render, self._ray_cosines[camera])
+        if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
+            map_x, map_y = self._remaps[camera] if camera in self._remaps else self._remap_grids(camera)
+            depth = remap_depth(depth, ids, map_x, map_y)
+        return depth
+
+    def _remap_grids(self, camera: str):
+        from usdscene.labels.projection import remap_grids
+        from usdscene.render.job import intrinsics_from_json
+
+        cam_job = self.job["cameras"][camera]
+        self._remaps[camera] = remap_grids(intrinsics_from_json(cam_job["intrinsics"]),
+                                           intrinsics_from_json(cam_job["render_intrinsics"]))
+        return self._remaps[camera]
 
     def _finish(self, camera: str, rgb, ids):
         """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
@@ -656,16 +697,17 @@ def apply_intrinsics(scene, data, intr) -> None:
         raise ValueError(f"lens {lens.value!r} is not native to Blender")
 
 
-def read_exr(path: Path):
-    """Read the beauty and object index of a multilayer EXR written by Blender.
+def read_exr(path: Path, depth: bool = False):
+    """Read the beauty and object index (and the Z pass) of a multilayer EXR written by Blender.
 
     Returns:
-        ``(rgb, ids)``: (H, W, 3) float32 linear RGB and (H, W) uint16 object indices.
+        ``(rgb, ids, z)``: (H, W, 3) float32 linear RGB, (H, W) uint16 object indices and
+        (H, W) float32 Cycles Z pass (None unless ``depth``).
     """
     import numpy as np
     import OpenEXR
 
-    rgb = ids = None
+    rgb = ids = z = None
     with OpenEXR.File(str(path), separate_channels=True) as exr:
         for part in exr.parts:
             for name, channel in part.channels.items():
@@ -677,11 +719,15 @@ def read_exr(path: Path):
                     b = channel.pixels
                 elif name.endswith("IndexOB.X") or name.endswith("Object Index.X"):
                     ids = channel.pixels
+                elif depth and name.rsplit(".", 2)[-2:-1] == ["Depth"]:
+                    z = np.array(channel.pixels, dtype=np.float32)
         rgb = np.stack([r, g, b], axis=-1).astype(np.float32)
     if ids is None:
         raise RuntimeError(f"{path}: no object-index channel")
+    if depth and z is None:
+        raise RuntimeError(f"{path}: no depth (Z) channel")
     # The pass stores pass_index as float from the first sample only: exact small integers.
-    return rgb, np.rint(ids).astype(np.uint16)
+    return rgb, np.rint(ids).astype(np.uint16), z
 
 
 def linear_to_srgb8(rgb):
