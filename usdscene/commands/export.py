@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         written = export_formats(args.outputs[0], args.format,
                                  ExportOptions(min_roi_px=args.min_roi_px, grid=grid, **options))
     else:
-        for per_output in ("rois", "mot", "multiview"):
+        for per_output in ("rois", "mot", "multiview", "video"):
             if per_output in args.format:
                 raise OutputError([Problem("--dataset", f"{per_output} is exported per output folder; "
                                                         f"export {per_output} without --dataset")])

@@ -9,9 +9,11 @@ regions), never internal state:
 * ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.exports.mot`);
 * ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
   calibrations (see :mod:`usdscene.converters.exports.multiview`); persons are the catalog's person
-  classes (:func:`usdscene.generate.motion.person_classes`).
+  classes (:func:`usdscene.generate.motion.person_classes`);
+* ``video``: ``OUT/exports/video/<camera>.mp4`` H.264 at the document's frame rate (see
+  :mod:`usdscene.converters.exports.video`; extra ``usdscene[video]``).
 
-``mot`` and ``multiview`` need a moving sequence (a document with ``metadata.usdscene.fps``).
+``mot``, ``multiview`` and ``video`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -31,7 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-FORMATS = ("coco", "yolo", "rois", "mot", "multiview")
+FORMATS = ("coco", "yolo", "rois", "mot", "multiview", "video")
 """Dataset formats :func:`export_formats` writes."""
 
 
@@ -199,10 +201,10 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     # the document (which can be large) and the catalog are read once for every format
     loaded = _load_annotated(out, options.extra_assets,
                              need_catalog="rois" in ordered or not options.document_classes)
-    if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
+    if {"mot", "multiview", "video"} & set(ordered):  # fail before writing any format
         from usdscene.converters.exports.tracks import require_tracks
 
-        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
+        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview", "video")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
@@ -225,6 +227,10 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
 
         people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
         written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
+    if "video" in ordered:
+        from usdscene.converters.exports.video import export_video
+
+        written["video"] = export_video(loaded[0], out)
     return {fmt: written[fmt] for fmt in ordered}
 
 
