@@ -50,11 +50,11 @@ NAIVE = textwrap.dedent("""
         session.set_frame(frame)
         session.set_camera(camera, frame)
         session.bpy.ops.render.render(write_still=True)       # beauty
-        rgb, _ = outputs.read_exr(session.exr_path)
+        rgb, _, _ = outputs.read_exr(session.exr_path)
         cycles = session.scene.cycles                          # mask: a second render
         cycles.samples, cycles.use_denoising = 1, False
         session.bpy.ops.render.render(write_still=True)
-        _, ids = outputs.read_exr(session.exr_path)
+        _, ids, _ = outputs.read_exr(session.exr_path)
         rgb, ids = session._finish(camera, rgb, ids)
         outputs.write_outputs(Path(job["out_dir"]), camera, frame, rgb, ids)
         times.append(time.perf_counter() - t0)

@@ -183,5 +183,7 @@ for _format in (
     ExportFormat("multiview", "WILDTRACK-style multi-view positions",
                  writer="usdscene.converters.exports.multiview:write_multiview",
                  needs=frozenset({MOVING_SEQUENCE}), options=(*_CLASSES, "grid")),
+    ExportFormat("video", "H.264 MP4 per camera", writer="usdscene.converters.exports.video:write_video",
+                 needs=frozenset({MOVING_SEQUENCE})),
 ):
     register(_format)

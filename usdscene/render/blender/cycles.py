@@ -129,6 +129,8 @@ def apply_settings(scene, s: dict, *, rendering: bool, exr_path, threads: int | 
     scene.view_settings.gamma = 1.0
     view_layer = scene.view_layers[0]
     view_layer.use_pass_object_index = True
+    # Written from the first sample with the object index: the depth of the mask's surface.
+    view_layer.use_pass_z = bool(s.get("depth"))
     image = scene.render.image_settings
     image.media_type = "MULTI_LAYER_IMAGE"
     image.file_format = "OPEN_EXR_MULTILAYER"

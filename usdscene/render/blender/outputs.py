@@ -6,16 +6,17 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def read_exr(path: Path):
-    """Read the beauty and object index of a multilayer EXR written by Blender.
+def read_exr(path: Path, depth: bool = False):
+    """Read the beauty and object index (and the Z pass) of a multilayer EXR written by Blender.
 
     Returns:
-        ``(rgb, ids)``: (H, W, 3) float32 linear RGB and (H, W) uint16 object indices.
+        ``(rgb, ids, z)``: (H, W, 3) float32 linear RGB, (H, W) uint16 object indices and
+        (H, W) float32 Cycles Z pass (None unless ``depth``).
     """
     import numpy as np
     import OpenEXR
 
-    rgb = ids = None
+    rgb = ids = z = None
     with OpenEXR.File(str(path), separate_channels=True) as exr:
         for part in exr.parts:
             for name, channel in part.channels.items():
@@ -27,11 +28,15 @@ def read_exr(path: Path):
                     b = channel.pixels
                 elif name.endswith("IndexOB.X") or name.endswith("Object Index.X"):
                     ids = channel.pixels
+                elif depth and name.rsplit(".", 2)[-2:-1] == ["Depth"]:
+                    z = np.array(channel.pixels, dtype=np.float32)
         rgb = np.stack([r, g, b], axis=-1).astype(np.float32)
     if ids is None:
         raise RuntimeError(f"{path}: no object-index channel")
+    if depth and z is None:
+        raise RuntimeError(f"{path}: no depth (Z) channel")
     # The pass stores pass_index as float from the first sample only: exact small integers.
-    return rgb, np.rint(ids).astype(np.uint16)
+    return rgb, np.rint(ids).astype(np.uint16), z
 
 
 def linear_to_srgb8(rgb):

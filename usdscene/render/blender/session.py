@@ -27,6 +27,10 @@ class Session:
         self.hidden: dict[str, bool] = {}
         self._remaps: dict[str, tuple] = {}
         self._fov_masks: dict[str, object] = {}
+        # render.depth: (frame, camera) → the Z pass of a rendered image until it is written
+        self.depth_format = job["settings"].get("depth")
+        self._depths: dict[tuple, object] = {}
+        self._ray_cosines: dict[str, object] = {}
         self._setup_scene()
         # Before the import: a missing GPU is reported in a second, not after the stage loads.
         self.rendering = job.get("mode", "render") == "render"
@@ -242,7 +246,9 @@ class Session:
         started, cpu_started = time.perf_counter(), time.process_time()
         self.bpy.ops.render.render(write_still=True)
         rendered, cpu_rendered = time.perf_counter(), time.process_time()
-        rgb, ids = read_exr(self.exr_path)
+        rgb, ids, z_pass = read_exr(self.exr_path, depth=self.depth_format is not None)
+        if z_pass is not None:
+            self._depths[(frame, camera)] = z_pass
         if self.world_at is not None:
             rgb = self._display(rgb)
         return rgb, ids, {"render_s": rendered - started, "render_cpu_s": cpu_rendered - cpu_started,
@@ -280,6 +286,14 @@ class Session:
         import numpy as np
 
         started, cpu_started = time.perf_counter(), time.thread_time()
+        z_pass = self._depths.pop((frame, camera), None)
+        if z_pass is not None:  # before the mask: a pair counts as done once its mask exists
+            from usdscene.document import output_layout as layout
+            from usdscene.files import write_bytes_atomic
+            from usdscene.render.depth import encode_depth
+
+            write_bytes_atomic(layout.depth_path(self.job["out_dir"], camera, frame, self.depth_format),
+                               encode_depth(self._finish_depth(camera, z_pass, ids), self.depth_format))
         rgb, ids = self._finish(camera, rgb, ids)
         image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
         clean = None
@@ -301,6 +315,24 @@ class Session:
         """Render, decode and write one pair in sequence; returns its timings."""
         rgb, ids, timing = self.render_image(frame, camera)
         return {**timing, **self.write_image(frame, camera, rgb, ids)}
+
+    def _finish_depth(self, camera: str, z_pass, ids):
+        """Cycles' Z pass → distance to the image plane, remapped with the mask (``ids``: the
+        native render's object index)."""
+        from usdscene.labels.projection import remap_grids
+        from usdscene.render.depth import plane_depth, ray_cosines, remap_depth
+        from usdscene.render.job import intrinsics_from_json
+
+        cam_job = self.job["cameras"][camera]
+        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        if camera not in self._ray_cosines:
+            self._ray_cosines[camera] = ray_cosines(render)
+        depth = plane_depth(z_pass, render, self._ray_cosines[camera])
+        if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
+            if camera not in self._remaps:  # the mask's map (_finish makes the same one)
+                self._remaps[camera] = remap_grids(intrinsics_from_json(cam_job["intrinsics"]), render)
+            depth = remap_depth(depth, ids, *self._remaps[camera])
+        return depth
 
     def _finish(self, camera: str, rgb, ids):
         """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
