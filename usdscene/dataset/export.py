@@ -156,6 +156,13 @@ class ExportOptions:
         rle_below_px: COCO segmentation as RLE for objects of fewer pixels (0: polygons only).
         grid: the multi-view ground grid (:class:`usdscene.converters.exports.multiview.GroundGrid`);
             None = the default grid over the annotated positions.
+        mot_class_map: MOT: ``CLASS=NUMBER`` items setting a class's MOTChallenge class
+            (:func:`usdscene.converters.exports.mot.parse_class_map`).
+        mot_static_people: MOT: people standing still get class 7 (static person).
+        mot_ignore_occluded: MOT: conf 0 for rows without a visible pixel.
+        mot_layout: MOT: ``cameras``, ``mot17`` or ``mot20`` (:data:`usdscene.converters.exports.mot.LAYOUTS`).
+        multiview_flavour: multi-view: ``wildtrack``, ``multiviewx`` or ``free``
+            (:data:`usdscene.converters.exports.multiview.FLAVOURS`).
     """
 
     extra_assets: Sequence[str] = ()
@@ -168,6 +175,11 @@ class ExportOptions:
     min_visible_fraction: float = 0.0
     rle_below_px: int = 0
     grid: Any = None
+    mot_class_map: Sequence[str] = ()
+    mot_static_people: bool = False
+    mot_ignore_occluded: bool = False
+    mot_layout: str = "cameras"
+    multiview_flavour: str = "free"
 
 
 def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -> dict:
@@ -203,6 +215,14 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
         from usdscene.converters.exports.tracks import require_tracks
 
         require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
+    if "mot" in ordered:
+        from usdscene.dataset.tracking_options import mot_classes
+
+        mot = mot_classes(loaded[0], loaded[1], options.mot_class_map, options.mot_static_people)
+    if "multiview" in ordered:
+        from usdscene.converters.exports.multiview import check_flavour
+
+        check_flavour(loaded[0], options.multiview_flavour)
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
@@ -218,13 +238,17 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
         from usdscene.converters.exports.mot import export_mot
 
         written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], options.document_classes),
-                                    copy_images=options.copy_images, index=index)
+                                    mot_classes=mot, ignore_occluded=options.mot_ignore_occluded,
+                                    layout_name=options.mot_layout, copy_images=options.copy_images, index=index)
     if "multiview" in ordered:
         from usdscene.converters.exports.multiview import export_multiview
-        from usdscene.generate.motion import person_classes
+        from usdscene.generate.motion import person_classes, vehicle_classes
 
-        people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
-        written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
+        # persons and vehicles: every mover of ``generate tracks`` and the fixed ones of the document
+        people = ((*person_classes(loaded[1]), *vehicle_classes(loaded[1]))
+                  if loaded[1] is not None and not options.document_classes else None)
+        written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index,
+                                                flavour=options.multiview_flavour)
     return {fmt: written[fmt] for fmt in ordered}
 
 
