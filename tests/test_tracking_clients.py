@@ -417,3 +417,57 @@ def test_the_report_shows_the_exports_track_ids(labelled):
     entries = [o for im in images for o in _page_entry(im, classes)["o"]]
     assert entries and all(o["id"] == ids[o["u"]] for o in entries)
     assert any(o["id"] != int(o["u"]) for o in entries)  # uids are not the ids
+
+
+# ------------------------------------------------------------------------------------------
+# Pieces without a scene
+
+
+def test_class_mapping_reads_numbers_names_and_none_and_names_the_bad_value():
+    from usdscene.converters.exports.mot import MotClasses, parse_class_map
+    from usdscene.errors import OutputError
+
+    known = {"person", "van", "bicycle", "bench"}
+    mapping = parse_class_map(["bicycle=4", "bench=Occluder", "van=none"], known)
+    assert mapping == {"bicycle": 4, "bench": 9, "van": None}
+    classes = MotClasses(people=("person",), vehicles=("van",), class_map=mapping, static_people=True)
+    assert [classes.number(c, False) for c in ("person", "van", "bicycle", "bench", "cone")] == [1, None, 4, 9, None]
+    assert classes.number("person", True) == 7 and MotClasses(people=("person",)).number("person", True) == 1
+    for item, words in (("unicycle=4", ("unknown class 'unicycle'",)), ("bicycle=14", ("'14'", "1..13")),
+                        ("bicycle", ("CLASS=NUMBER",)), ("bicycle=wheelchair", ("'wheelchair'",))):
+        with pytest.raises(OutputError) as error:
+            parse_class_map([item], known)
+        text = str(error.value)
+        assert "--mot-class" in text and all(w in text for w in words), text
+
+
+def test_the_equisolid_fisheye_goes_through_the_writers_opencv_fisheye_fit():
+    import cv2
+
+    from usdscene.converters.exports.multiview import equisolid_fit_error_px, opencv_calibration
+    from usdscene.converters.openlabel import EQUISOLID_KB_COEFFS
+    from usdscene.document.model import Camera, Intrinsics, LensModel
+    from usdscene.labels.projection import project_camera_points
+
+    errors = {}
+    for fov in (120.0, 180.0):
+        intr = Intrinsics(LensModel.FISHEYE_EQUISOLID, 640, 480, 160.0, 160.0, 319.5, 239.5, fov_deg=fov)
+        camera = Camera("fish", intr)
+        model, K, D = opencv_calibration(camera)
+        assert model == "fisheye" and np.array_equal(D, EQUISOLID_KB_COEFFS)
+        theta = np.radians(np.linspace(0.0, fov / 2, 200))
+        points = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], axis=1)
+        ours = project_camera_points(intr, points)[0]
+        theirs, _ = cv2.fisheye.projectPoints(points.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, D)
+        measured = float(np.abs(ours - theirs.reshape(-1, 2)).max())
+        errors[fov] = equisolid_fit_error_px(camera)
+        assert measured <= errors[fov] + 1e-6  # the stated accuracy holds
+    assert errors[120.0] < errors[180.0] < 1e-3  # f = 160 px: a thousandth of a pixel even at 180 degrees
+
+
+def test_unknown_flavour_is_named():
+    from usdscene.converters.exports.multiview import flavour_of
+    from usdscene.errors import OutputError
+
+    with pytest.raises(OutputError, match="--multiview-flavour.*'mvdet'"):
+        flavour_of("mvdet")
