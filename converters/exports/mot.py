@@ -10,7 +10,7 @@ Challenge's multi-camera tracks, whose frame numbers agree across cameras)::
     mot/tracks.json                 the uid → id and class → MOT class tables, the first frame,
                                     the sequence → camera table, the rules
 
-With ``layout="mot17"`` or ``"mot20"`` the sequences are laid out as TrackEval's
+With ``layout_name="mot17"`` or ``"mot20"`` the sequences are laid out as TrackEval's
 ``MotChallenge2DBox`` reads a benchmark (``BENCHMARK=MOT17|MOT20``, ``SPLIT_TO_EVAL=train``,
 ``GT_FOLDER=mot``)::
 

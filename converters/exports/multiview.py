@@ -328,8 +328,14 @@ def fixed_ground_positions(document: dict, uids: Iterable[str], frames: Iterable
     wanted = set(uids)
     if not wanted:
         return {}, []
-    body = DocumentBody(document["openlabel"])
-    _, _, objects, _ = read_objects(body)
+    # Only these objects are read: reading every mover's per-frame poses of a long sequence
+    # would cost more than the whole export.
+    root = document["openlabel"]
+    frames_in = root.get("frames", {}) or {}
+    trimmed = dict(root, objects={u: o for u, o in (root.get("objects", {}) or {}).items() if u in wanted},
+                   frames={k: {"objects": {u: e for u, e in ((f or {}).get("objects", {}) or {}).items() if u in wanted}}
+                           for k, f in frames_in.items()})
+    _, _, objects, _ = read_objects(DocumentBody(trimmed))
     frames = list(frames)
     out: dict[int, dict[str, np.ndarray]] = {}
     unplaced = []
