@@ -24,7 +24,9 @@ Reads only the document written by :func:`usdscene.converters.openlabel.annotati
   10 values ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]``, world metres).
   People (labels with keypoints) also get ``keypoints`` (17 ``x, y, v`` triples in COCO's
   pixel convention, ``0, 0, 0`` where v = 0) and ``num_keypoints`` (v > 0); their category
-  gets ``keypoints`` (the COCO-17 names) and ``skeleton``, supercategory ``person``.
+  gets ``keypoints`` (the COCO-17 names) and ``skeleton``, supercategory ``person``. Every other
+  annotation has ``num_keypoints`` 0 and 17 zero triples, so that ``COCOeval(..., "keypoints")``
+  runs with its default category list (all) and ignores those objects.
   Fully occluded objects (amodal box only) are not exported, nor are labels that
   :class:`LabelFilter` drops (fewer pixels or a smaller visible fraction than asked).
 """
@@ -45,6 +47,7 @@ from usdscene.files import write_json_atomic
 from usdscene.labels.cuboids import document_cuboids
 from usdscene.labels.image_labels import bridge_rings
 from usdscene.labels.pixel_outline import fill_rings
+from usdscene.labels.keypoints import COCO_KEYPOINTS
 
 COCO_DIR = "coco"
 COCO_FILE = "annotations.json"
@@ -181,6 +184,11 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
                     flat += [x + 0.5, y + 0.5, v] if v else [0, 0, 0]
                 annotations[-1]["keypoints"] = flat
                 annotations[-1]["num_keypoints"] = sum(1 for _, _, v in label["keypoints"] if v > 0)
+            else:
+                # COCOeval("keypoints") reads both fields of every annotation of every category
+                # it evaluates (its default: all); num_keypoints 0 makes it ignore the object.
+                annotations[-1]["keypoints"] = [0] * (3 * len(COCO_KEYPOINTS))
+                annotations[-1]["num_keypoints"] = 0
     return images, annotations
 
 
@@ -197,17 +205,17 @@ def coco_document(images: list[dict], annotations: list[dict], names: list[str],
                  "bbox": "[x, y, w, h], top-left corner, pixel i covers [i, i + 1)", **info},
         "images": images,
         "annotations": annotations,
-        "categories": [_category(k + 1, n, {a["category_id"] for a in annotations if "keypoints" in a})
+        "categories": [_category(k + 1, n, {a["category_id"] for a in annotations if a.get("num_keypoints")})
                        for k, n in enumerate(names)],
     }
 
 
 def _category(category_id: int, name: str, with_keypoints: set[int]) -> dict:
-    """A COCO category; person-like ones (whose annotations carry keypoints) name the 17
-    keypoints and COCO's skeleton."""
+    """A COCO category; person-like ones (with an annotation of at least one labelled keypoint)
+    name the 17 keypoints and COCO's skeleton."""
     out = {"id": category_id, "name": name, "supercategory": "object"}
     if category_id in with_keypoints:
-        from usdscene.labels.keypoints import COCO_KEYPOINTS, COCO_SKELETON
+        from usdscene.labels.keypoints import COCO_SKELETON
 
         out.update(supercategory="person", keypoints=list(COCO_KEYPOINTS), skeleton=[list(p) for p in COCO_SKELETON])
     return out

@@ -49,6 +49,9 @@ class ExportFormat:
         dataset: written by :func:`usdscene.dataset.export.export_dataset`: several output
             folders may become one dataset (``--dataset``); others are exported per folder.
         catalog: needs the asset catalog whatever the class options (ROIs: its place regions).
+        check: ``"module:function"`` taking the :class:`ExportJob`, run for every format asked
+            for before any format is written (options that need the document, such as MOT's
+            class mapping); raises ``OutputError``. Empty: nothing beyond ``needs``.
     """
 
     name: str
@@ -58,6 +61,13 @@ class ExportFormat:
     options: tuple[str, ...] = ()
     dataset: bool = False
     catalog: bool = False
+    check: str = ""
+
+    def check_job(self, job: "ExportJob") -> None:
+        """Run the format's check on ``job`` (nothing when it has none)."""
+        if self.check:
+            module, _, function = self.check.partition(":")
+            getattr(importlib.import_module(module), function)(job)
 
     def write(self, job: "ExportJob") -> Any:
         """Run the format's writer on ``job``; returns what it wrote."""
@@ -77,10 +87,16 @@ class ExportJob:
 
     def __init__(self, document: dict, catalog, out_dir, options, *,
                  object_classes: Callable[[], Any] = lambda: None,
-                 person_classes: Callable[[], Any] = lambda: None) -> None:
+                 person_classes: Callable[[], Any] = lambda: None,
+                 catalog_movers: Callable[[], Any] = lambda: ((), ())) -> None:
         self.document, self.catalog, self.out_dir, self.options = document, catalog, out_dir, options
         self._object_classes, self._person_classes = object_classes, person_classes
+        self._catalog_movers = catalog_movers
         self._index = None
+
+    def catalog_movers(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """``(person classes, vehicle classes)`` of the catalog (both empty without one)."""
+        return self._catalog_movers()
 
     def object_classes(self):
         """The export's object classes (sorted later for ids), or None: the document's labelled types."""
@@ -179,10 +195,13 @@ for _format in (
     ExportFormat("rois", "ROI crops", writer="usdscene.converters.exports.rois:write_rois", catalog=True,
                  options=("min_roi_px",)),
     ExportFormat("mot", "MOTChallenge tracks", writer="usdscene.converters.exports.mot:write_mot",
-                 needs=frozenset({MOVING_SEQUENCE}), options=(*_CLASSES, "copy_images")),
-    ExportFormat("multiview", "WILDTRACK-style multi-view positions",
+                 check="usdscene.converters.exports.mot:check_mot", needs=frozenset({MOVING_SEQUENCE}),
+                 options=(*_CLASSES, "copy_images", "mot_class_map", "mot_static_people", "mot_ignore_occluded",
+                          "mot_layout")),
+    ExportFormat("multiview", "WILDTRACK / MultiviewX multi-view positions",
                  writer="usdscene.converters.exports.multiview:write_multiview",
-                 needs=frozenset({MOVING_SEQUENCE}), options=(*_CLASSES, "grid")),
+                 check="usdscene.converters.exports.multiview:check_multiview",
+                 needs=frozenset({MOVING_SEQUENCE}), options=(*_CLASSES, "grid", "multiview_flavour")),
     ExportFormat("video", "H.264 MP4 per camera", writer="usdscene.converters.exports.video:write_video",
                  needs=frozenset({MOVING_SEQUENCE})),
 ):

@@ -1,4 +1,4 @@
-"""Track identity of a moving sequence, shared by every export. Pure (stdlib).
+"""Track identity and ground positions of a moving sequence, shared by every export. Pure (numpy).
 
 A moving sequence is a document that states its frame rate (``metadata.usdscene.fps``); each of
 its objects is one track for the whole sequence, in every camera. Exports that need integers
@@ -8,11 +8,15 @@ its objects is one track for the whole sequence, in every camera. Exports that n
 
 from __future__ import annotations
 
+import numpy as np
+
 from usdscene.errors import OutputError
 
 ID_RULE = ("objects that are neither lights nor places, ordered by uid (integer uids by value, then the "
            "others by text), numbered 1, 2, ... in that order")
 NOT_TRACKED = frozenset({"light", "place"})
+GROUND_POSITION = "ground_position_m"
+"""Per-frame ``vec`` object data: where a moving object stands (world metres), by ``generate tracks``."""
 
 
 def document_fps(document: dict) -> float | None:
@@ -39,3 +43,14 @@ def require_tracks(document: dict, what: str) -> float:
                           "sequence in time; generate one with `usdscene generate tracks`",
                           where="metadata.usdscene.fps")
     return fps
+
+
+def ground_positions(document: dict) -> dict[int, dict[str, np.ndarray]]:
+    """frame → uid → (3,) ground position (world metres) from the per-frame object data."""
+    out: dict[int, dict[str, np.ndarray]] = {}
+    for key, frame in (document.get("openlabel", {}).get("frames", {}) or {}).items():
+        for uid, entry in ((frame or {}).get("objects", {}) or {}).items():
+            for item in ((entry or {}).get("object_data", {}) or {}).get("vec", []):
+                if item.get("name") == GROUND_POSITION:
+                    out.setdefault(int(key), {})[uid] = np.asarray(item["val"], dtype=np.float64)
+    return out

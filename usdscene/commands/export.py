@@ -49,6 +49,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_label_filter_arguments(parser)
     parser.add_argument("--min-roi-px", type=int, default=8, metavar="PX",
                         help="ROIs: smallest crop side in pixels (default 8)")
+    mot = parser.add_argument_group("mot (MOTChallenge classes: people 1, vehicles 3, other classes left out)")
+    mot.add_argument("--mot-class", action="append", default=[], metavar="CLASS=NUMBER",
+                     help="give CLASS the MOT class NUMBER (1-13 or its name: bicycle=4, bench=occluder) or "
+                          "leave it out (CLASS=none); repeat for more classes")
+    mot.add_argument("--mot-static-people", action="store_true",
+                     help="people standing still get MOT class 7 (static person), which TrackEval ignores")
+    mot.add_argument("--mot-ignore-occluded", action="store_true",
+                     help="conf 0 (ignore) for rows of objects without a visible pixel")
+    mot.add_argument("--mot-layout", choices=("cameras", "mot17", "mot20"), default="cameras",
+                     help="mot/<camera>/ (default), or a TrackEval benchmark tree mot/MOT17-train/MOT17-01/ ... "
+                          "with seqmaps/")
+    parser.add_argument("--multiview-flavour", choices=("free", "wildtrack", "multiviewx"), default="free",
+                        help="multiview: camera-named files (free, default), or the layouts MVDet reads: "
+                             "wildtrack (C1..Cn, intr_CVLab<k>.xml, centimetres) or multiviewx (C1..Cn, "
+                             "intr_Camera<k>.xml, metres); at most 9 cameras")
     grid = parser.add_argument_group("multiview ground grid (default: 2.5 cm cells over the positions + 1 m)")
     grid.add_argument("--grid-origin", nargs=2, type=float, metavar=("X", "Y"),
                       help="world metres of position 0")
@@ -84,7 +99,10 @@ def run(args: argparse.Namespace) -> int:
         grid = GroundGrid(tuple(args.grid_origin), args.grid_cell, tuple(args.grid_size))
     if args.dataset is None:
         written = export_formats(args.outputs[0], args.format,
-                                 ExportOptions(min_roi_px=args.min_roi_px, grid=grid, **options))
+                                 ExportOptions(min_roi_px=args.min_roi_px, grid=grid, mot_class_map=tuple(args.mot_class),
+                                               mot_static_people=args.mot_static_people,
+                                               mot_ignore_occluded=args.mot_ignore_occluded, mot_layout=args.mot_layout,
+                                               multiview_flavour=args.multiview_flavour, **options))
     else:
         for per_output in (name for name, fmt in FORMATS.items() if not fmt.dataset):
             if per_output in args.format:

@@ -199,13 +199,16 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     loaded = _load_annotated(out, options.extra_assets,
                              need_catalog=any(FORMATS[f].catalog for f in ordered) or not options.document_classes)
     require_needs(loaded[0], ordered)  # fail before writing any format
-    dataset_formats = [f for f in ordered if FORMATS[f].dataset]
-    if dataset_formats:
-        written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
     document, catalog = loaded
     job = ExportJob(document, catalog, out, options,
                     object_classes=lambda: _export_classes(document, catalog, options.document_classes),
-                    person_classes=lambda: _person_classes(catalog, options.document_classes))
+                    person_classes=lambda: _person_classes(catalog, options.document_classes),
+                    catalog_movers=lambda: _catalog_movers(catalog))
+    for name in ordered:  # the formats' own checks, also before writing any format
+        FORMATS[name].check_job(job)
+    dataset_formats = [f for f in ordered if FORMATS[f].dataset]
+    if dataset_formats:
+        written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
     for name in names:  # in the registry's order, whatever the order asked for
         if name in ordered and not FORMATS[name].dataset:
             written[name] = FORMATS[name].write(job)
@@ -213,13 +216,22 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
 
 
 def _person_classes(catalog, document_classes: bool):
-    """Multi-view persons: the catalog's person classes, or None (every object with ground
+    """Multi-view tracked classes: the catalog's person and vehicle classes (every mover of
+    ``generate tracks`` and the fixed ones of the document), or None (every object with ground
     positions) with ``document_classes`` or without a catalog."""
     if catalog is None or document_classes:
         return None
-    from usdscene.generate.motion import person_classes
+    people, vehicles = _catalog_movers(catalog)
+    return (*people, *vehicles)
 
-    return person_classes(catalog)
+
+def _catalog_movers(catalog) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The catalog's person and vehicle classes (both empty without a catalog)."""
+    if catalog is None:
+        return (), ()
+    from usdscene.generate.motion import person_classes, vehicle_classes
+
+    return tuple(person_classes(catalog)), tuple(vehicle_classes(catalog))
 
 
 def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = ExportOptions(), *,

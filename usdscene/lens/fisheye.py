@@ -85,12 +85,23 @@ class EquidistantFisheye(RadialLens):
                 "fisheye_fov": _fisheye_fov_rad(intrinsics)}
 
 
+EQUISOLID_KB_COEFFS = (-1.0 / 24.0, 1.0 / 1920.0, -1.0 / 322560.0, 1.0 / 92897280.0)
+"""Kannala-Brandt (OpenCV fisheye) coefficients of the equisolid projection r = 2 f sin(θ/2):
+the Taylor series 2 sin(θ/2) = θ (1 - θ²/24 + θ⁴/1920 - θ⁶/322560 + θ⁸/92897280 - ...), exact to
+1e-10 rad for θ <= 1.1 rad (the OpenLABEL writer's fit and the lens's OpenCV export)."""
+
+
 class EquisolidFisheye(RadialLens):
     """``fisheye_equisolid``: ``r = 2f·sin(θ/2)``; valid when ``θ ≤ fov/2``."""
 
     name = "fisheye_equisolid"
     native = True
     centred = True
+
+    def opencv_distortion(self, intrinsics):
+        # OpenCV has no equisolid model: its fisheye model with the Taylor fit above
+        # (usdscene.converters.exports.multiview.equisolid_fit_error_px states the error).
+        return "fisheye", np.asarray(EQUISOLID_KB_COEFFS, dtype=np.float64)
 
     def radius(self, theta, coeffs):
         return 2.0 * np.sin(theta / 2.0), theta < math.pi

@@ -367,13 +367,13 @@
         const text = svgElement("text", { class: "ov-text", y: Math.max(top - fontSize * 0.25, fontSize * 0.8), ...along }, g);
         text.textContent = labelText(o, ix);
         const track = svgElement("text", { class: "ov-track", y: Math.min(bottom + fontSize * 0.9, h - 0.5), ...along }, g);
-        track.textContent = `#${o.u}`;
+        track.textContent = o.id != null ? `#${o.id}` : `uid ${o.u}`;
       }
       const li = document.createElement("li");
       if (!passes) li.className = "dim";
       li.style.borderLeft = `6px solid ${colour}`;
       li.style.paddingLeft = "4px";
-      li.textContent = `${labelText(o, ix)} · track ${o.u}${o.n ? " (" + o.n + ")" : ""}` +
+      li.textContent = `${labelText(o, ix)} · ${o.id != null ? "track " + o.id : "uid " + o.u}${o.n ? " (" + o.n + ")" : ""}` +
         `${o.px !== null && o.px !== undefined ? " · " + o.px + " px" : ""}${o.t ? " · truncated" : ""}` +
         `${o.kp && o.kp.length ? " · " + o.kp.length + " keypoints" : ""}`;
       list.appendChild(li);
