@@ -1,4 +1,4 @@
-"""CPU milliseconds of the sensor post-process (usdscene.render.sensor.apply_sensor) per
+"""CPU milliseconds of the sensor post-process (usdscene.sensor.pipeline.apply_sensor) per
 640x480 image, for each effect alone and for a typical surveillance combination.
 
     python benchmarks/sensor_postprocess.py [--repeat 50]
@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from usdscene.document.imaging import Sensor, image_seed
-from usdscene.render.sensor import apply_sensor
+from usdscene.sensor.pipeline import apply_sensor
 
 CASES = {
     "exposure bias +0.5 EV": Sensor(exposure_bias_ev=0.5),
