@@ -1,5 +1,7 @@
-"""CPU milliseconds of the sensor post-process (usdscene.render.sensor.apply_sensor) per
-640x480 image, for each effect alone and for a typical surveillance combination.
+"""CPU milliseconds of the sensor post-process per 640x480 image: the 8-bit chain
+(usdscene.sensor.pipeline.apply_sensor) for each effect alone and a typical combination, and the
+whole linear chain (process_image: metering, auto exposure, WDR tone curve, lens blur, noise,
+unsharp mask, 4:2:0 chroma, compression) of each camera profile.
 
     python benchmarks/sensor_postprocess.py [--repeat 50]
 
@@ -15,8 +17,9 @@ import time
 
 import numpy as np
 
-from usdscene.document.imaging import Sensor, image_seed
-from usdscene.render.sensor import apply_sensor
+from usdscene.document.camera_profiles import PROFILES
+from usdscene.document.imaging import Sensor, image_seed, profile_sensor
+from usdscene.sensor.pipeline import apply_sensor, process_image
 
 CASES = {
     "exposure bias +0.5 EV": Sensor(exposure_bias_ev=0.5),
@@ -56,6 +59,18 @@ def main() -> None:
             apply_sensor(image, sensor, rng)
             times.append(time.thread_time() - started)
         print(f"{name:55s} {1000 * np.median(times):9.2f} {1000 * min(times):8.2f}")
+    # the linear chain starts from the float render: the same picture decoded to linear light
+    linear = ((image.astype(np.float32) / 255.0) ** 2.2).astype(np.float32)
+    for name in PROFILES:
+        sensor = profile_sensor(name)
+        process_image(linear, sensor, np.random.default_rng(0))
+        times = []
+        for frame in range(args.repeat):
+            rng = np.random.default_rng(image_seed(0, "bench", frame))
+            started = time.thread_time()
+            process_image(linear, sensor, rng)
+            times.append(time.thread_time() - started)
+        print(f"{'profile ' + name + ' (whole linear chain)':55s} {1000 * np.median(times):9.2f} {1000 * min(times):8.2f}")
 
 
 if __name__ == "__main__":

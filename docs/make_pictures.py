@@ -2,7 +2,7 @@
 
 Writes into ``docs/img/``:
 
-* ``contact_sheet.png`` — every camera's image of one frame, camera names on the tiles;
+* ``contact_sheet.jpg`` — every camera's image of one frame, camera names on the tiles;
 * ``labels.png`` — one image with its boxes (green: visible, grey dashed: amodal) and polygons
   drawn from ``annotations.openlabel.json``, i.e. from the written labels, not from internal state;
 * ``stats.png`` — the chart of ``usdscene stats``.
@@ -26,7 +26,7 @@ from usdscene.converters.openlabel.annotations import image_records, labels_in
 from usdscene.document import output_layout as layout
 from usdscene.dataset.contact_sheet import contact_sheet
 from usdscene.dataset.statistics import draw_chart, label_statistics
-from usdscene.files import write_png_atomic
+from usdscene.files import write_bytes_atomic, write_png_atomic
 
 IMG = Path(__file__).resolve().parent / "img"
 
@@ -83,12 +83,17 @@ def main(argv=None) -> int:
     records = [r for r in image_records(document) if r["frame"] == args.frame]
     tiles = [(r["camera"], cv2.imread(str(layout.image_path(args.output, r["camera"], args.frame))))
              for r in records]
-    write_png_atomic(IMG / "contact_sheet.png", contact_sheet(tiles, tile_width=180, columns=8))
+    # JPEG: a sheet of 39 noisy camera images is a photograph (a PNG of it took 1.8 MB)
+    ok, sheet = cv2.imencode(".jpg", contact_sheet(tiles, tile_width=180, columns=8), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    write_bytes_atomic(IMG / "contact_sheet.jpg", sheet.tobytes())
 
     image = cv2.imread(str(layout.image_path(args.output, args.camera, args.frame)))
-    write_png_atomic(IMG / "labels.png", draw_labels(image, labels_in(document, args.frame, args.camera)))
+    # the strongest PNG compression: a noisy camera image at the default level took 400 KB
+    ok, drawn = cv2.imencode(".png", draw_labels(image, labels_in(document, args.frame, args.camera)),
+                             [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    write_bytes_atomic(IMG / "labels.png", drawn.tobytes())
     write_png_atomic(IMG / "stats.png", draw_chart(label_statistics(document)))
-    print(f"wrote {IMG / 'contact_sheet.png'}, {IMG / 'labels.png'}, {IMG / 'stats.png'}")
+    print(f"wrote {IMG / 'contact_sheet.jpg'}, {IMG / 'labels.png'}, {IMG / 'stats.png'}")
     return 0
 
 

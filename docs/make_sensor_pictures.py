@@ -62,6 +62,7 @@ def _document(cameras: dict, *, night: bool, samples: int) -> dict:
     for name, (sensor, label) in cameras.items():
         stream = copy.deepcopy(setup["openlabel"]["streams"][VIEW])
         stream["description"] = label
+        stream["stream_properties"]["usdscene"].pop("sensor", None)  # the example's camera profile
         if sensor is not None:
             stream["stream_properties"]["usdscene"]["sensor"] = sensor
         body["streams"][name] = stream

@@ -25,6 +25,7 @@ RANKS: tuple[tuple[str, ...], ...] = (
     ("usdscene.document",),    # the SceneSpec model, stage names, output layout, containment
     ("usdscene.lens",),        # the lens models: projection, Blender camera settings (registry)
     ("usdscene.scene",),       # catalog, places, placement, composition
+    ("usdscene.sensor",),      # the camera after the light: exposure, tone curve, optics, noise
     ("usdscene.labels",),      # projection, amodal, boxes and polygons, pixel density
     ("usdscene.converters",),  # openlabel/ and stage/ ↔ SceneSpec; exports/ (COCO, YOLO, MOT ...)
     ("usdscene.validation",),  # the gate: schema, catalog and placement checks of a document

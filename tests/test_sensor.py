@@ -1,4 +1,4 @@
-"""The sensor post-process (usdscene.render.sensor) on small synthetic images: deterministic per
+"""The sensor post-process (usdscene.sensor.pipeline) on small synthetic images: deterministic per
 seed, inputs untouched, each effect doing what its field says."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from usdscene.document.imaging import Sensor, image_seed
-from usdscene.render.sensor import apply_sensor, has_effect, vignetting_map
+from usdscene.sensor.pipeline import apply_sensor, has_effect, vignetting_map
 
 
 def scene_image(height=48, width=64) -> np.ndarray:

@@ -43,6 +43,7 @@ def car_park_document(*, world=None, sensors=None, cameras=("pole_north",), sun_
     for name in cameras:
         stream = copy.deepcopy(body["streams"].get(name, body["streams"]["pole_north"]))
         stream["stream_properties"]["usdscene"]["resolution_px"] = [64, 48]
+        stream["stream_properties"]["usdscene"].pop("sensor", None)  # the example's camera profile
         if sensors and name in sensors:
             stream["stream_properties"]["usdscene"]["sensor"] = sensors[name]
         streams[name] = stream

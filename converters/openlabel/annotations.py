@@ -13,7 +13,8 @@ for moving cameras; a friendly-form camera block becomes calibrated intrinsics) 
   ids in the ``mask_id`` attributes) and the image size. The schema's ``stream`` object admits
   no extra key, ``frame_properties`` does, hence this place. For a camera with a sensor also
   ``sensor`` (the sensor's values at that frame and the noise generator's entropy, see
-  :func:`sensor_record`) and, with ``--keep-clean``, ``clean_uri`` (the image before them).
+  :func:`sensor_record`; for a camera with auto exposure also ``exposure``, the stops it applied
+  and its meter's reading) and, with ``--keep-clean``, ``clean_uri`` (the image before them).
 * ``frames[f].objects[<uid>].object_data``, per camera that sees the object:
 
   - ``bbox`` named ``<camera>_bbox``: tight box of the visible pixels, ``[cx, cy, w, h]`` in
@@ -66,6 +67,7 @@ the conventions and the polygon tolerance. Relations are kept as given.
 from __future__ import annotations
 
 import copy
+import json
 import os
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
@@ -396,6 +398,10 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
         sensor = sensors.get(image.camera)
         if sensor is not None:
             ours[image.camera]["sensor"] = sensor_record(sensor, scene.seed, image.camera, int(image.frame))
+            exposure = layout.exposure_path(out_dir, image.camera, image.frame)
+            if exposure.is_file():
+                # what the auto exposure chose for this image (written beside it by the worker)
+                ours[image.camera]["sensor"]["exposure"] = json.loads(exposure.read_text(encoding="utf-8"))
             clean = layout.clean_image_path(out_dir, image.camera, image.frame)
             if clean.is_file():
                 ours[image.camera]["clean_uri"] = _relative_uri(clean, out_dir)

@@ -17,6 +17,7 @@ from usdscene.errors import Problem, ProblemCollector
 from usdscene.document.imaging import (
     COMPRESSIONS,
     HDRI_SUFFIXES,
+    METERING_MODES,
     SENSOR_RANDOMIZABLE,
     SKY_KINDS,
     VIEW_TRANSFORMS,
@@ -28,6 +29,7 @@ from usdscene.document.imaging import (
     spec_to_json,
 )
 
+from usdscene.document.camera_profiles import PROFILES
 from usdscene.converters.openlabel.values import describe, is_number, read_object, suggest
 
 # name → (kind, low, high, low is exclusive); kinds: number, int, bool, text, rgb.
@@ -48,6 +50,16 @@ SENSOR_FIELDS: dict[str, tuple] = {
     "read_noise_e": ("number", 0.0, 1e4, False), "shutter_frames": ("number", 0.0, 10.0, False),
     "compression": ("choice", COMPRESSIONS, None, False), "quality": ("int", 1, 100, False),
     "ir_night": ("bool", None, None, False), "ir_range_m": ("number", 0.0, 1e4, True),
+    "profile": ("choice", tuple(PROFILES), None, False),
+    "auto_exposure": ("bool", None, None, False), "metering": ("choice", METERING_MODES, None, False),
+    "metering_region": ("box", None, None, False),
+    "target_grey": ("number", 0.01, 0.9, False),
+    "exposure_min_ev": ("number", -16.0, 16.0, False), "exposure_max_ev": ("number", -16.0, 16.0, False),
+    "exposure_speed": ("number", 0.0, 1.0, True), "wdr_stops": ("number", 0.0, 8.0, False),
+    # MTF50 above 0.5 cycles per pixel (Nyquist) is a lens sharper than the pixels: no blur.
+    "mtf50_cy_px": ("number", 0.0, 1.0, True), "psf_sigma_px": ("number", 0.0, 20.0, True),
+    "sharpen": ("number", 0.0, 5.0, False), "sharpen_radius_px": ("number", 0.0, 10.0, True),
+    "chroma_420": ("bool", None, None, False),
 }
 BLOCK_KEYS = ("per_frame", "randomize")
 
@@ -68,8 +80,22 @@ def read_sensor(value: Any, where: str, problems: ProblemCollector) -> Sensor | 
     data = _read_block(value, where, problems, SENSOR_FIELDS, SENSOR_RANDOMIZABLE, "sensor")
     if data is None:
         return None
-    if "quality" in data and "compression" not in data:
+    profile = PROFILES.get(data.get("profile", ""), {})
+    if "quality" in data and "compression" not in data and not profile.get("compression"):
         data["compression"] = "jpeg"  # a quality alone means the common case
+    if "mtf50_cy_px" in data and "psf_sigma_px" in data:
+        problems.add(f"{where}.psf_sigma_px", "give either 'mtf50_cy_px' or 'psf_sigma_px', not both "
+                                              "(both state the lens blur)")
+        return None
+    merged = {**profile, **data}
+    if merged.get("metering") == "region" and not merged.get("metering_region"):
+        problems.add(f"{where}.metering", "metering 'region' needs 'metering_region': [x0, y0, x1, y1] "
+                                          "as fractions of the image")
+        return None
+    low, high = merged.get("exposure_min_ev", -10.0), merged.get("exposure_max_ev", 10.0)
+    if low > high:
+        problems.add(f"{where}.exposure_min_ev", f"exposure_min_ev {low:g} is above exposure_max_ev {high:g}")
+        return None
     return spec_from_json(Sensor, data)
 
 
@@ -161,6 +187,13 @@ def _read_field(name: str, value: Any, where: str, problems: ProblemCollector, t
     if kind == "rgb":
         if not (isinstance(value, list) and len(value) == 3 and all(is_number(v) and v >= 0 for v in value)):
             problems.add(where, f"expected three numbers >= 0 (linear RGB), got {describe(value)}")
+            return None
+        return [float(v) for v in value]
+    if kind == "box":
+        if not (isinstance(value, list) and len(value) == 4 and all(is_number(v) and 0 <= v <= 1 for v in value)
+                and value[0] < value[2] and value[1] < value[3]):
+            problems.add(where, f"expected [x0, y0, x1, y1], fractions of the image from 0 to 1 with "
+                                f"x0 < x1 and y0 < y1, got {describe(value)}")
             return None
         return [float(v) for v in value]
     if kind == "int" and (not isinstance(value, int) or isinstance(value, bool)):

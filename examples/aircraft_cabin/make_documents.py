@@ -28,6 +28,7 @@ import numpy as np
 
 from usdscene.converters.openlabel import write_document, write_openlabel
 from usdscene.scene.catalog import load_catalog
+from usdscene.document.imaging import profile_sensor
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef,
                             Pose, Randomization, Relation, RenderSettings, SceneObject, SceneSpec)
 
@@ -41,6 +42,9 @@ SENSOR_WIDTH_MM = 4.0
 FOV_DEG = 118.0
 
 CAMERA_HEIGHT_M = 1.95  # just below the ceiling panels, above the aisle and the seats
+# What the cameras do to their images: a ceiling fisheye's sensor, lens and processing, with
+# auto exposure and WDR so that the sunlit windows do not clip (docs/sensors.md).
+CAMERA_PROFILE = "fisheye_ceiling"
 
 # Luggage is put in authorised positions (is_below the seat in front, is_in a bin) and in
 # positions that are not allowed for taxi, take-off and landing (on a seat, in the legroom, in
@@ -90,7 +94,8 @@ def cabin_cameras(places, width_px: int, height_px: int) -> list[Camera]:
         pos = (aisle[0], 0.0, CAMERA_HEIGHT_M)
         target = (aisle[0] - 1.6, 0.0, 0.3)
         cams.append(Camera(name=f"corridor_{i + 1:02d}", intrinsics=intr, pose=look_at_pose(pos, target),
-                           model_name="wide-angle 2.13 mm", description=f"above the aisle at row {row}"))
+                           model_name="wide-angle 2.13 mm", description=f"above the aisle at row {row}",
+                           sensor=profile_sensor(CAMERA_PROFILE)))
     # Seat cameras: 10 per side, every second row, above the aisle-side seat, towards the window.
     for side, letters in (("L", "ABC"), ("R", "DEF")):
         window, aisle_seat = (letters[0], letters[2]) if side == "L" else (letters[2], letters[0])
@@ -102,7 +107,8 @@ def cabin_cameras(places, width_px: int, height_px: int) -> list[Camera]:
             target = (0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]) * 1.3, 0.2)
             cams.append(Camera(name=f"seats_{side}{j + 1:02d}", intrinsics=intr,
                                pose=look_at_pose(pos, target), model_name="wide-angle 2.13 mm",
-                               description=f"above seats {row}{aisle_seat}-{next_row}{window}, towards the window"))
+                               description=f"above seats {row}{aisle_seat}-{next_row}{window}, towards the window",
+                               sensor=profile_sensor(CAMERA_PROFILE)))
     return cams
 
 

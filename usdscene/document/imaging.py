@@ -13,7 +13,7 @@ existed: a black world, the ``Standard`` view transform, a clean image.
   vignetting, shot and read noise at a gain (ISO), the shutter (Cycles motion blur), JPEG or
   H.264-like compression, and the infrared night mode (monochrome, lit by an IR illuminator at
   the camera). Render-time parts (shutter, IR illuminator) go to Blender; the rest is an image
-  operation (:mod:`usdscene.render.sensor`) seeded per (document seed, camera, frame).
+  operation (:mod:`usdscene.sensor`) seeded per (document seed, camera, frame).
 
 Both may carry ``per_frame`` overrides (what ``usdscene generate`` draws from ``randomize``
 ranges, see :func:`draw_per_frame`).
@@ -45,6 +45,9 @@ SKY_PER_SUN_IRRADIANCE = 1.0 / 40.0
 SKY_KINDS = {"nishita": "SINGLE_SCATTERING", "multiple_scattering": "MULTIPLE_SCATTERING"}
 VIEW_TRANSFORMS = {"standard": "Standard", "agx": "AgX", "filmic": "Filmic"}
 COMPRESSIONS = ("jpeg", "h264_like")
+# Auto exposure metering (usdscene.sensor.exposure): the plain mean, a centre-weighted mean, or
+# the mean over a rectangle of the image (``metering_region``).
+METERING_MODES = ("average", "centre_weighted", "region")
 HDRI_SUFFIXES = (".hdr", ".exr", ".png", ".jpg", ".jpeg", ".tif", ".tiff")
 # Light a 50 % grey surface at the illuminator's range receives, so that it shows at 0.05
 # linear (sRGB ≈ 63 of 255): the edge of the useful range of a real IR illuminator.
@@ -117,6 +120,26 @@ class Sensor:
         ir_night: infrared night mode: a monochrome image (:data:`IR_RGB_WEIGHTS`) lit by an
             IR illuminator at the camera.
         ir_range_m: range of the illuminator, metres (see :func:`ir_illuminator_power_w`).
+        profile: name of a camera profile (:mod:`usdscene.document.camera_profiles`) whose
+            values are this sensor's defaults ("" = none); the fields given beside it win.
+        auto_exposure: meter the linear render before the tone curve and scale it so that the
+            metered luminance lands on ``target_grey`` (:mod:`usdscene.sensor.exposure`).
+        metering: ``average``, ``centre_weighted`` or ``region``.
+        metering_region: ``(x0, y0, x1, y1)`` fractions of the image width and height (0-1,
+            origin top left) that ``region`` metering averages; () = none.
+        target_grey: linear luminance (0-1) the metered mean is brought to (0.18 = mid grey).
+        exposure_min_ev, exposure_max_ev: limits of the automatic exposure, stops relative to
+            the render.
+        exposure_speed: share of the remaining error corrected per frame, (0, 1]; 1 = instant.
+        wdr_stops: wide dynamic range: the tone curve keeps ``wdr_stops`` stops above white
+            and lifts the shadows (:mod:`usdscene.sensor.tone`); 0 = the plain sRGB curve.
+        mtf50_cy_px: lens sharpness as the spatial frequency (cycles per pixel) where the
+            modulation falls to 50 %; a Gaussian blur of the linear image. None = a sharp lens.
+        psf_sigma_px: the same blur given as the Gaussian PSF's sigma in pixels (give one of the
+            two). None = a sharp lens.
+        sharpen: unsharp-mask edge enhancement amount (0 = none; 1 adds the full high-pass).
+        sharpen_radius_px: sigma of the unsharp mask's blur, pixels.
+        chroma_420: halve the chroma resolution both ways (4:2:0), as a video stream does.
         per_frame: ``(frame, ((field, value), ...))`` overrides, frames ascending.
         randomize: ``(field, (low, high))`` ranges that ``usdscene generate`` draws per frame.
     """
@@ -131,6 +154,20 @@ class Sensor:
     quality: int = 75
     ir_night: bool = False
     ir_range_m: float = 15.0
+    profile: str = ""
+    auto_exposure: bool = False
+    metering: str = "average"
+    metering_region: tuple[float, ...] = ()
+    target_grey: float = 0.18
+    exposure_min_ev: float = -10.0
+    exposure_max_ev: float = 10.0
+    exposure_speed: float = 1.0
+    wdr_stops: float = 0.0
+    mtf50_cy_px: float | None = None
+    psf_sigma_px: float | None = None
+    sharpen: float = 0.0
+    sharpen_radius_px: float = 1.0
+    chroma_420: bool = False
     per_frame: tuple[tuple[int, tuple[tuple[str, Any], ...]], ...] = ()
     randomize: tuple[tuple[str, tuple[float, float]], ...] = ()
 
@@ -166,11 +203,13 @@ def spec_to_json(spec: World | Sensor) -> dict:
     """The document form of a world or sensor: only the fields that differ from the defaults,
     ``per_frame`` as ``{"<frame>": {field: value}}`` and ``randomize`` as
     ``{field: [low, high]}``."""
-    default = type(spec)()
+    default = _baseline(type(spec), getattr(spec, "profile", ""))
     out: dict[str, Any] = {}
     for f in fields(spec):
         value = getattr(spec, f.name)
-        if value == getattr(default, f.name):
+        if value == getattr(default, f.name) and f.name != "profile":
+            continue
+        if f.name == "profile" and not value:
             continue
         if f.name == "per_frame":
             out["per_frame"] = {str(frame): {k: _field_json(v) for k, v in overrides} for frame, overrides in value}
@@ -193,7 +232,23 @@ def spec_from_json(kind: type, data: Mapping[str, Any]):
             kwargs["randomize"] = tuple(sorted((k, (float(v[0]), float(v[1]))) for k, v in value.items()))
         else:
             kwargs[key] = _tupled(value)
-    return kind(**kwargs)
+    return replace(_baseline(kind, kwargs.get("profile", "")), **kwargs)
+
+
+def _baseline(kind: type, profile: str):
+    """The defaults a spec's document form is written against: its camera profile's sensor,
+    else the class's defaults."""
+    if kind is Sensor and profile:
+        return profile_sensor(profile)
+    return kind()
+
+
+def profile_sensor(name: str) -> Sensor:
+    """The sensor of camera profile ``name`` (:mod:`usdscene.document.camera_profiles`),
+    ``profile`` set; KeyError when unknown (the document reader refuses unknown names first)."""
+    from usdscene.document.camera_profiles import profile_fields
+
+    return Sensor(**profile_fields(name), profile=name)
 
 
 def _tupled(value: Any) -> Any:

@@ -26,6 +26,7 @@ STAGE_DIR = "stage"
 IMAGES_DIR = "images"
 MASKS_DIR = "masks"
 CLEAN_IMAGES_DIR = "images_clean"  # images before sensor effects (--keep-clean)
+EXPOSURE_DIR = "exposure"  # per image: what the camera's auto exposure chose (linear chain only)
 EXPORTS_DIR = "exports"
 LABELS_DIR = "labels"
 DEPTH_DIR = "depth"
@@ -61,6 +62,12 @@ def depth_path(out_dir: str | Path, camera: str, frame: int, depth_format: str) 
 def clean_image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
     """The image before the camera's sensor effects (``--keep-clean``)."""
     return Path(out_dir) / CLEAN_IMAGES_DIR / camera / frame_file(frame)
+
+
+def exposure_path(out_dir: str | Path, camera: str, frame: int) -> Path:
+    """``out/exposure/<camera>/<frame:06d>.json``: the exposure the camera applied to one image
+    (:func:`usdscene.sensor.pipeline.process_image`), read into the annotations."""
+    return Path(out_dir) / EXPOSURE_DIR / camera / f"{frame:06d}.json"
 
 
 def labels_path(out_dir: str | Path, camera: str, frame: int) -> Path:

@@ -295,18 +295,32 @@ class Session:
             write_bytes_atomic(layout.depth_path(self.job["out_dir"], camera, frame, self.depth_format),
                                encode_depth(self._finish_depth(camera, z_pass, ids), self.depth_format))
         rgb, ids = self._finish(camera, rgb, ids)
-        image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
         clean = None
         if camera in self.sensors:
             from usdscene.document.imaging import image_seed
-            from usdscene.render.sensor import apply_sensor, has_effect
+            from usdscene.sensor.pipeline import apply_sensor, as_linear, has_effect, process_image, uses_linear
 
             sensor, seed = self.sensors[camera]
             at = sensor.at_frame(frame)
-            if has_effect(at):
+            rng = np.random.default_rng(image_seed(seed, camera, frame))
+        if camera in self.sensors and uses_linear(at):
+            # the camera's whole chain from the linear render: auto exposure, WDR, optics
+            import json
+
+            from usdscene.document import output_layout as layout
+            from usdscene.files import write_bytes_atomic
+
+            if self.job.get("keep_clean"):
+                clean = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
+            image, record = process_image(as_linear(rgb), at, rng)
+            write_bytes_atomic(layout.exposure_path(self.job["out_dir"], camera, frame),
+                               json.dumps(record, sort_keys=True).encode("utf-8"))
+        else:
+            image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
+            if camera in self.sensors and has_effect(at):
                 clean = image if self.job.get("keep_clean") else None
-                image = apply_sensor(image, at, np.random.default_rng(image_seed(seed, camera, frame)))
-            elif self.job.get("keep_clean"):
+                image = apply_sensor(image, at, rng)
+            elif camera in self.sensors and self.job.get("keep_clean"):
                 clean = image
         write_display_outputs(Path(self.job["out_dir"]), camera, frame, image, ids, clean=clean)
         return {"post_s": time.perf_counter() - started, "post_cpu_s": time.thread_time() - cpu_started}

@@ -1,6 +1,12 @@
-"""The camera sensor as an image operation: exposure bias, vignetting, shot and read noise, the
-infrared night mode's monochrome response and JPEG or H.264-like compression, applied to a
-rendered 8-bit sRGB image. Pure module (numpy + OpenCV; no bpy, no pxr).
+"""The camera sensor as an image operation, in two chains. Pure module (numpy + OpenCV; no
+bpy, no pxr).
+
+* :func:`process_image`, the linear chain, for a sensor with a profile, auto exposure, WDR, a
+  lens blur, sharpening or 4:2:0 chroma (:func:`uses_linear`): it starts from the linear render
+  (see its docstring for the order);
+* :func:`apply_sensor`, the 8-bit chain of sensors without them (exposure bias, vignetting,
+  shot and read noise, IR mode, compression on the rendered 8-bit sRGB image), described below;
+  its bytes are those of the documents written before the linear chain existed.
 
 The render is the light that reaches the sensor; this module is what the sensor and the encoder
 make of it (:class:`usdscene.document.imaging.Sensor`). Masks and labels never pass through it. The
@@ -37,6 +43,7 @@ import cv2
 import numpy as np
 
 from usdscene.document.imaging import IR_RGB_WEIGHTS, Sensor
+from usdscene.sensor import exposure, optics, tone
 
 # Linear values are encoded through a table of this many steps: the darkest step (1/16383 linear)
 # is 0.2 of an sRGB level, so rounding matches the exact curve to within one level.
@@ -63,33 +70,41 @@ _GAUSS /= _GAUSS.std()
 def has_effect(sensor: Sensor | None) -> bool:
     """Whether ``sensor`` changes an image at all (a sensor of defaults does not)."""
     return sensor is not None and (sensor.exposure_bias_ev != 0.0 or sensor.vignetting > 0.0
-                                   or sensor.iso is not None or bool(sensor.compression) or sensor.ir_night)
+                                   or sensor.iso is not None or bool(sensor.compression) or sensor.ir_night
+                                   or uses_linear(sensor))
 
 
 @functools.lru_cache(maxsize=16)
-def vignetting_map(height_px: int, width_px: int, vignetting: float) -> np.ndarray:
-    """(H, W) float32 falloff of the sRGB values, ``(1 - vignetting · ρ²)^(1/2.2)`` with ρ the
-    distance from the image centre over the half-diagonal (1 in the corners). Cached: it is the
-    same for every image of a camera."""
+def vignetting_map(height_px: int, width_px: int, vignetting: float, exponent: float = 1.0 / 2.2) -> np.ndarray:
+    """(H, W) float32 falloff ``(1 - vignetting · ρ²)^exponent`` with ρ the distance from the
+    image centre over the half-diagonal (1 in the corners): of the sRGB values with the default
+    exponent, of linear light with 1. Cached: it is the same for every image of a camera."""
     ys = (np.arange(height_px, dtype=np.float64) - (height_px - 1) / 2.0)[:, None]
     xs = (np.arange(width_px, dtype=np.float64) - (width_px - 1) / 2.0)[None, :]
     rho2 = (xs * xs + ys * ys) / (((width_px - 1) / 2.0) ** 2 + ((height_px - 1) / 2.0) ** 2 or 1.0)
-    out = np.power(1.0 - vignetting * rho2, 1.0 / 2.2).astype(np.float32)
+    out = np.power(1.0 - vignetting * rho2, exponent).astype(np.float32)
     out.setflags(write=False)
     return out
 
 
-def noise_sigma_levels(iso: float, full_well_e: float, read_noise_e: float) -> np.ndarray:
-    """(256,) float64: standard deviation of the noise in sRGB levels at each sRGB level."""
+def noise_sigma_levels(iso: float, full_well_e: float, read_noise_e: float,
+                       wdr_stops: float | None = None) -> np.ndarray:
+    """(256,) float64: standard deviation of the noise in levels at each 8-bit level: through
+    the sRGB curve (``wdr_stops`` None, the 8-bit path), or through the tone curve of
+    :mod:`usdscene.sensor.tone` (its slope carries the noise: WDR raises it in the shadows)."""
     electrons_per_unit = full_well_e * 100.0 / iso
-    sigma_linear = np.sqrt(_DECODE * electrons_per_unit + read_noise_e ** 2) / electrons_per_unit
-    return sigma_linear * _SLOPE
+    if wdr_stops is None:
+        linear, slope = _DECODE, _SLOPE
+    else:
+        linear, slope = tone.level_linear_and_slope(float(wdr_stops))
+    sigma_linear = np.sqrt(linear * electrons_per_unit + read_noise_e ** 2) / electrons_per_unit
+    return sigma_linear * slope
 
 
 @functools.lru_cache(maxsize=64)
-def _noise_table(iso: float, full_well_e: float, read_noise_e: float) -> np.ndarray:
+def _noise_table(iso: float, full_well_e: float, read_noise_e: float, wdr_stops: float | None = None) -> np.ndarray:
     """(65536,) uint8: the noisy level of (level << 8 | draw), rounded and clipped."""
-    sigma = noise_sigma_levels(iso, full_well_e, read_noise_e)
+    sigma = noise_sigma_levels(iso, full_well_e, read_noise_e, wdr_stops)
     levels = np.arange(256, dtype=np.float64)[:, None] + sigma[:, None] * _GAUSS[None, :]
     table = np.clip(np.floor(levels + 0.5), 0, 255).astype(np.uint8).reshape(-1)
     table.setflags(write=False)
@@ -127,14 +142,24 @@ def apply_sensor(image: np.ndarray, sensor: Sensor, rng: np.random.Generator) ->
         out = cv2.convertScaleAbs(cv2.multiply(out.astype(np.float32), falloff if out.ndim == 2 else
                                                cv2.merge([falloff, falloff, falloff])))
     if sensor.iso is not None:
-        table = _noise_table(float(sensor.iso), float(sensor.full_well_e), float(sensor.read_noise_e))
-        draws = np.frombuffer(rng.bytes(out.size), dtype=np.uint8).reshape(out.shape)
-        index = out.astype(np.uint16)
-        index <<= 8
-        index |= draws
-        out = table[index]
+        out = _add_noise(out, _noise_table(float(sensor.iso), float(sensor.full_well_e), float(sensor.read_noise_e)),
+                         rng)
     if out is image:
         out = image.copy()
+    return _encode(out, sensor)
+
+
+def _add_noise(levels: np.ndarray, table: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One draw per pixel and channel from ``rng``'s bytes, looked up in a noise table."""
+    draws = np.frombuffer(rng.bytes(levels.size), dtype=np.uint8).reshape(levels.shape)
+    index = levels.astype(np.uint16)
+    index <<= 8
+    index |= draws
+    return table[index]
+
+
+def _encode(out: np.ndarray, sensor: Sensor) -> np.ndarray:
+    """The compression round trip, then three channels (an IR image's are equal)."""
     if sensor.compression == "jpeg":
         out = _jpeg(out, sensor.quality)
     elif sensor.compression == "h264_like":
@@ -142,6 +167,104 @@ def apply_sensor(image: np.ndarray, sensor: Sensor, rng: np.random.Generator) ->
     if out.ndim == 2:
         out = cv2.merge([out, out, out])
     return out
+
+
+def uses_linear(sensor: Sensor | None) -> bool:
+    """Whether ``sensor`` runs the linear chain (:func:`process_image`): a profile, auto
+    exposure, WDR, a lens blur, sharpening or 4:2:0 chroma. A sensor without them keeps the
+    8-bit chain of :func:`apply_sensor` and its bytes."""
+    return sensor is not None and bool(
+        sensor.profile or sensor.auto_exposure or sensor.wdr_stops > 0.0 or sensor.mtf50_cy_px is not None
+        or sensor.psf_sigma_px is not None or sensor.sharpen > 0.0 or sensor.chroma_420)
+
+
+def as_linear(render: np.ndarray) -> np.ndarray:
+    """The render as (H, W, 3) float32 linear light: itself when it is (the Standard view), else
+    an 8-bit sRGB picture decoded through the sRGB curve (the AgX and Filmic views write 8 bits;
+    their highlights are already compressed, so auto exposure meters the picture, not the
+    scene)."""
+    if render.dtype == np.uint8:
+        return cv2.LUT(render, _DECODE.astype(np.float32))
+    return render
+
+
+def lens_sigma_px(sensor: Sensor) -> float:
+    """The lens's PSF sigma in pixels (0: a sharp lens)."""
+    if sensor.psf_sigma_px is not None:
+        return float(sensor.psf_sigma_px)
+    if sensor.mtf50_cy_px is not None and sensor.mtf50_cy_px < 0.5:
+        return optics.psf_sigma_from_mtf50(float(sensor.mtf50_cy_px))
+    return 0.0
+
+
+def meter(linear: np.ndarray, sensor: Sensor, falloff: np.ndarray | None = None) -> float:
+    """What ``sensor``'s meter reads of a linear image (after the IR response, the lens and the
+    vignetting ``falloff``, as a camera's meter does);
+    :func:`usdscene.sensor.exposure.metered_luminance`."""
+    return exposure.metered_luminance(linear, sensor.metering, sensor.metering_region,
+                                      log_average=sensor.wdr_stops > 0.0, falloff=falloff)
+
+
+@functools.lru_cache(maxsize=16)
+def _linear_falloff(height_px: int, width_px: int, vignetting: float, channels: int) -> np.ndarray:
+    one = vignetting_map(height_px, width_px, vignetting, 1.0)
+    out = one if channels == 1 else cv2.merge([one] * channels)
+    out.setflags(write=False)
+    return out
+
+
+def process_image(linear: np.ndarray, sensor: Sensor, rng: np.random.Generator,
+                  previous_ev: float | None = None) -> tuple[np.ndarray, dict]:
+    """The whole camera on a linear render, in its order: IR response, lens blur, vignetting
+    (the optics), metering and exposure (auto + bias), the tone curve to 8 bits, noise (added in
+    electrons before the curve, carried through its slope), unsharp mask, 4:2:0 chroma,
+    compression.
+
+    Args:
+        linear: (H, W, 3) float32 linear RGB, the render after the world's exposure (not
+            modified).
+        sensor: the camera's sensor at this frame (``Sensor.at_frame``).
+        rng: the image's generator (:func:`usdscene.document.imaging.image_seed`); only the
+            noise draws from it.
+        previous_ev: the exposure of the camera's previous frame, for ``exposure_speed`` < 1
+            (None: instant).
+
+    Returns:
+        ``(image, record)``: (H, W, 3) uint8 sRGB RGB (equal channels in IR mode) and what the
+        exposure did, ``{"exposure_ev", "metered_luminance"}`` (stops applied, auto exposure and
+        bias together; the meter's reading, linear), for the annotations.
+    """
+    height, width = linear.shape[:2]
+    x = linear
+    if sensor.ir_night:
+        x = cv2.transform(x, np.asarray([IR_RGB_WEIGHTS], dtype=np.float32))
+    sigma = lens_sigma_px(sensor)
+    if sigma > 0.0:
+        x = optics.lens_blur(x, sigma)
+    falloff = None
+    if sensor.vignetting > 0.0:
+        falloff = vignetting_map(height, width, float(sensor.vignetting), 1.0)
+    metered = meter(x, sensor, falloff)
+    ev = 0.0
+    if sensor.auto_exposure:
+        target = exposure.exposure_ev(metered, float(sensor.target_grey), float(sensor.exposure_min_ev),
+                                      float(sensor.exposure_max_ev))
+        ev = exposure.adapt_ev(previous_ev, target, float(sensor.exposure_speed))
+    ev = round(ev + float(sensor.exposure_bias_ev), exposure.EV_DECIMALS)
+    if falloff is not None and x.ndim == 3:
+        falloff = _linear_falloff(height, width, float(sensor.vignetting), x.shape[2])
+    out = tone.encode(x, float(sensor.wdr_stops), 2.0 ** ev, falloff)
+    if sensor.iso is not None:
+        table = _noise_table(float(sensor.iso), float(sensor.full_well_e), float(sensor.read_noise_e),
+                             float(sensor.wdr_stops))
+        out = _add_noise(out, table, rng)
+    if sensor.sharpen > 0.0:
+        out = optics.unsharp(out, float(sensor.sharpen), float(sensor.sharpen_radius_px))
+    if sensor.chroma_420 and out.ndim == 3 and not sensor.compression:
+        # JPEG (OpenCV's default sampling) and H.264-like already subsample the chroma 4:2:0
+        out = optics.chroma_420(out)
+    record = {"exposure_ev": ev, "metered_luminance": round(metered, 6)}
+    return _encode(out, sensor), record
 
 
 def _jpeg(image: np.ndarray, quality: int) -> np.ndarray:
