@@ -45,6 +45,8 @@ PURE_MODULES = [
     "usdscene.converters.openlabel.annotations",
     "usdscene.converters.openlabel.imaging",
     "usdscene.document.imaging",
+    "usdscene.document.surfaces",
+    "usdscene.render.surface_nodes",
     "usdscene.render.sensor",
     "usdscene.converters.exports.coco",
     "usdscene.converters.exports.yolo",

@@ -99,6 +99,10 @@ class Session:
         if self.rendering and job["settings"]["device"] == "gpu":
             self._enable_gpu()
         self._import_stage()
+        # Meshes that name a procedural surface get its node tree (render/surface_nodes.py).
+        from usdscene.render.surface_nodes import apply_surfaces
+
+        apply_surfaces(self.bpy)
         self._setup_render()
         self._setup_imaging()
 
