@@ -1,7 +1,7 @@
 """Would a detector trained on real photographs find our people? OpenCV's HOG people detector
 (Dalal and Triggs' HOG + linear SVM, trained on real pedestrians) on rendered car-park people.
 
-    python benchmarks/hog_people.py [--document DOC] [--frames 0,25,50,75] [--out DIR]
+    python benchmarks/hog_people.py [--document DOC] [--frames 0,50] [--out DIR]
                                     [--images DIR]   # score an existing run instead of rendering
 
 The document (default ``examples/car_park/moving.openlabel.json``: walkers and standing people
@@ -179,7 +179,7 @@ def look_statistics(paths: list[Path]) -> dict | None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--document", type=Path, default=DEFAULT_DOCUMENT)
-    parser.add_argument("--frames", default="0,25,50,75", help="frames to render (a list N,M,...)")
+    parser.add_argument("--frames", default="0,50", help="frames to render (a list N,M,...)")
     parser.add_argument("--out", type=Path, default=None, help="work folder (default: a new temporary one)")
     parser.add_argument("--images", type=Path, default=None, help="score this finished run instead of rendering")
     args = parser.parse_args()
@@ -189,12 +189,14 @@ def main() -> int:
         work.mkdir(parents=True, exist_ok=True)
         source = args.document.resolve()
         doc, cameras = scaled_document(json.loads(source.read_text()), *RESOLUTION_PX)
-        doc_path = source.parent / f".hog_{os.getpid()}.openlabel.json"  # beside it: its asset paths resolve
-        try:
-            doc_path.write_text(json.dumps(doc))
-            seconds = render(doc_path, work / "run", args.frames, cameras)
-        finally:
-            doc_path.unlink(missing_ok=True)
+        # The copy lives in the work folder: its asset folders become absolute, and the
+        # original's folder (which they and their sources lie in) readable.
+        meta = doc["openlabel"]["metadata"]["usdscene"]
+        meta["asset_paths"] = [str((source.parent / p).resolve()) for p in meta.get("asset_paths", [])]
+        os.environ["USDSCENE_ASSET_PATH"] = str(source.parent)
+        doc_path = work / "document.openlabel.json"
+        doc_path.write_text(json.dumps(doc))
+        seconds = render(doc_path, work / "run", args.frames, cameras)
         out = work / "run"
     else:
         out = args.images

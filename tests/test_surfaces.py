@@ -77,6 +77,39 @@ def test_environment_import_refuses_an_unknown_surface(tmp_path, capsys):
     assert not (tmp_path / "cat" / "imported" / "yard.usda").exists()
 
 
+@pytest.mark.usd
+def test_backdrop_is_drawn_but_no_obstacle_and_outside_the_extent(tmp_path):
+    import json
+
+    import trimesh
+    from pxr import Usd, UsdGeom
+
+    from usdscene.cli import main
+    from usdscene.document import stage_schema
+    from usdscene.scene.stage_geometry import environment_triangles
+
+    scene = trimesh.Scene()
+    floor = trimesh.creation.box(extents=(4.0, 0.2, 4.0))  # Y up, as glTF
+    scene.add_geometry(floor, node_name="floor", geom_name="floor")
+    ground = trimesh.creation.box(extents=(500.0, 0.1, 500.0))
+    ground.visual.face_colors = [60, 80, 40, 255]
+    scene.add_geometry(ground, node_name="backdrop.ground", geom_name="ground")
+    (tmp_path / "yard.glb").write_bytes(scene.export(file_type="glb"))
+    assert main(["assets", "add", str(tmp_path / "yard.glb"), "--class", "yard", "--kind", "environment",
+                 "--catalog", str(tmp_path / "cat")]) == 0
+    entry = json.loads((tmp_path / "cat" / "catalog.json").read_text())["classes"]["yard"]
+    assert entry["extent_m"][0][0] == pytest.approx(-2.0) and entry["extent_m"][1][0] == pytest.approx(2.0)
+    asset = tmp_path / "cat" / "imported" / "yard.usda"
+    opened = Usd.Stage.Open(str(asset))
+    purposes = sorted(UsdGeom.Imageable(p).ComputePurpose() for p in opened.Traverse() if p.GetTypeName() == "Mesh")
+    assert purposes == ["default", "render"]
+    stage = Usd.Stage.CreateNew(str(tmp_path / "scene.usda"))
+    stage.DefinePrim(stage_schema.ENVIRONMENT).GetReferences().AddReference(str(asset))
+    stage.Save()
+    triangles = environment_triangles(tmp_path / "scene.usda")
+    assert len(triangles) == 12 and np.abs(triangles).max() <= 2.0 + 1e-6  # the floor's box alone
+
+
 W, H = 64, 48
 # 45 degrees down onto a floor 6 m away: the surface's detail at a camera's working distance.
 # Columns: the OpenCV camera axes in the world (x right, y down the image, z forward).
