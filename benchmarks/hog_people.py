@@ -20,7 +20,10 @@ cameras, for a handful of frames, with ``usdscene run`` (COCO export). Then:
 * recall is reported for counted people 40-80 px and 80-160 px tall, with false alarms per
   image; and the render cost per image (wall time of the run over the images it rendered).
 
-When ``benchmarks/look_statistics.py`` exists, its statistics of the same images are printed too.
+The look statistics of the same images (``benchmarks/look_statistics.py``: brightness, clipped
+and crushed %, noise sigma, sharpness, colourfulness) are printed too. ``--sheet FILE
+--compare-with BEFORE_RUN`` writes crops of the same people and vehicles in both runs, one
+above the other.
 """
 
 from __future__ import annotations
@@ -166,14 +169,62 @@ def score_run(out: Path) -> dict:
             "false_alarms_per_image": false_alarms / max(1, len(coco["images"]))}
 
 
-def look_statistics(paths: list[Path]) -> dict | None:
-    """The camera issue's look statistics of the images, when that script is in this checkout."""
-    if not (REPO / "benchmarks" / "look_statistics.py").exists():
-        return None
+def look_statistics(run: Path) -> dict:
+    """The camera issue's look statistics (``benchmarks/look_statistics.py``), mean over the run's images."""
     sys.path.insert(0, str(REPO / "benchmarks"))
     import look_statistics as look  # noqa: E402 (a sibling script, not a package)
 
-    return look.statistics_of_images(paths)
+    return look.folder_statistics(run)
+
+
+def crop_sheet(runs: list[Path], out: Path, classes=("person", "vehicle"), per_class: int = 12,
+               crop_px: tuple[int, int] = (64, 128)) -> Path:
+    """Crops of the same labelled objects in each run, side by side (one column block per
+    run), one row block per class: the largest visible, unoccluded ones of the first run.
+
+    Every crop is the object's box with a 15 % margin, scaled into ``crop_px`` (w, h) for
+    people and its transpose for vehicles; written as JPEG.
+    """
+    import cv2
+
+    def coco(run):
+        path = run / "exports" / "coco" / "annotations.json"
+        data = json.loads(path.read_text())
+        return data, (path.parent / data["info"]["image_root"]).resolve()
+
+    first, _ = coco(runs[0])
+    names = {c["id"]: c["name"] for c in first["categories"]}
+    images = {i["id"]: i for i in first["images"]}
+    blocks = []
+    for name in classes:
+        chosen = sorted((a for a in first["annotations"] if names[a["category_id"]] == name
+                         and (a["visible_fraction"] or 0) >= MIN_VISIBLE_FRACTION and not a["truncated"]),
+                        key=lambda a: -a["bbox"][3])[:per_class]
+        size = crop_px if name == "person" else crop_px[::-1]
+        columns = []
+        for run in runs:
+            data, root = coco(run)
+            # The same object in this run (its box may differ where new clutter hides part of it).
+            run_images = {i["id"]: i["file_name"] for i in data["images"]}
+            by_key = {(run_images[a["image_id"]], a["uid"]): a for a in data["annotations"]}
+            tiles = []
+            for a in chosen:
+                file_name = images[a["image_id"]]["file_name"]
+                bgr = cv2.imread(str(root / file_name), cv2.IMREAD_COLOR)
+                x, y, w, h = by_key.get((file_name, a["uid"]), a)["bbox"]
+                m = 0.15 * max(w, h)
+                x0, y0 = int(max(0, x - m)), int(max(0, y - m))
+                x1, y1 = int(min(bgr.shape[1], x + w + m)), int(min(bgr.shape[0], y + h + m))
+                tiles.append(cv2.resize(bgr[y0:y1, x0:x1], size, interpolation=cv2.INTER_AREA))
+            columns.append(np.hstack(tiles) if tiles else np.zeros((size[1], size[0], 3), np.uint8))
+        # One row per run, a white rule between them.
+        rule = np.full((4, columns[0].shape[1], 3), 255, np.uint8)
+        blocks.append(np.vstack([c for pair in zip(columns, [rule] * len(columns)) for c in pair][:-1]))
+    width = max(b.shape[1] for b in blocks)
+    sheet = np.vstack([np.pad(b, ((0, 12), (0, width - b.shape[1]), (0, 0))) for b in blocks])
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(out), sheet, [cv2.IMWRITE_JPEG_QUALITY, 85])
+    return out
 
 
 def main() -> int:
@@ -182,6 +233,10 @@ def main() -> int:
     parser.add_argument("--frames", default="0,50", help="frames to render (a list N,M,...)")
     parser.add_argument("--out", type=Path, default=None, help="work folder (default: a new temporary one)")
     parser.add_argument("--images", type=Path, default=None, help="score this finished run instead of rendering")
+    parser.add_argument("--sheet", type=Path, default=None,
+                        help="write a JPEG of people and vehicle crops: the --compare-with runs above this one")
+    parser.add_argument("--compare-with", type=Path, nargs="*", default=[], metavar="RUN",
+                        help="finished runs of the same document (e.g. before) for --sheet")
     args = parser.parse_args()
     seconds = None
     if args.images is None:
@@ -207,9 +262,10 @@ def main() -> int:
         shown = f"{recall:.2f}" if recall is not None else "-"
         print(f"  HOG recall, people {name} px tall: {shown} of {n}")
     print(f"  false alarms per image: {figures['false_alarms_per_image']:.2f}")
-    stats = look_statistics(figures["paths"])
-    if stats is not None:
-        print("  look: " + ", ".join(f"{k} {v:.2f}" for k, v in stats.items()))
+    stats = look_statistics(out)
+    print("  look: " + ", ".join(f"{k} {v:.2f}" for k, v in stats.items()))
+    if args.sheet is not None:
+        print(f"  crops: {crop_sheet([*args.compare_with, out], args.sheet)}")
     return 0
 
 
