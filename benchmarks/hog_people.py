@@ -199,8 +199,9 @@ def crop_sheet(runs: list[Path], out: Path, classes=("person", "vehicle"), per_c
     for name in classes:
         chosen = sorted((a for a in first["annotations"] if names[a["category_id"]] == name
                          and (a["visible_fraction"] or 0) >= MIN_VISIBLE_FRACTION and not a["truncated"]),
-                        key=lambda a: -a["bbox"][3])[:per_class]
+                        key=lambda a: -a["bbox"][3])
         size = crop_px if name == "person" else crop_px[::-1]
+        chosen = chosen[:per_class if name == "person" else per_class // 2]  # vehicle crops are twice as wide
         columns = []
         for run in runs:
             data, root = coco(run)
