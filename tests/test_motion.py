@@ -347,12 +347,14 @@ def _frames_in_obstacles(track, boxes, height_m: float, margin_m: float) -> list
 
 def test_movers_keep_out_of_the_pillars_and_walls(setup, obstacles):
     """Sequences of the moving example's size keep every walker, standing person and vehicle out
-    of the environment's pillars, walls and parapet at every frame; the same draws without the
+    of the environment's pillars, walls, parapet and clutter at every frame; the same draws without the
     obstacles walk people into them (seeds where they do: a pillar reaches 0.2 m into the
     south footpath, so it takes a walker offset to that side passing it)."""
     scene, catalog = setup
     boxes = _obstacle_boxes(setup)
-    assert len(boxes) == 11  # 8 pillars, 2 walls, the parapet
+    # 8 pillars, 2 walls, the parapet; the clutter beside the footpaths: 4 lamp posts, 4 bins,
+    # 8 bollards, a sign's pole and plate (the backdrop is no obstacle).
+    assert len(boxes) == 29
     blind_obstacles = Obstacles.from_triangles(np.zeros((0, 3, 3)))
 
     def crossings(generated):

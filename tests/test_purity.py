@@ -51,6 +51,8 @@ PURE_MODULES = [
     "usdscene.sensor.tone",
     "usdscene.sensor.optics",
     "usdscene.document.camera_profiles",
+    "usdscene.document.surfaces",
+    "usdscene.render.blender.surface_nodes",
     "usdscene.converters.exports.coco",
     "usdscene.converters.exports.yolo",
     "usdscene.render.executors",

@@ -5,7 +5,11 @@
 * ``source/car_park.glb``: the environment, Y up and metres as glTF exporters write it. Places
   are boxes named ``place.<place>.<region>``, exactly what a modeller adds in Blender:
   ``place.bay_A3.on`` (a parking bay), ``place.lane_A3.on`` (the driving lane in front of it),
-  ``place.walkway_A3.on`` (the footpath behind it).
+  ``place.walkway_A3.on`` (the footpath behind it). Materials named ``surface.<kind>``
+  (``surface.asphalt``, ``surface.concrete``, ``surface.painted_line``, ``surface.tiles``,
+  ``surface.metal``, ``surface.glass``, ``surface.grass``) ask for usdscene's procedural
+  surfaces; lamp posts, bins, bollards and a sign stand beside the footpaths; nodes named
+  ``backdrop.*`` are the surroundings (ground, roads, trees, shrubs, buildings to the horizon).
 * ``source/vehicle.usda``: a vehicle, Y up and in centimetres (as many DCC exports are), with
   the variant sets ``model`` (sedan, hatchback, van) and ``paint`` (five colours); its front
   (the bonnet, the cabin set back from it) faces +X, as many exporters leave a car.
@@ -40,40 +44,140 @@ KERB = (120, 120, 118)
 Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0], [0, 0, 0, 1.0]])
 
 
-def _box(size_m, centre_m, colour) -> trimesh.Trimesh:
+ASPHALT = (70, 70, 72)
+DECK_ASPHALT = (98, 98, 100)
+GRASS = (62, 82, 40)
+FOLIAGE = (48, 72, 34)
+BARK = (70, 55, 42)
+FACADE = ((176, 170, 160), (140, 128, 112), (196, 192, 184), (120, 116, 112))
+GLASS = (40, 48, 58)
+POST_GREY = (110, 112, 114)
+BIN_GREEN = (30, 58, 40)
+BOLLARD_YELLOW = (200, 160, 30)
+SIGN_BLUE = (20, 60, 140)
+
+
+def _paint(mesh: trimesh.Trimesh, colour, surface: str | None) -> trimesh.Trimesh:
+    """Colour a part; ``surface`` names the procedural surface its material asks for
+    (a material called ``surface.<kind>``, the convention usdscene's import reads)."""
+    if surface is None:
+        mesh.visual.face_colors = [*colour, 255]
+    else:
+        mesh.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+            name=f"surface.{surface}", baseColorFactor=[*colour, 255], metallicFactor=0.0, roughnessFactor=0.8))
+    return mesh
+
+
+def _box(size_m, centre_m, colour, surface: str | None = None) -> trimesh.Trimesh:
     box = trimesh.creation.box(extents=size_m)
     box.apply_translation(centre_m)
-    box.visual.face_colors = [*colour, 255]
-    return box
+    return _paint(box, colour, surface)
+
+
+def _cylinder(radius_m, height_m, bottom_m, colour, surface: str | None = None, sections: int = 8):
+    cylinder = trimesh.creation.cylinder(radius=radius_m, height=height_m, sections=sections)
+    cylinder.apply_translation((bottom_m[0], bottom_m[1], bottom_m[2] + height_m / 2))
+    return _paint(cylinder, colour, surface)
+
+
+def _blob(radius_m, centre_m, squash, colour, surface: str | None = None, subdivisions: int = 1):
+    blob = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius_m)
+    blob.apply_scale((1.0, 1.0, squash))
+    blob.apply_translation(centre_m)
+    return _paint(blob, colour, surface)
+
+
+def clutter_parts() -> list[tuple[str, trimesh.Trimesh]]:
+    """What stands about a real car park, outside the walk and drive places: lamp posts
+    (north, open deck), bins, bollards and a sign in the strip between the footpaths and the
+    parapet / south wall."""
+    parts = []
+    for i, x in enumerate((-12.0, -4.0, 4.0, 12.0)):  # 6 m lamp posts on the open north side
+        parts.append((f"lamp_post_{i}", _cylinder(0.07, 6.0, (x, 11.55, 0.0), POST_GREY, "metal")))
+        parts.append((f"lamp_arm_{i}", _box((0.08, 1.2, 0.08), (x, 11.0, 5.95), POST_GREY, "metal")))
+        parts.append((f"lamp_head_{i}", _box((0.25, 0.5, 0.12), (x, 10.45, 5.85), POST_GREY, "metal")))
+    for side, y in (("n", 11.55), ("s", -11.55)):
+        for i, x in enumerate((-8.0, 8.0)):
+            parts.append((f"bin_{side}{i}", _cylinder(0.28, 1.0, (x, y, 0.0), BIN_GREEN, "metal", sections=12)))
+        for i, x in enumerate((-15.2, -14.4, 14.4, 15.2)):
+            parts.append((f"bollard_{side}{i}", _cylinder(0.1, 0.9, (x, y, 0.0), BOLLARD_YELLOW, "metal", sections=6)))
+    parts.append(("sign_pole", _cylinder(0.04, 2.2, (0.0, 11.55, 0.0), POST_GREY, "metal")))
+    parts.append(("sign_plate", _box((0.6, 0.04, 0.6), (0.0, 11.5, 1.95), SIGN_BLUE, "metal")))
+    return parts
+
+
+def surroundings_parts() -> list[tuple[str, trimesh.Trimesh]]:
+    """Ground, roads, trees, shrubs and buildings to the horizon, so no camera looks into a void.
+
+    Every node is named ``backdrop.*``: scenery for the picture, which usdscene keeps out of
+    the environment's obstacles, occluders, camera mounts and extent. The ground is 1.2 km square (a camera 6 m up sees it up to 0.6 degrees below the
+    horizon); buildings stand 35-110 m away with ribbon windows on the faces towards the deck.
+    """
+    rng = np.random.default_rng(41)
+    parts = [("backdrop.ground", _box((1200.0, 1200.0, 0.1), (0.0, 0.0, -0.08), GRASS, "grass")),
+             ("backdrop.road_east", _box((9.0, 1200.0, 0.1), (24.0, 0.0, -0.06), ASPHALT, "asphalt")),
+             ("backdrop.road_north", _box((1200.0, 9.0, 0.1), (0.0, 22.0, -0.055), ASPHALT, "asphalt"))]
+    for i, x in enumerate(np.arange(-15.0, 16.0, 5.0)):  # a row of trees beyond the parapet
+        y = 15.5 + rng.uniform(-0.5, 0.5)
+        height = rng.uniform(2.2, 3.0)
+        parts.append((f"backdrop.tree_trunk_{i}", _cylinder(0.14, height, (x, y, -0.03), BARK, "concrete")))
+        for k in range(2):
+            centre = (x + rng.uniform(-0.5, 0.5), y + rng.uniform(-0.5, 0.5), height + 0.6 + 1.0 * k)
+            parts.append((f"backdrop.tree_crown_{i}_{k}", _blob(rng.uniform(1.3, 1.8), centre, 0.8, FOLIAGE, "grass")))
+    for i, x in enumerate(np.arange(-16.0, 17.0, 2.6)):  # shrubs along the parapet, outside
+        parts.append((f"backdrop.shrub_{i}", _blob(0.6, (x, 12.9, 0.2), 0.7, FOLIAGE, "grass", subdivisions=0)))
+    for i, y in enumerate((-8.0, -4.0, 4.0, 8.0)):  # lamp posts along the east road
+        parts.append((f"backdrop.street_lamp_{i}", _cylinder(0.08, 7.0, (19.2, y, -0.03), POST_GREY, "metal")))
+    # Buildings on a ring around the deck: (centre angle, distance, width, depth, floors).
+    for i in range(10):
+        angle = 2 * np.pi * i / 10 + rng.uniform(-0.15, 0.15)
+        distance = rng.uniform(35.0, 110.0)
+        width, depth, floors = rng.uniform(14.0, 30.0), rng.uniform(10.0, 16.0), int(rng.integers(2, 7))
+        height = 3.2 * floors + 0.6
+        cx, cy = distance * np.cos(angle), distance * np.sin(angle)
+        facade = FACADE[i % len(FACADE)]
+        # Turned so that one long face looks at the deck: axis-aligned boxes turned by the angle.
+        turn = trimesh.transformations.rotation_matrix(angle + np.pi / 2, (0, 0, 1), (cx, cy, 0))
+        block = _box((width, depth, height), (cx, cy, height / 2 - 0.03), facade, "concrete")
+        parts.append((f"backdrop.building_{i}", block.apply_transform(turn)))
+        for floor in range(floors):
+            z = 3.2 * floor + 1.9
+            # Local +y turns to face the deck (the origin).
+            band = _box((width - 1.6, 0.1, 1.4), (cx, cy + depth / 2 + 0.02, z), GLASS, "glass")
+            parts.append((f"backdrop.building_{i}_window_{floor}", band.apply_transform(turn)))
+    return parts
 
 
 def environment_parts() -> tuple[list[tuple[str, trimesh.Trimesh]], list[tuple[str, tuple, tuple]]]:
     """(scenery, place boxes) in Z-up metres: (name, mesh) and (name, size, bottom centre)."""
-    parts = [("floor", _box((34.0, 24.0, 0.2), (0.0, 0.0, -0.1), CONCRETE)),
+    parts = [("floor", _box((34.0, 24.0, 0.2), (0.0, 0.0, -0.1), DECK_ASPHALT, "asphalt")),
              ("roof", _box((34.0, ROOF_Y_M[1] - ROOF_Y_M[0], 0.3),
-                           (0.0, sum(ROOF_Y_M) / 2, ROOF_Z_M + 0.15), CONCRETE)),
-             ("wall_south", _box((34.0, 0.3, ROOF_Z_M), (0.0, -12.0, ROOF_Z_M / 2), WALL)),
-             ("wall_west", _box((0.3, 24.0, ROOF_Z_M), (-17.0, 0.0, ROOF_Z_M / 2), WALL)),
-             ("parapet_north", _box((34.0, 0.3, 1.1), (0.0, 12.0, 0.55), WALL))]
+                           (0.0, sum(ROOF_Y_M) / 2, ROOF_Z_M + 0.15), CONCRETE, "concrete")),
+             ("wall_south", _box((34.0, 0.3, ROOF_Z_M), (0.0, -12.0, ROOF_Z_M / 2), WALL, "concrete")),
+             ("wall_west", _box((0.3, 24.0, ROOF_Z_M), (-17.0, 0.0, ROOF_Z_M / 2), WALL, "concrete")),
+             ("parapet_north", _box((34.0, 0.3, 1.1), (0.0, 12.0, 0.55), WALL, "concrete"))]
     for i, x in enumerate((-9.1, -3.9, 3.9, 9.1)):
-        parts.append((f"pillar_{i}", _box((0.5, 0.5, ROOF_Z_M), (x, -8.6, ROOF_Z_M / 2), CONCRETE)))
-        parts.append((f"pillar_{i}_n", _box((0.5, 0.5, ROOF_Z_M), (x, 0.25, ROOF_Z_M / 2), CONCRETE)))
+        parts.append((f"pillar_{i}", _box((0.5, 0.5, ROOF_Z_M), (x, -8.6, ROOF_Z_M / 2), CONCRETE, "concrete")))
+        parts.append((f"pillar_{i}_n", _box((0.5, 0.5, ROOF_Z_M), (x, 0.25, ROOF_Z_M / 2), CONCRETE, "concrete")))
     places = []
     for row, y in ROW_Y_M.items():
         inward = -np.sign(y)  # towards the lane
         edges = [x - 1.3 for x in BAY_X_M] + [BAY_X_M[-1] + 1.3]
         for j, x in enumerate(edges):
-            parts.append((f"line_{row}{j}", _box((0.12, BAY_SIZE_M[1], 0.01), (x, y, 0.005), PAINT_WHITE)))
-        parts.append((f"kerb_{row}", _box((34.0, 0.25, 0.15), (0.0, y - inward * 2.9, 0.075), KERB)))
+            parts.append((f"line_{row}{j}", _box((0.12, BAY_SIZE_M[1], 0.01), (x, y, 0.005), PAINT_WHITE,
+                                                 "painted_line")))
+        parts.append((f"kerb_{row}", _box((34.0, 0.25, 0.15), (0.0, y - inward * 2.9, 0.075), KERB, "concrete")))
         for k, x in enumerate(BAY_X_M, start=1):
             name = f"{row}{k}"
             places.append((f"place.bay_{name}.on", (*BAY_SIZE_M, 2.2), (x, y, 0.0)))
             places.append((f"place.lane_{name}.on", (2.4, 1.6, 2.2), (x, y + inward * 3.4, 0.0)))
             places.append((f"place.walkway_{name}.on", (2.4, 1.4, 2.2), (x, y - inward * 3.9, 0.15)))
     for k in range(-6, 7):
-        parts.append((f"lane_mark_{k}", _box((1.2, 0.12, 0.01), (2.6 * k, 0.0, 0.005), PAINT_YELLOW)))
-    parts.append(("walkway_A", _box((34.0, 2.5, 0.15), (0.0, 9.8, 0.075), KERB)))
-    parts.append(("walkway_B", _box((34.0, 2.5, 0.15), (0.0, -9.8, 0.075), KERB)))
+        parts.append((f"lane_mark_{k}", _box((1.2, 0.12, 0.01), (2.6 * k, 0.0, 0.005), PAINT_YELLOW,
+                                             "painted_line")))
+    parts.append(("walkway_A", _box((34.0, 2.5, 0.15), (0.0, 9.8, 0.075), KERB, "tiles")))
+    parts.append(("walkway_B", _box((34.0, 2.5, 0.15), (0.0, -9.8, 0.075), KERB, "tiles")))
+    parts += clutter_parts() + surroundings_parts()
     return parts, places
 
 

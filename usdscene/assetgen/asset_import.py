@@ -237,6 +237,25 @@ def _main_color(mesh) -> tuple[float, float, float]:
     return tuple(round(float(c), 4) for c in linear)  # type: ignore[return-value]
 
 
+# Nodes named ``backdrop.<name>`` are scenery for the picture only (ground and buildings to the
+# horizon): USD purpose "render", which the renderer draws and the environment's obstacles,
+# occluders, mounts and extent leave out (usdscene.scene.stage_geometry.environment_meshes).
+BACKDROP_PREFIX = "backdrop."
+
+
+def _surface_kind(mesh, label: str) -> str:
+    """The procedural surface a part's material names (``surface.asphalt``), else ``""``.
+
+    Raises:
+        AssetError: a ``surface.`` material of an unknown kind (the part and the value).
+    """
+    from usdscene.document.surfaces import surface_from_material_name
+
+    material = getattr(getattr(mesh, "visual", None), "material", None)
+    name = getattr(material, "name", None)
+    return surface_from_material_name(name, where=f"{label}: material") or ""
+
+
 def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(N, 3) area-weighted unit vertex normals of a triangle mesh ((F, 3) int faces)."""
     tri = points[faces]
@@ -253,9 +272,10 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
     """Write the converted asset; an object is one recolourable mesh, an environment keeps one
     mesh per colour of the file (floor, markings, walls) and gets its ``Places``."""
     import trimesh
-    from pxr import Kind, UsdGeom
+    from pxr import Kind, Sdf, UsdGeom
 
     from usdscene.document import stage_schema
+    from usdscene.document.surfaces import SURFACE_ATTRIBUTE
     from usdscene.assetgen.mesh import MeshData
     from usdscene.assetgen.usd_write import (MaterialSpec, author_places, define_material, define_mesh,
                                              in_variant, new_asset_stage, set_material_color)
@@ -263,13 +283,21 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
     rotation = forward_turn(options.forward_axis)[:3, :3] @ up_axis_rotation(up_axis)
     meshes = [mesh for _, mesh in parts]
     if options.kind == "environment":
-        by_color: dict[tuple[float, float, float], list] = {}
-        for mesh in meshes:
-            by_color.setdefault(_main_color(mesh), []).append(mesh)
-        groups = sorted(by_color.items())
+        # One mesh per (backdrop, procedural surface, colour): a ``surface.<kind>`` material
+        # keeps its kind, ``backdrop.*`` nodes stay apart (render purpose, below).
+        by_look: dict[tuple[bool, str, tuple[float, float, float]], list] = {}
+        for label, mesh in parts:
+            key = (label.lower().startswith(BACKDROP_PREFIX), _surface_kind(mesh, label), _main_color(mesh))
+            by_look.setdefault(key, []).append(mesh)
+        # By colour, as before surfaces and backdrops existed: old files keep their bytes.
+        ordered = sorted(by_look.items(), key=lambda kv: (kv[0][0], kv[0][2], kv[0][1]))
+        groups = [(color, group) for (_, _, color), group in ordered]
+        surfaces = [kind for (_, kind, _), _ in ordered]
+        backdrops = [backdrop for (backdrop, _, _), _ in ordered]
     else:
         whole = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
         groups = [(_main_color(whole), [whole])]
+        surfaces, backdrops = [""], [False]
     usd_kind = Kind.Tokens.assembly if options.kind == "environment" else Kind.Tokens.component
     stage, root = new_asset_stage(stage_schema.prim_name(class_name), usd_kind)
     looks = f"{root.GetPath()}/{stage_schema.ASSET_LOOKS}"
@@ -286,8 +314,10 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
         points = (np.asarray(mesh.vertices, dtype=np.float64) @ rotation.T) * scale  # Z up, metres
         all_points.append(points)
         flat.append(mesh)
-    lo_all = np.min([p.min(axis=0) for p in all_points], axis=0)
-    hi_all = np.max([p.max(axis=0) for p in all_points], axis=0)
+    # The extent is the environment's own: a backdrop to the horizon would make it kilometres.
+    measured = [p for p, backdrop in zip(all_points, backdrops) if not backdrop] or all_points
+    lo_all = np.min([p.min(axis=0) for p in measured], axis=0)
+    hi_all = np.max([p.max(axis=0) for p in measured], axis=0)
     offset = np.zeros(3)
     if options.kind == "object":
         offset = -np.array([(lo_all[0] + hi_all[0]) / 2, (lo_all[1] + hi_all[1]) / 2, lo_all[2]])
@@ -300,7 +330,13 @@ def _write_mesh_asset(parts: list, class_name: str, options: ImportOptions, up_a
         # The first (for objects: only) material is the recolourable "Body".
         name = stage_schema.ASSET_MAIN_MATERIAL if index == 0 else f"Surface_{index:02d}"
         material = define_material(stage, f"{looks}/{name}", MaterialSpec(color), color_from_variants=index == 0)
-        define_mesh(stage, f"{root.GetPath()}/Geom/{'Mesh' if index == 0 else f'Mesh_{index:02d}'}", data, material)
+        usd_mesh = define_mesh(stage, f"{root.GetPath()}/Geom/{'Mesh' if index == 0 else f'Mesh_{index:02d}'}",
+                               data, material)
+        if surfaces[index]:
+            usd_mesh.GetPrim().CreateAttribute(SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(
+                surfaces[index])
+        if backdrops[index]:
+            usd_mesh.CreatePurposeAttr(UsdGeom.Tokens.render)
     with in_variant(root, stage_schema.VARIANT_SET_APPEARANCE, "original"):
         set_material_color(stage, f"{looks}/{stage_schema.ASSET_MAIN_MATERIAL}", groups[0][0])
     if places:

@@ -53,13 +53,15 @@ class SphereSpec:
 
 @dataclass(frozen=True)
 class BoxSpec:
-    """A static environment box (a room, a floor) with a diffuse colour; background in masks."""
+    """A static environment box (a room, a floor) with a diffuse colour; background in masks.
+    ``surface`` names a procedural surface (``usdscene.document.surfaces``) drawn on that colour."""
 
     name: str
     centre_m: tuple[float, float, float]
     size_m: tuple[float, float, float]
     color_rgb: tuple[float, float, float] = (0.5, 0.5, 0.5)
     inward: bool = False
+    surface: str | None = None
 
 
 @dataclass(frozen=True)
@@ -285,6 +287,10 @@ def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.AddTranslateOp().Set(Gf.Vec3d(*box.centre_m))
         material = _material(stage, f"{prim_path}/Looks/Diffuse", diffuse=box.color_rgb)
+        if box.surface is not None:
+            from usdscene.document.surfaces import SURFACE_ATTRIBUTE
+
+            mesh.GetPrim().CreateAttribute(SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(box.surface)
         from pxr import UsdShade
         UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
     if scene.lights:

@@ -280,7 +280,9 @@ def _mountable_flag(prim: Usd.Prim) -> bool | None:
 
 def environment_meshes(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> list[EnvironmentMesh]:
     """The meshes under ``/World/Environment`` (the environment asset) at ``frame``, in
-    traversal order; ``guide``/``proxy`` purposes (place regions) and invisible meshes are skipped.
+    traversal order; ``guide``/``proxy`` purposes (place regions), ``render`` purpose (the
+    backdrop: ground and buildings to the horizon, drawn, never an obstacle or a mount) and
+    invisible meshes are skipped.
     """
     stage = _open(stage)
     root = stage.GetPrimAtPath(stage_schema.ENVIRONMENT)
@@ -294,7 +296,7 @@ def environment_meshes(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> 
         imageable = UsdGeom.Imageable(prim)
         if imageable.ComputeVisibility(time) == UsdGeom.Tokens.invisible:
             continue
-        if imageable.ComputePurpose() in (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy):
+        if imageable.ComputePurpose() in (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy, UsdGeom.Tokens.render):
             continue
         local = info.triangles_local
         if local is None:
@@ -307,7 +309,8 @@ def environment_meshes(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> 
 
 def environment_triangles(stage: Usd.Stage | str | os.PathLike, frame: int = 0) -> np.ndarray:
     """World triangles of everything under ``/World/Environment`` (the environment asset) at
-    ``frame``; ``guide``/``proxy`` purposes (place regions) and invisible meshes are skipped.
+    ``frame``; ``guide``/``proxy``/``render`` purposes (place regions, the backdrop) and
+    invisible meshes are skipped.
 
     Returns:
         (T, 3, 3) float64 triangle vertices in world metres.

@@ -37,6 +37,10 @@ class Session:
         if self.rendering and job["settings"]["device"] == "gpu":
             enable_gpu(self.bpy)
         self._import_stage()
+        # Meshes that name a procedural surface get its node tree (blender/surface_nodes.py).
+        from usdscene.render.blender.surface_nodes import apply_surfaces
+
+        apply_surfaces(self.bpy)
         self._setup_render()
         self._setup_imaging()
 
