@@ -8,10 +8,13 @@ regions), never internal state:
 * ``rois``: ``OUT/exports/rois/<label>/*.png`` + ``index.csv`` (see :mod:`usdscene.converters.exports.rois`);
 * ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.exports.mot`);
 * ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
-  calibrations (see :mod:`usdscene.converters.exports.multiview`); persons are the catalog's person
-  classes (:func:`usdscene.generate.motion.person_classes`).
+  calibrations in the ``free``, ``wildtrack`` or ``multiviewx`` flavour (see
+  :mod:`usdscene.converters.exports.multiview`); tracked are the catalog's person and vehicle classes
+  (:func:`usdscene.generate.motion.person_classes`, ``vehicle_classes``);
+* ``video``: ``OUT/exports/video/<camera>.mp4`` H.264 at the document's frame rate (see
+  :mod:`usdscene.converters.exports.video`; extra ``usdscene[video]``).
 
-``mot`` and ``multiview`` need a moving sequence (a document with ``metadata.usdscene.fps``).
+``mot``, ``multiview`` and ``video`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -152,6 +155,13 @@ class ExportOptions:
         rle_below_px: COCO segmentation as RLE for objects of fewer pixels (0: polygons only).
         grid: the multi-view ground grid (:class:`usdscene.converters.exports.multiview.GroundGrid`);
             None = the default grid over the annotated positions.
+        mot_class_map: MOT: ``CLASS=NUMBER`` items setting a class's MOTChallenge class
+            (:func:`usdscene.converters.exports.mot.parse_class_map`).
+        mot_static_people: MOT: people standing still get class 7 (static person).
+        mot_ignore_occluded: MOT: conf 0 for rows without a visible pixel.
+        mot_layout: MOT: ``cameras``, ``mot17`` or ``mot20`` (:data:`usdscene.converters.exports.mot.LAYOUTS`).
+        multiview_flavour: multi-view: ``wildtrack``, ``multiviewx`` or ``free``
+            (:data:`usdscene.converters.exports.multiview.FLAVOURS`).
     """
 
     extra_assets: Sequence[str] = ()
@@ -164,6 +174,11 @@ class ExportOptions:
     min_visible_fraction: float = 0.0
     rle_below_px: int = 0
     grid: Any = None
+    mot_class_map: Sequence[str] = ()
+    mot_static_people: bool = False
+    mot_ignore_occluded: bool = False
+    mot_layout: str = "cameras"
+    multiview_flavour: str = "free"
 
 
 def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -> dict:
