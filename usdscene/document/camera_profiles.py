@@ -32,7 +32,7 @@ PROFILES: dict[str, dict[str, Any]] = {
         "compression": "jpeg", "quality": 90,
     },
     "outdoor_bullet": {
-        "iso": 200, "full_well_e": 9000.0, "read_noise_e": 2.0, "vignetting": 0.3,
+        "iso": 400, "full_well_e": 9000.0, "read_noise_e": 2.0, "vignetting": 0.3,
         "auto_exposure": True, "metering": "average", "target_grey": 0.18,
         "exposure_speed": 1.0, "wdr_stops": 1.5,
         "mtf50_cy_px": 0.3, "sharpen": 0.8, "sharpen_radius_px": 1.0, "chroma_420": True,
