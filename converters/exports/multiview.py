@@ -160,15 +160,11 @@ OPENCV_LENSES = ("perspective", "opencv_pinhole", "fisheye_equidistant", "opencv
 
 
 def equisolid_fit_error_px(camera: Camera) -> float:
-    """Largest image distance (pixels) between the equisolid lens ``r = 2f sin(θ/2)`` and its
-    OpenCV-fisheye fit over the camera's field of view (``fov_deg``; 180° when unset)."""
-    from usdscene.converters.openlabel.intrinsics import EQUISOLID_KB_COEFFS
+    """Largest image distance (pixels) between the camera's lens and its OpenCV export over the
+    camera's field of view (the equisolid lens's OpenCV-fisheye fit; 0.0 for exact exports)."""
+    from usdscene.lens import lens_for
 
-    k = camera.intrinsics
-    half = math.radians(min(k.fov_deg or 180.0, 180.0)) / 2.0
-    theta = np.linspace(0.0, half, 2001)
-    fit = theta * (1.0 + sum(c * theta ** (2 * (n + 1)) for n, c in enumerate(EQUISOLID_KB_COEFFS)))
-    return float(np.max(np.abs(fit - 2.0 * np.sin(theta / 2.0))) * max(k.fx_px, k.fy_px))
+    return lens_for(camera.intrinsics).opencv_fit_error_px(camera.intrinsics)
 
 
 def world_to_camera(camera: Camera, frame: int) -> tuple[np.ndarray, np.ndarray]:
@@ -444,10 +440,12 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
             else:
                 _write_storage(staging / "calibrations" / "extrinsic" / f"extr_{stem}.xml",
                                {"rvec": rvec.reshape(3, 1), "tvec": (tvec / unit).reshape(3, 1)})
-            if camera.intrinsics.lens == LensModel.FISHEYE_EQUISOLID:
-                fits[name] = equisolid_fit_error_px(camera)
-                log.warning("camera %r: its equisolid fisheye is written as the OpenCV-fisheye fit of the "
-                            "OpenLABEL writer, within %.2g px of the lens over its field of view", name, fits[name])
+            fit_error_px = equisolid_fit_error_px(camera)
+            if fit_error_px > 0.0:
+                fits[name] = fit_error_px
+                log.warning("camera %r: its %s lens is written as its OpenCV-fisheye fit (the OpenLABEL "
+                            "writer's), within %.2g px of the lens over its field of view", name,
+                            camera.intrinsics.lens.value, fits[name])
             if style.name != "free" and (model != "pinhole" or np.any(D)):
                 log.warning("camera %r has lens distortion (%s); MVDet projects with the camera matrix only, "
                             "so its ground points miss there (calibrations/%s has the distortion)",

@@ -62,6 +62,11 @@ class Lens:
         camera matrix K; None when OpenCV has no model for it."""
         return None
 
+    def opencv_fit_error_px(self, intrinsics) -> float:
+        """Largest image distance (pixels) between the lens and its :meth:`opencv_distortion`
+        export over the lens's field of view: 0.0 where the export is exact (or there is none)."""
+        return 0.0
+
     def blender_camera(self, intrinsics) -> dict:
         """Blender camera data settings (attribute → value, in the order they are set) beyond the
         sensor and lens shift, for a native lens.

@@ -103,6 +103,13 @@ class EquisolidFisheye(RadialLens):
         # (usdscene.converters.exports.multiview.equisolid_fit_error_px states the error).
         return "fisheye", np.asarray(EQUISOLID_KB_COEFFS, dtype=np.float64)
 
+    def opencv_fit_error_px(self, intrinsics) -> float:
+        # over the field of view (``fov_deg``; 180° when unset), sampled finely in θ
+        half = math.radians(min(intrinsics.fov_deg or 180.0, 180.0)) / 2.0
+        theta = np.linspace(0.0, half, 2001)
+        fit = theta * (1.0 + sum(c * theta ** (2 * (n + 1)) for n, c in enumerate(EQUISOLID_KB_COEFFS)))
+        return float(np.max(np.abs(fit - 2.0 * np.sin(theta / 2.0))) * max(intrinsics.fx_px, intrinsics.fy_px))
+
     def radius(self, theta, coeffs):
         return 2.0 * np.sin(theta / 2.0), theta < math.pi
 
