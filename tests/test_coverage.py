@@ -213,6 +213,15 @@ def test_target_behind_the_pillar_is_occluded_for_the_camera_that_cannot_see_it(
     assert report["summary"]["holes"] == [] and report["summary"]["cameras"] == 1
     assert rows["spot_hidden:on"]["covering_cameras"] == 1
     assert rows["spot_open:on"]["cameras"][0]["dori"] in ("monitor", "detect")
+    # Re-scoring lists every camera of the setup per target, chosen or not: the west camera
+    # sees the open spot and has the hidden one in view with nothing visible.
+    scored = {row["camera"]: row for row in rows["spot_open:on"]["scored"]}
+    assert set(scored) == {"west", "east"} and scored["east"]["chosen"] and not scored["west"]["chosen"]
+    assert scored["west"]["visible_fraction"] == 1.0 and scored["west"]["px_per_m"] > 0
+    hidden = {row["camera"]: row for row in rows["spot_hidden:on"]["scored"]}
+    assert hidden["west"]["visible_fraction"] == 0.0 and hidden["west"]["in_image_fraction"] == 1.0
+    assert [c["name"] for c in report["scored_cameras"]] == ["west", "east"]
+    assert report["summary"]["floor_area"]["share"] == 1.0 and report["summary"]["pairs"] >= 3
 
 
 @pytest.mark.usd

@@ -32,7 +32,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -45,7 +45,8 @@ from usdscene.design.plan_picture import plan_picture
 from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
-from usdscene.design.visibility import Uncovered, Visibility, coverage_matrix, evaluate_visibility, why_uncovered
+from usdscene.design.visibility import (PAIR_BYTES, Uncovered, Visibility, coverage_matrix, covering_pairs,
+                                        evaluate_visibility, pairs_in_range, why_uncovered)
 from usdscene.labels.pixel_density import (STANDARD_FILES, DoriClass, class_index, load_dori, pixel_density,
                                            standard_file, table_standard)
 from usdscene.errors import DocumentError, OutputError
@@ -166,12 +167,29 @@ def _read_setup(document: Path):
     return setup, scene_catalog(catalog, setup)
 
 
-def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
+def check_pair_memory(pairs: int, targets: int, candidates: int, limit_gb: float) -> None:
+    """Refuse, before any ray is cast, a request whose kept pairs would pass ``limit_gb``.
+
+    Raises:
+        DocumentError: one line naming the targets, candidates and pairs, and what to change.
+    """
+    need = pairs * PAIR_BYTES / 1e9
+    if need > limit_gb:
+        raise DocumentError(
+            f"{targets} targets x {candidates} candidate cameras give up to {pairs} (camera, target) pairs in range, "
+            f"about {need:.1f} GB, over the {limit_gb:g} GB limit: use a coarser --cell, a larger --spacing, fewer "
+            f"--lens, or plan the floor in zones (--targets box:...), or raise --max-memory", where="--max-memory")
+
+
+def plan_cameras(request: PlanRequest, out_dir: str | Path,
+                 progress: Callable[[str, int, int], None] | None = None) -> PlanResult:
     """Plan the smallest camera set that covers the targets, and write the plan folder.
 
     Args:
         request: what to plan (:class:`usdscene.design.plan_request.PlanRequest`).
         out_dir: plan folder (created).
+        progress: called with (stage, done, total) during long steps (``visibility``:
+            candidate cameras scored).
 
     Returns:
         A :class:`PlanResult`.
@@ -203,7 +221,7 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
                             where=str(document))
     scene = occluder_scene(setup, catalog, request.occluders)
     target_list = targets_from_places(catalog.places(setup.environment), specs,
-                                      spacing_m=request.target_spacing_m)
+                                      spacing_m=request.target_spacing_m, cell_m=request.cell_m)
     seconds["targets"] = time.perf_counter() - started
 
     t = time.perf_counter()
@@ -214,6 +232,7 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     seconds["compose"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    left_out: dict[str, int] = {}
     if mounts == "setup":
         candidates = list(setup.cameras)
         mount_count = len(candidates)
@@ -222,10 +241,12 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
             lo, hi = occ.bounds_m
             structure = Occluders(triangles[surfaces.mountable])
             mount_list = candidate_mounts(occ, lo, hi, spacing_m=request.spacing_m, surfaces=surfaces,
-                                          structure=structure)
+                                          structure=structure, left_out=left_out)
             if request.pole_heights_m:
                 mount_list += open_air_mounts(occ, triangles, surfaces, lo, hi, heights_m=request.pole_heights_m,
-                                              spacing_m=request.pole_spacing_m)
+                                              spacing_m=request.pole_spacing_m, left_out=left_out)
+            else:
+                left_out["poles and facades (--pole-heights none)"] = 1
             mount_list += [Mount(tuple(float(v) for v in p), "node", tuple(float(v) for v in f), (), name)
                            for name, p, f in nodes]
         else:
@@ -234,13 +255,18 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
 
+    check_pair_memory(pairs_in_range(candidates, target_list), len(target_list), len(candidates),
+                      request.max_memory_gb)
     t = time.perf_counter()
-    visibility = evaluate_visibility(candidates, target_list, occ, table)
+    visibility = evaluate_visibility(candidates, target_list, occ, table,
+                                     progress=None if progress is None else
+                                     (lambda done, total: progress("visibility", done, total)))
     cover = coverage_matrix(visibility, min_visible=request.min_visible, min_dori=required)
     seconds["visibility"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    weights = np.where(cover, visibility.px_per_m, 0.0).sum(axis=1)
+    weights = covering_px_per_m(visibility, covering_pairs(visibility, min_visible=request.min_visible,
+                                                           min_dori=required))
     selection = select_cameras(cover, k, time_limit_s=request.time_limit_s, weights=weights)
     seconds["select"] = time.perf_counter() - t
 
@@ -254,14 +280,16 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     why = why_uncovered(visibility, selection.uncoverable, min_visible=request.min_visible,
                         candidates=len(candidates))
     report = coverage_report(request.record([lens.name for lens in lenses], table, standard_name), target_list,
-                             candidates, chosen, selection, visibility, cover, table, mount_count, why)
+                             candidates, chosen, selection, visibility, cover, table, mount_count, why,
+                             rescored=mounts == "setup")
+    report["summary"]["mounts_left_out"] = dict(sorted(left_out.items()))
     out.mkdir(parents=True, exist_ok=True)
     write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
     picked = list(selection.chosen)
-    counts = cover[picked].sum(axis=0) if picked else np.zeros(len(target_list), int)
-    best = np.where(cover[picked], visibility.dori[picked], -1).max(axis=0) if picked else \
-        np.full(len(target_list), -1)
+    picked_cover = cover[picked].toarray() if picked else np.zeros((0, len(target_list)), bool)
+    counts = picked_cover.sum(axis=0)
+    best = np.where(picked_cover, visibility.dense("dori", picked), -1).max(axis=0, initial=-1)
     title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
              f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori} "
              f"({standard_name}), "
@@ -271,6 +299,13 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     seconds["write"] = time.perf_counter() - t
     return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
                       seconds, occ.backend)
+
+
+def covering_px_per_m(visibility: Visibility, hit: np.ndarray) -> np.ndarray:
+    """(C,) per camera the summed median px/m of the targets it covers (``hit``: (P,) bool
+    from :func:`usdscene.design.visibility.covering_pairs`), the selection's preference among
+    equal-size sets."""
+    return np.bincount(visibility.camera[hit], weights=visibility.px_per_m_pair[hit], minlength=visibility.cameras)
 
 
 def _required_class(name: str, table, standard_name: str, shipped: bool) -> int:
@@ -314,11 +349,37 @@ def _round(value: float, digits: int = 4) -> float:
     return float(round(float(value), digits))
 
 
+def floor_area(targets: Sequence[Target], covered: Sequence[bool]) -> dict:
+    """The floor area of the targets and the share of it seen at the level, in total and per
+    place (boxes under their own names).
+
+    Returns:
+        ``{"total_m2", "covered_m2", "share", "places": {place: {"total_m2", "covered_m2", "share"}}}``.
+    """
+    places: dict[str, list[float]] = {}
+    for target, ok in zip(targets, covered):
+        key = target.place or target.name.split("#")[0]
+        entry = places.setdefault(key, [0.0, 0.0])
+        entry[0] += target.area_m2
+        entry[1] += target.area_m2 if ok else 0.0
+
+    def row(total: float, seen: float) -> dict:
+        return {"total_m2": _round(total, 2), "covered_m2": _round(seen, 2), "share": _round(seen / total if total else 0.0)}
+
+    total, seen = sum(v[0] for v in places.values()), sum(v[1] for v in places.values())
+    return {**row(total, seen), "places": {k: row(*v) for k, v in sorted(places.items())}}
+
+
 def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Sequence[Camera],
                     chosen: Sequence[Camera], selection: Selection, visibility: Visibility,
                     cover: np.ndarray, table: Sequence[DoriClass], mount_count: int,
-                    why: Sequence[Uncovered] = ()) -> dict:
+                    why: Sequence[Uncovered] = (), *, rescored: bool = False) -> dict:
     """The ``coverage.json`` content: request, summary, per target, per chosen camera.
+
+    With ``rescored`` (the candidates are the setup's own cameras), every target also lists
+    every candidate that sees any of it (``scored``), chosen or not, and ``scored_cameras``
+    lists every candidate with the targets it covers: a camera that reaches the level nowhere
+    still appears, with what it does see.
 
     Per (camera, target) pair the visible fraction, the median px/m over the visible points
     and its DORI class; ``covers`` says whether the pair meets the requirement. ``why``
@@ -326,27 +387,45 @@ def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Seq
     ``summary.why_uncoverable``: per target the reason and the best class any candidate reaches.
     """
     picked = list(selection.chosen)
-    names = {c: chosen[i].name for i, c in enumerate(picked)}
+    names = [chosen[i].name for i in range(len(picked))]
+    # Dense rows of the chosen cameras only: (P, T) each.
+    vis, in_img = visibility.dense("visible", picked), visibility.dense("in_image", picked)
+    px, dori = visibility.dense("px_per_m", picked), visibility.dense("dori", picked)
+    covers = cover[picked].toarray() if picked else np.zeros((0, len(targets)), bool)
+    coverable = np.asarray(cover.sum(axis=0)).ravel()
 
-    def pair(c: int, t: int) -> dict:
-        d = int(visibility.dori[c, t])
-        return {"camera": names[c], "visible_fraction": _round(visibility.visible[c, t]),
-                "in_image_fraction": _round(visibility.in_image[c, t]),
-                "px_per_m": _round(visibility.px_per_m[c, t], 1),
-                "dori": table[d].name if d >= 0 else None, "covers": bool(cover[c, t])}
+    def pair(i: int, t: int) -> dict:
+        d = int(dori[i, t])
+        return {"camera": names[i], "visible_fraction": _round(vis[i, t]),
+                "in_image_fraction": _round(in_img[i, t]),
+                "px_per_m": _round(px[i, t], 1),
+                "dori": table[d].name if d >= 0 else None, "covers": bool(covers[i, t])}
+
+    picked_set = set(picked)
+    if rescored:
+        every = list(range(len(candidates)))
+        s_vis, s_in = visibility.dense("visible", every), visibility.dense("in_image", every)
+        s_px, s_dori = visibility.dense("px_per_m", every), visibility.dense("dori", every)
+        s_cover = cover.toarray()
+
+    def scored(t: int) -> list[dict]:
+        return [{"camera": candidates[c].name, "chosen": c in picked_set, "visible_fraction": _round(s_vis[c, t]),
+                 "in_image_fraction": _round(s_in[c, t]), "px_per_m": _round(s_px[c, t], 1),
+                 "dori": table[int(s_dori[c, t])].name if s_dori[c, t] >= 0 else None, "covers": bool(s_cover[c, t])}
+                for c in range(len(candidates)) if s_in[c, t] > 0]
 
     target_rows = []
     holes = []
     for t, target in enumerate(targets):
-        seen = [pair(c, t) for c in picked if visibility.visible[c, t] > 0]
+        seen = [pair(i, t) for i in range(len(picked)) if vis[i, t] > 0]
         count = sum(1 for p in seen if p["covers"])
-        best = max((int(visibility.dori[c, t]) for c in picked if cover[c, t]), default=-1)
+        best = max((int(dori[i, t]) for i in range(len(picked)) if covers[i, t]), default=-1)
         if count < int(request["k"]):
             holes.append(target.name)
         target_rows.append({"name": target.name, "place": target.place, "region": target.region,
                             "covering_cameras": count, "best_dori": table[best].name if best >= 0 else None,
-                            "coverable_by_candidates": int(cover[:, t].sum()),
-                            "cameras": seen,
+                            "coverable_by_candidates": int(coverable[t]),
+                            "cameras": seen, **({"scored": scored(t)} if rescored else {}),
                             "points_m": [[_round(v) for v in p] for p in target.points_m.tolist()]})
     camera_rows = []
     for i, c in enumerate(picked):
@@ -356,7 +435,7 @@ def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Seq
                             cam.model_name,
                             "position_m": [_round(v) for v in cam.pose.translation_m],
                             "forward": [_round(v) for v in cam.pose.rotation[:, 2]],
-                            "targets": [targets[t].name for t in np.flatnonzero(cover[c])]})
+                            "targets": [targets[t].name for t in np.flatnonzero(covers[i])]})
     summary = {
         "cameras": len(picked), "method": selection.method, "optimal": selection.optimal,
         "lower_bound": selection.lower_bound, "gap": _round(selection.gap), "greedy_cameras": selection.greedy_size,
@@ -366,9 +445,17 @@ def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Seq
         "short_of_k": [targets[t].name for t in selection.short],
         "why_uncoverable": {targets[u.target].name: {"reason": u.reason, "best_dori": table[u.best_dori].name
                                                      if u.best_dori >= 0 else None} for u in why},
+        "pairs": len(visibility.camera), "program": {"rows": selection.rows, "columns": selection.columns},
+        "floor_area": floor_area(targets, [r["covering_cameras"] >= int(request["k"]) for r in target_rows]),
     }
+    extra = {}
+    if rescored:
+        extra["scored_cameras"] = [{"name": cam.name, "chosen": c in picked_set,
+                                    "targets_in_view": int((s_in[c] > 0).sum()), "targets_seen": int((s_vis[c] > 0).sum()),
+                                    "targets_covered": [targets[t].name for t in np.flatnonzero(s_cover[c])]}
+                                   for c, cam in enumerate(candidates)]
     return {"format": "usdscene-coverage", "version": 1, "request": dict(request), "summary": summary,
-            "cameras": camera_rows, "targets": target_rows}
+            "cameras": camera_rows, "targets": target_rows, **extra}
 
 
 # --------------------------------------------------------------------------------------------
@@ -528,7 +615,8 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     t0 = time.perf_counter()
     cameras = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
                for c in planned.cameras]
-    predicted = evaluate_visibility(cameras, targets, occ, table)
+    predicted = evaluate_visibility(cameras, targets, occ, table, keep_points=True)
+    predicted_in_image, predicted_visible = predicted.in_image, predicted.visible
     rows, pairs, agreeing, points, points_ok = [], 0, 0, 0, 0
     thumbs = []
     for c, camera in enumerate(cameras):
@@ -539,12 +627,12 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
         image = cv2.imread(str(layout.image_path(verify, camera.name, frame)), cv2.IMREAD_COLOR)
         thumbs.append((camera.name, image))
         for t, target in enumerate(targets):
-            if predicted.in_image[c, t] == 0:
+            if predicted_in_image[c, t] == 0:
                 continue
             seen = _rendered_points(camera, target.points_m, mask, target_mask_ids[t], marker_radius_m)
-            pred = predicted.point_visible[t][c]
+            pred = predicted.point_visible[predicted.pair_index(c, t)]
             rendered_fraction = float(seen.mean())
-            predicted_fraction = float(predicted.visible[c, t])
+            predicted_fraction = float(predicted_visible[c, t])
             ok = abs(rendered_fraction - predicted_fraction) <= tolerance + 1e-12
             pairs += 1
             agreeing += ok
