@@ -191,3 +191,29 @@ def test_a_request_too_large_for_memory_is_refused_naming_targets_and_candidates
     assert "20000 targets" in text and "50000 candidate" in text and "--cell" in text and "zones" in text
     assert "\n" not in text
     check_pair_memory(1000, 10, 100, 8.0)  # small enough: nothing raised
+
+
+def test_mount_search_says_why_no_pole_stands_on_a_deck_above_lower_stairs():
+    from types import SimpleNamespace
+
+    from usdscene.design.candidates import open_air_mounts
+    from usdscene.design.mount_surfaces import mount_surfaces
+
+    # A 40 x 8 m platform deck 1.2 m up, with stairs at one end going down to 2.1 m below it
+    # (the scene's lowest point), and a tree whose crown overhangs the deck.
+    deck = _box_triangles((-20, -4, 0.9), (20, 4, 1.2))
+    stairs = _box_triangles((20, -1, -0.9), (23, 1, 1.2))
+    crown = _box_triangles((-2, -2, 4.0), (2, 2, 7.0))
+    meshes = [SimpleNamespace(path="/Platform/Deck", triangles_m=deck, mountable=None),
+              SimpleNamespace(path="/Platform/Stairs", triangles_m=stairs, mountable=None),
+              SimpleNamespace(path="/Platform/Tree/Crown", triangles_m=crown, mountable=None)]
+    tris = np.concatenate([deck, stairs, crown])
+    occ = Occluders(tris)
+    lo, hi = occ.bounds_m
+    left_out: dict[str, int] = {}
+    mounts = open_air_mounts(occ, tris, mount_surfaces(meshes, 0), lo, hi, left_out=left_out)
+    assert mounts == []
+    high = [n for reason, n in left_out.items() if "more than 1 m above the scene's lowest point" in reason]
+    tree = [n for reason, n in left_out.items() if "unmountable" in reason and "first surface" in reason]
+    assert len(high) == 1 and high[0] > 10 and "z = -0.90 m" in next(r for r in left_out if "lowest" in r)
+    assert tree and tree[0] >= 1

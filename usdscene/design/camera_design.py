@@ -245,8 +245,6 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path,
             if request.pole_heights_m:
                 mount_list += open_air_mounts(occ, triangles, surfaces, lo, hi, heights_m=request.pole_heights_m,
                                               spacing_m=request.pole_spacing_m, left_out=left_out)
-            else:
-                left_out["poles and facades (--pole-heights none)"] = 1
             mount_list += [Mount(tuple(float(v) for v in p), "node", tuple(float(v) for v in f), (), name)
                            for name, p, f in nodes]
         else:
