@@ -298,3 +298,17 @@ def test_cli_reports_bad_arguments_readably(tmp_path, capsys):
     assert main(["plan-cameras", "--setup", str(doc), "-o", str(tmp_path / "p"), "--targets", "seat_*:nowhere"]) == 1
     err = capsys.readouterr().err
     assert "usdscene: error: --targets: unknown region 'nowhere'" in err and "Traceback" not in err
+
+
+@pytest.mark.usd
+def test_a_request_over_the_memory_limit_stops_before_any_ray_with_one_line(room_setup, capsys):
+    from usdscene.cli import main
+
+    root, document = room_setup
+    out = root / "too_big"
+    assert main(["plan-cameras", "--setup", str(document), "-o", str(out), "--targets", "spot_*:on",
+                 "--occluders", "setup", "--max-memory", "1e-9"]) == 1
+    err = capsys.readouterr().err
+    line = [row for row in err.splitlines() if "--max-memory" in row]
+    assert len(line) == 1 and "2 targets x" in line[0] and "--cell" in line[0] and "Traceback" not in err
+    assert not out.exists()  # nothing written

@@ -29,6 +29,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -226,6 +227,7 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path,
 
     t = time.perf_counter()
     # No cameras in the occluder stage: they do not block anything and the planner adds its own.
+    existed = out.exists()
     composed = compose_stage(dataclasses.replace(scene, cameras=()), catalog, out / OCCLUDER_STAGE_DIR)
     triangles, surfaces, nodes = scene_geometry(composed.root_layer, scene.frame_start)
     occ = Occluders(triangles)
@@ -253,8 +255,14 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path,
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
 
-    check_pair_memory(pairs_in_range(candidates, target_list), len(target_list), len(candidates),
-                      request.max_memory_gb)
+    try:
+        check_pair_memory(pairs_in_range(candidates, target_list), len(target_list), len(candidates),
+                          request.max_memory_gb)
+    except DocumentError:
+        # Refused before the work: leave nothing behind (the occluder stage was only a means).
+        if not existed:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     t = time.perf_counter()
     visibility = evaluate_visibility(candidates, target_list, occ, table,
                                      progress=None if progress is None else

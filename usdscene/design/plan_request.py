@@ -100,7 +100,7 @@ class PlanRequest:
         problems = ProblemCollector()
         limits = {"k": (1, None), "min_visible": (0.0, 1.0), "spacing_m": (0.05, None),
                   "target_spacing_m": (0.01, None), "aims": (0, None), "time_limit_s": (0.1, None),
-                  "pole_spacing_m": (0.5, None), "cell_m": (0.1, None), "max_memory_gb": (0.001, None)}
+                  "pole_spacing_m": (0.5, None), "cell_m": (0.1, None), "max_memory_gb": (1e-9, None)}
         values = [(name, getattr(self, name)) for name in limits] + \
             [("pole_heights_m", h) for h in self.pole_heights_m]
         limits["pole_heights_m"] = (0.5, 100.0)

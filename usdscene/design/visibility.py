@@ -193,9 +193,13 @@ def evaluate_visibility(cameras: Sequence[Camera], targets: Sequence[Target], oc
     counts = np.array([len(t.points_m) for t in targets], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     all_pts = np.concatenate([t.points_m for t in targets]) if n_t else np.zeros((0, 3))
-    centres = np.array([t.points_m.mean(axis=0) if len(t.points_m) else np.zeros(3) for t in targets]).reshape(-1, 3)
-    radius = np.array([float(np.linalg.norm(t.points_m - c, axis=1).max(initial=0.0))
-                       for t, c in zip(targets, centres)])
+    owner = np.repeat(np.arange(n_t), counts)
+    centres = np.zeros((n_t, 3))
+    for axis in range(3):
+        centres[:, axis] = np.bincount(owner, weights=all_pts[:, axis], minlength=n_t) / np.maximum(counts, 1)
+    radius = np.zeros(n_t)
+    if n_t:
+        np.maximum.at(radius, owner, np.linalg.norm(all_pts - centres[owner], axis=1))
     tree = cKDTree(centres) if n_t else None
     reach = max_range_m + float(radius.max(initial=0.0))
     half_angles: dict[Intrinsics, float] = {}
