@@ -217,3 +217,18 @@ def test_mount_search_says_why_no_pole_stands_on_a_deck_above_lower_stairs():
     tree = [n for reason, n in left_out.items() if "unmountable" in reason and "first surface" in reason]
     assert len(high) == 1 and high[0] > 10 and "z = -0.90 m" in next(r for r in left_out if "lowest" in r)
     assert tree and tree[0] >= 1
+
+
+@pytest.mark.parametrize("seed,k", [(0, 1), (1, 1), (2, 2)])
+def test_the_packing_bound_never_exceeds_the_optimum(seed, k):
+    from usdscene.design.selection import packing_bound
+
+    rng = np.random.default_rng(seed)
+    cover = rng.random((40, 120)) < 0.05
+    demand = np.minimum(cover.sum(axis=0), k)
+    sel = select_cameras(coverage_like(cover), k, time_limit_s=20)
+    bound = packing_bound(coverage_like(cover), demand)
+    assert sel.optimal and 0 < bound <= len(sel.chosen)
+    # Two targets that share no camera need two cameras.
+    assert packing_bound(np.array([[1, 0], [0, 1]], bool), np.array([1, 1])) == 2
+    assert packing_bound(np.array([[1, 1], [0, 1]], bool), np.array([1, 1])) == 1
