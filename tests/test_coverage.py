@@ -213,6 +213,15 @@ def test_target_behind_the_pillar_is_occluded_for_the_camera_that_cannot_see_it(
     assert report["summary"]["holes"] == [] and report["summary"]["cameras"] == 1
     assert rows["spot_hidden:on"]["covering_cameras"] == 1
     assert rows["spot_open:on"]["cameras"][0]["dori"] in ("monitor", "detect")
+    # Re-scoring lists every camera of the setup per target, chosen or not: the west camera
+    # sees the open spot and has the hidden one in view with nothing visible.
+    scored = {row["camera"]: row for row in rows["spot_open:on"]["scored"]}
+    assert set(scored) == {"west", "east"} and scored["east"]["chosen"] and not scored["west"]["chosen"]
+    assert scored["west"]["visible_fraction"] == 1.0 and scored["west"]["px_per_m"] > 0
+    hidden = {row["camera"]: row for row in rows["spot_hidden:on"]["scored"]}
+    assert hidden["west"]["visible_fraction"] == 0.0 and hidden["west"]["in_image_fraction"] == 1.0
+    assert [c["name"] for c in report["scored_cameras"]] == ["west", "east"]
+    assert report["summary"]["floor_area"]["share"] == 1.0 and report["summary"]["pairs"] >= 3
 
 
 @pytest.mark.usd
@@ -289,3 +298,17 @@ def test_cli_reports_bad_arguments_readably(tmp_path, capsys):
     assert main(["plan-cameras", "--setup", str(doc), "-o", str(tmp_path / "p"), "--targets", "seat_*:nowhere"]) == 1
     err = capsys.readouterr().err
     assert "usdscene: error: --targets: unknown region 'nowhere'" in err and "Traceback" not in err
+
+
+@pytest.mark.usd
+def test_a_request_over_the_memory_limit_stops_before_any_ray_with_one_line(room_setup, capsys):
+    from usdscene.cli import main
+
+    root, document = room_setup
+    out = root / "too_big"
+    assert main(["plan-cameras", "--setup", str(document), "-o", str(out), "--targets", "spot_*:on",
+                 "--occluders", "setup", "--max-memory", "1e-9"]) == 1
+    err = capsys.readouterr().err
+    line = [row for row in err.splitlines() if "--max-memory" in row]
+    assert len(line) == 1 and "2 targets x" in line[0] and "--cell" in line[0] and "Traceback" not in err
+    assert not out.exists()  # nothing written

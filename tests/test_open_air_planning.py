@@ -134,13 +134,13 @@ def test_each_reason_for_an_uncoverable_target():
 
     # Three candidates, four targets: nobody has t0 in view; t1 is in view but hidden; t2 is
     # seen by half of its points (>= 0.25) at class 0 only; t3 is seen too little and at class 1.
-    vis = Visibility(in_image=np.array([[0, 1, 1, 1], [0, 1, 0, 1], [0, 0, 0, 1.0]]),
+    vis = Visibility.from_dense(in_image=np.array([[0, 1, 1, 1], [0, 1, 0, 1], [0, 0, 0, 1.0]]),
                      visible=np.array([[0, 0, 0.5, 0.1], [0, 0, 0, 0.2], [0, 0, 0, 0.0]]),
                      px_per_m=np.zeros((3, 4)), dori=np.array([[-1, -1, 0, 1], [-1, -1, -1, 1], [-1, -1, -1, -1]]))
     why = why_uncovered(vis, [0, 1, 2, 3], min_visible=0.25, candidates=3)
     assert [(u.reason, u.best_dori) for u in why] == [("out of range", -1), ("occluded", -1),
                                                      ("too few pixels", 0), ("occluded", 1)]
-    empty = Visibility(np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1), int))
+    empty = Visibility.from_dense(np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1), int))
     assert [(u.reason, u.best_dori) for u in why_uncovered(empty, [0], min_visible=0.25, candidates=0)] == \
         [("no mount", -1)]
 

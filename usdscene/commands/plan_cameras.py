@@ -49,6 +49,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-visible", type=float, default=0.25, metavar="FRACTION",
                         help="fraction of a target's points a camera must see (0.25)")
     parser.add_argument("--aims", type=non_negative_int, default=4, help="target-cluster aims per mount (4)")
+    parser.add_argument("--cell", type=float, default=5.0, metavar="M",
+                        help="target regions longer than this are split into cells no longer than this, in metres "
+                             "(5; coverage is then the share of floor area seen)")
+    parser.add_argument("--target-spacing", type=float, default=0.2, metavar="M",
+                        help="spacing of the sample points in each target in metres (0.2)")
+    parser.add_argument("--max-memory", type=float, default=6.0, metavar="GB",
+                        help="refuse, before casting rays, a request whose (camera, target) pairs would take more "
+                             "than this (6)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="MILP time limit in seconds (60)")
     parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
                         help="render size of --verify relative to the cameras' resolution (0.5)")
@@ -81,7 +89,9 @@ def run(args: argparse.Namespace) -> int:
         return _usage("plan-cameras needs --setup SETUP_DOC and -o PLAN_DIR (or --verify PLAN_DIR)")
     from usdscene.design.camera_design import plan_cameras
 
-    result = plan_cameras(plan_request(args), args.out)
+    request = plan_request(args)
+    with _ProgressBar(console) as bar:
+        result = plan_cameras(request, args.out, progress=bar.update)
     s = result.coverage["summary"]
     sel = result.selection
     console.print(f"planned {s['cameras']} cameras from {s['candidates']} candidates ({s['mounts']} mounts) "
@@ -91,6 +101,14 @@ def run(args: argparse.Namespace) -> int:
     request = result.coverage["request"]
     console.print(f"  covered: {s['targets_covered']}/{s['targets']} targets by >= {args.k} camera(s) at >= "
                   f"{request['dori']} ({request['standard']})")
+    for reason, n in s.get("mounts_left_out", {}).items():
+        console.print(f"  no mount: {n} {reason}")
+    area = s["floor_area"]
+    if area["total_m2"] > 0:
+        console.print(f"  floor:   {area['covered_m2']:.1f} of {area['total_m2']:.1f} m² seen at the level "
+                      f"({100 * area['share']:.1f} %): " + ", ".join(
+                          f"{name} {100 * p['share']:.1f} %" for name, p in list(area["places"].items())[:8])
+                      + (" ..." if len(area["places"]) > 8 else ""))
     if s["holes"]:
         console.print(f"  holes:   {len(s['holes'])}: {', '.join(s['holes'][:12])}{' ...' if len(s['holes']) > 12 else ''}")
     why = s["why_uncoverable"]
@@ -117,7 +135,42 @@ def plan_request(args: argparse.Namespace):
                              lenses_file=args.lenses, lens_names=args.lens, k=args.k, dori=args.dori,
                              dori_table_file=args.dori_table, standard=args.standard, occluders=args.occluders,
                              min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit,
-                             pole_heights_m=args.pole_heights, pole_spacing_m=args.pole_spacing)
+                             pole_heights_m=args.pole_heights, pole_spacing_m=args.pole_spacing, cell_m=args.cell,
+                             target_spacing_m=args.target_spacing, max_memory_gb=args.max_memory)
+
+
+class _ProgressBar:
+    """A ``rich`` bar on stderr for the long steps of planning: the stage, cameras scored and
+    the time left."""
+
+    def __init__(self, console) -> None:
+        self._console = console
+        self._progress = None
+        self._task = None
+
+    def __enter__(self) -> "_ProgressBar":
+        import sys
+
+        if sys.stderr.isatty():
+            from rich.console import Console
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self._progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                                      TextColumn("cameras"), TimeRemainingColumn(),
+                                      console=Console(stderr=True), transient=True)
+            self._progress.__enter__()
+        return self
+
+    def update(self, stage: str, done: int, total: int) -> None:
+        if self._progress is None:
+            return
+        if self._task is None:
+            self._task = self._progress.add_task(stage, total=total)
+        self._progress.update(self._task, description=stage, completed=done, total=total)
+
+    def __exit__(self, *exc) -> None:
+        if self._progress is not None:
+            self._progress.__exit__(*exc)
 
 
 def _usage(message: str) -> int:

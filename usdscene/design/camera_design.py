@@ -29,10 +29,11 @@ import json
 import logging
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -46,7 +47,8 @@ from usdscene.design.plan_picture import plan_picture
 from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
-from usdscene.design.visibility import coverage_matrix, evaluate_visibility, why_uncovered
+from usdscene.design.visibility import (PAIR_BYTES, Uncovered, Visibility, coverage_matrix, covering_pairs,
+                                        evaluate_visibility, pairs_in_range, why_uncovered)
 from usdscene.labels.pixel_density import (STANDARD_FILES, DoriClass, class_index, load_dori, pixel_density,
                                            standard_file, table_standard)
 from usdscene.errors import DocumentError, OutputError
@@ -167,12 +169,29 @@ def _read_setup(document: Path):
     return setup, scene_catalog(catalog, setup)
 
 
-def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
+def check_pair_memory(pairs: int, targets: int, candidates: int, limit_gb: float) -> None:
+    """Refuse, before any ray is cast, a request whose kept pairs would pass ``limit_gb``.
+
+    Raises:
+        DocumentError: one line naming the targets, candidates and pairs, and what to change.
+    """
+    need = pairs * PAIR_BYTES / 1e9
+    if need > limit_gb:
+        raise DocumentError(
+            f"{targets} targets x {candidates} candidate cameras give up to {pairs} (camera, target) pairs in range, "
+            f"about {need:.1f} GB, over the {limit_gb:g} GB limit: use a coarser --cell, a larger --spacing, fewer "
+            f"--lens, or plan the floor in zones (--targets box:...), or raise --max-memory", where="--max-memory")
+
+
+def plan_cameras(request: PlanRequest, out_dir: str | Path,
+                 progress: Callable[[str, int, int], None] | None = None) -> PlanResult:
     """Plan the smallest camera set that covers the targets, and write the plan folder.
 
     Args:
         request: what to plan (:class:`usdscene.design.plan_request.PlanRequest`).
         out_dir: plan folder (created).
+        progress: called with (stage, done, total) during long steps (``visibility``:
+            candidate cameras scored).
 
     Returns:
         A :class:`PlanResult`.
@@ -204,17 +223,19 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
                             where=str(document))
     scene = occluder_scene(setup, catalog, request.occluders)
     target_list = targets_from_places(catalog.places(setup.environment), specs,
-                                      spacing_m=request.target_spacing_m)
+                                      spacing_m=request.target_spacing_m, cell_m=request.cell_m)
     seconds["targets"] = time.perf_counter() - started
 
     t = time.perf_counter()
     # No cameras in the occluder stage: they do not block anything and the planner adds its own.
+    existed = out.exists()
     composed = compose_stage(dataclasses.replace(scene, cameras=()), catalog, out / OCCLUDER_STAGE_DIR)
     triangles, surfaces, nodes = scene_geometry(composed.root_layer, scene.frame_start)
     occ = Occluders(triangles)
     seconds["compose"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    left_out: dict[str, int] = {}
     if mounts == "setup":
         candidates = list(setup.cameras)
         mount_count = len(candidates)
@@ -223,10 +244,10 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
             lo, hi = occ.bounds_m
             structure = Occluders(triangles[surfaces.mountable])
             mount_list = candidate_mounts(occ, lo, hi, spacing_m=request.spacing_m, surfaces=surfaces,
-                                          structure=structure)
+                                          structure=structure, left_out=left_out)
             if request.pole_heights_m:
                 mount_list += open_air_mounts(occ, triangles, surfaces, lo, hi, heights_m=request.pole_heights_m,
-                                              spacing_m=request.pole_spacing_m)
+                                              spacing_m=request.pole_spacing_m, left_out=left_out)
             mount_list += [Mount(tuple(float(v) for v in p), "node", tuple(float(v) for v in f), (), name)
                            for name, p, f in nodes]
         else:
@@ -235,13 +256,24 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
         mount_count = len(mount_list)
     seconds["candidates"] = time.perf_counter() - t
 
+    try:
+        check_pair_memory(pairs_in_range(candidates, target_list), len(target_list), len(candidates),
+                          request.max_memory_gb)
+    except DocumentError:
+        # Refused before the work: leave nothing behind (the occluder stage was only a means).
+        if not existed:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     t = time.perf_counter()
-    visibility = evaluate_visibility(candidates, target_list, occ, table)
+    visibility = evaluate_visibility(candidates, target_list, occ, table,
+                                     progress=None if progress is None else
+                                     (lambda done, total: progress("visibility", done, total)))
     cover = coverage_matrix(visibility, min_visible=request.min_visible, min_dori=required)
     seconds["visibility"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    weights = np.where(cover, visibility.px_per_m, 0.0).sum(axis=1)
+    weights = covering_px_per_m(visibility, covering_pairs(visibility, min_visible=request.min_visible,
+                                                           min_dori=required))
     selection = select_cameras(cover, k, time_limit_s=request.time_limit_s, weights=weights)
     seconds["select"] = time.perf_counter() - t
 
@@ -255,14 +287,16 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     why = why_uncovered(visibility, selection.uncoverable, min_visible=request.min_visible,
                         candidates=len(candidates))
     report = coverage_report(request.record([lens.name for lens in lenses], table, standard_name), Coverage(
-        target_list, candidates, chosen, selection, visibility, cover, table, mount_count, why))
+        target_list, candidates, chosen, selection, visibility, cover, table, mount_count, why),
+        rescored=mounts == "setup")
+    report["summary"]["mounts_left_out"] = dict(sorted(left_out.items()))
     out.mkdir(parents=True, exist_ok=True)
     write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
     picked = list(selection.chosen)
-    counts = cover[picked].sum(axis=0) if picked else np.zeros(len(target_list), int)
-    best = np.where(cover[picked], visibility.dori[picked], -1).max(axis=0) if picked else \
-        np.full(len(target_list), -1)
+    picked_cover = cover[picked].toarray() if picked else np.zeros((0, len(target_list)), bool)
+    counts = picked_cover.sum(axis=0)
+    best = np.where(picked_cover, visibility.dense("dori", picked), -1).max(axis=0, initial=-1)
     title = (f"{len(chosen)} cameras ({selection.method}, lower bound {selection.lower_bound}); "
              f"{int((counts >= k).sum())}/{len(target_list)} targets covered by {k} at >= {dori} "
              f"({standard_name}), "
@@ -272,6 +306,13 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     seconds["write"] = time.perf_counter() - t
     return PlanResult(out, planned, tuple(chosen), len(candidates), tuple(target_list), selection, report,
                       seconds, occ.backend)
+
+
+def covering_px_per_m(visibility: Visibility, hit: np.ndarray) -> np.ndarray:
+    """(C,) per camera the summed median px/m of the targets it covers (``hit``: (P,) bool
+    from :func:`usdscene.design.visibility.covering_pairs`), the selection's preference among
+    equal-size sets."""
+    return np.bincount(visibility.camera[hit], weights=visibility.px_per_m_pair[hit], minlength=visibility.cameras)
 
 
 def _required_class(name: str, table, standard_name: str, shipped: bool) -> int:
@@ -468,7 +509,8 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     t0 = time.perf_counter()
     cameras = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
                for c in planned.cameras]
-    predicted = evaluate_visibility(cameras, targets, occ, table)
+    predicted = evaluate_visibility(cameras, targets, occ, table, keep_points=True)
+    predicted_in_image, predicted_visible = predicted.in_image, predicted.visible
     rows, pairs, agreeing, points, points_ok = [], 0, 0, 0, 0
     thumbs = []
     for c, camera in enumerate(cameras):
@@ -479,12 +521,12 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
         image = cv2.imread(str(layout.image_path(verify, camera.name, frame)), cv2.IMREAD_COLOR)
         thumbs.append((camera.name, image))
         for t, target in enumerate(targets):
-            if predicted.in_image[c, t] == 0:
+            if predicted_in_image[c, t] == 0:
                 continue
             seen = _rendered_points(camera, target.points_m, mask, target_mask_ids[t], marker_radius_m)
-            pred = predicted.point_visible[t][c]
+            pred = predicted.point_visible[predicted.pair_index(c, t)]
             rendered_fraction = float(seen.mean())
-            predicted_fraction = float(predicted.visible[c, t])
+            predicted_fraction = float(predicted_visible[c, t])
             ok = abs(rendered_fraction - predicted_fraction) <= tolerance + 1e-12
             pairs += 1
             agreeing += ok

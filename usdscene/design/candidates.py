@@ -9,7 +9,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import MutableMapping, Sequence
 
 import numpy as np
 
@@ -46,7 +46,8 @@ class Mount:
 
 def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region_max_m: Sequence[float], *,
                      spacing_m: float = 0.8, offset_m: float = 0.05, walls: bool = True,
-                     surfaces: MountSurfaces | None = None, structure: Occluders | None = None) -> list[Mount]:
+                     surfaces: MountSurfaces | None = None, structure: Occluders | None = None,
+                     left_out: MutableMapping[str, int] | None = None) -> list[Mount]:
     """Ceiling and wall positions of the environment inside an axis-aligned region.
 
     A grid of probe points at the region's mid-height (``spacing_m`` apart in X and Y) casts
@@ -65,6 +66,7 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
         structure: when given, the rays are cast against it instead of ``occluders``: the
             mountable triangles alone, so that a passenger's head or a tree crown is neither a
             ceiling nor a wall, and the ray goes on to the structure behind it.
+        left_out: when given, counts of what was not made a mount, by reason (added to).
 
     Returns:
         Mounts, deduplicated to a ``spacing_m / 2`` grid, in a deterministic order.
@@ -83,9 +85,11 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
     inside = np.isfinite(down) & np.isfinite(up)
     mounts: list[Mount] = []
     keys: set[tuple[int, int, int]] = set()
+    _count(left_out, "room probes with no ceiling above or no floor below (open air)", int((~inside).sum()))
 
     def add(p: np.ndarray, surface: str, normal: Sequence[float]) -> None:
         if surfaces is not None and not surfaces.clear(p)[0]:
+            _count(left_out, f"{surface} positions inside or within 10 cm of unmountable geometry", 1)
             return
         key = tuple(int(round(v / (spacing_m / 2))) for v in p)
         if key not in keys and np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9):
@@ -112,7 +116,8 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
 def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: MountSurfaces,
                     region_min_m: Sequence[float], region_max_m: Sequence[float], *,
                     heights_m: Sequence[float] = (4.0, 6.0), spacing_m: float = 4.0, ground_band_m: float = 1.0,
-                    facade_reach_m: float = 12.0, offset_m: float = 0.05) -> list[Mount]:
+                    facade_reach_m: float = 12.0, offset_m: float = 0.05,
+                    left_out: MutableMapping[str, int] | None = None) -> list[Mount]:
     """Poles and façade mounts of the open air.
 
     A grid of rays (``spacing_m`` apart in X and Y) comes straight down from above the region.
@@ -134,6 +139,9 @@ def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: Mou
         ground_band_m: how far above the region's lowest point the ground may lie, metres.
         facade_reach_m: how far from a pole a façade is looked for, metres.
         offset_m: distance of a façade camera from its wall.
+        left_out: when given, counts of pole positions (grid rays) and pole cameras not made
+            mounts, by reason (added to), e.g. ground higher than ``ground_band_m`` above the
+            lowest point.
 
     Returns:
         Pole mounts, then façade mounts, deduplicated to a ``spacing_m / 4`` grid, deterministic.
@@ -149,8 +157,18 @@ def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: Mou
     starts = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, top)], axis=1)
     dist, hit = occluders.first_hit_triangle(starts, np.tile([0.0, 0.0, -1.0], (len(starts), 1)), top - lo[2] + 1.0)
     ground = np.isfinite(dist) & (hit >= 0)
-    ground[ground] &= surfaces.mountable[hit[ground]] & (np.abs(normals[hit[ground], 2]) >= math.cos(math.radians(25)))
-    ground &= (top - np.where(np.isfinite(dist), dist, 0.0)) <= lo[2] + ground_band_m
+    _count(left_out, "pole positions over nothing", int((~ground).sum()))
+    first = hit.clip(0)
+    unmountable = ground & ~surfaces.mountable[first]
+    _count(left_out, "pole positions whose first surface below is unmountable (a tree, a vehicle, ...)",
+           int(unmountable.sum()))
+    tilted = ground & ~unmountable & (np.abs(normals[first, 2]) < math.cos(math.radians(25)))
+    _count(left_out, "pole positions over ground steeper than 25 degrees", int(tilted.sum()))
+    ground &= ~unmountable & ~tilted
+    high = ground & ((top - np.where(np.isfinite(dist), dist, 0.0)) > lo[2] + ground_band_m)
+    _count(left_out, f"pole positions over ground more than {ground_band_m:g} m above the scene's lowest point "
+                     f"(z = {lo[2]:.2f} m: a roof, a deck above lower steps)", int(high.sum()))
+    ground &= ~high
     poles: list[Mount] = []
     facades: list[Mount] = []
     keys: set[tuple] = set()
@@ -159,7 +177,9 @@ def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: Mou
         foot = start - np.array([0.0, 0.0, d])
         for h in heights_m:
             p = foot + np.array([0.0, 0.0, float(h)])
-            if surfaces.clear(p)[0] and ("pole", *np.round(p / cell).astype(int)) not in keys:
+            if not surfaces.clear(p)[0]:
+                _count(left_out, "pole cameras inside or within 10 cm of unmountable geometry", 1)
+            elif ("pole", *np.round(p / cell).astype(int)) not in keys:
                 keys.add(("pole", *np.round(p / cell).astype(int)))
                 poles.append(Mount(tuple(float(v) for v in p), "pole", (0.0, 0.0, 0.0)))  # type: ignore[arg-type]
             for direction in ((1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0)):
@@ -176,6 +196,12 @@ def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: Mou
                 facades.append(Mount(tuple(float(v) for v in q), "facade",  # type: ignore[arg-type]
                                      tuple(-v for v in direction)))  # type: ignore[arg-type]
     return poles + facades
+
+
+def _count(left_out: MutableMapping[str, int] | None, reason: str, n: int) -> None:
+    """Add ``n`` to ``left_out[reason]`` (nothing when there is no counter or ``n`` is 0)."""
+    if left_out is not None and n:
+        left_out[reason] = left_out.get(reason, 0) + n
 
 
 def look_rotation(forward: Sequence[float]) -> np.ndarray:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+from usdscene.design.targets import DEFAULT_CELL_M
 from usdscene.errors import DocumentError, ProblemCollector
 
 DEFAULT_TARGETS = ("*:on,below,in_front,in",)
@@ -45,6 +46,9 @@ class PlanRequest:
         min_visible: fraction of a target's points a camera must see to count, in (0, 1].
         aims: target-cluster aims per mount (besides the surface normal).
         target_spacing_m: spacing of the sample points in each target region, metres.
+        cell_m: regions longer than this are split into cells no longer than this, metres.
+        max_memory_gb: the most the kept (camera, target) pairs may take; a larger request is
+            refused before any ray is cast, GB.
         time_limit_s: MILP time limit, seconds.
         pole_heights_m: camera heights of open-air poles above the ground, metres (empty: no
             poles and no façade mounts).
@@ -65,6 +69,8 @@ class PlanRequest:
     min_visible: float = 0.25
     aims: int = 4
     target_spacing_m: float = 0.2
+    cell_m: float = DEFAULT_CELL_M
+    max_memory_gb: float = 6.0
     time_limit_s: float = 60.0
     pole_heights_m: tuple[float, ...] = (4.0, 6.0)
     pole_spacing_m: float = 4.0
@@ -94,7 +100,7 @@ class PlanRequest:
         problems = ProblemCollector()
         limits = {"k": (1, None), "min_visible": (0.0, 1.0), "spacing_m": (0.05, None),
                   "target_spacing_m": (0.01, None), "aims": (0, None), "time_limit_s": (0.1, None),
-                  "pole_spacing_m": (0.5, None)}
+                  "pole_spacing_m": (0.5, None), "cell_m": (0.1, None), "max_memory_gb": (1e-9, None)}
         values = [(name, getattr(self, name)) for name in limits] + \
             [("pole_heights_m", h) for h in self.pole_heights_m]
         limits["pole_heights_m"] = (0.5, 100.0)
@@ -102,7 +108,7 @@ class PlanRequest:
             lo, hi = limits[name]
             if not math.isfinite(value) or value < lo or (hi is not None and value > hi):
                 span = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-                problems.add("--" + re.sub(r"_(m|s)$", "", name).replace("_", "-"),
+                problems.add("--" + re.sub(r"_(m|s|gb)$", "", name).replace("_", "-"),
                              f"expected a number {span}, got {value!r}")
         if self.min_visible == 0:
             problems.add("--min-visible", "0 would let a camera that sees nothing count; use a positive fraction")
@@ -136,7 +142,7 @@ class PlanRequest:
         return {"setup": Path(self.setup_document).name, "targets": list(self.targets), "mounts": mounts,
                 "spacing_m": self.spacing_m, "lenses": list(lens_names), "k": self.k, "dori": self.level,
                 "min_visible": self.min_visible, "occluders": self.occluders, "aims": self.aims,
-                "target_spacing_m": self.target_spacing_m,
+                "target_spacing_m": self.target_spacing_m, "cell_m": self.cell_m,
                 "dori_table": [{"name": c.name, "px_per_m": c.px_per_m, **({"group": c.group} if c.group else {})}
                                for c in table],
                 "standard": standard_name, "pole_heights_m": list(self.pole_heights_m),

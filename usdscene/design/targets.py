@@ -21,6 +21,10 @@ log = logging.getLogger(__name__)
 # Points of a target lie this far inside its region, so that a point on a support surface is
 # not hidden by that surface itself.
 SURFACE_LIFT_M = 0.03
+# Regions longer than this (in X or Y of their frame) become a grid of equal cells no longer
+# than this: a walkway is many targets, each a share of the floor, not one target that counts
+# as seen when a quarter of it is.
+DEFAULT_CELL_M = 5.0
 
 
 @dataclass(frozen=True)
@@ -32,12 +36,14 @@ class Target:
         place: place name ("" for a box).
         region: region short name (``on``, ``below``, ``in_front``, ...) or "box".
         points_m: (N, 3) float64 world points, metres.
+        area_m2: floor area the target stands for (its region's or cell's X × Y size), m².
     """
 
     name: str
     place: str
     region: str
     points_m: np.ndarray
+    area_m2: float = 0.0
 
     @property
     def centre_m(self) -> np.ndarray:
@@ -121,17 +127,35 @@ def box_points(size_m: Sequence[float], spacing_m: float) -> np.ndarray:
     return np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
 
 
+def region_cells(size_m: Sequence[float], cell_m: float) -> list[tuple[tuple[int, int], np.ndarray, np.ndarray]]:
+    """A region ``[-sx/2, sx/2] × [-sy/2, sy/2] × [0, sz]`` split into ``nx × ny`` equal cells
+    no longer than ``cell_m`` in X and Y (one cell when it already is).
+
+    Returns:
+        Per cell, in X-major order: ((i, j), (3,) cell size m, (3,) cell-frame origin in the
+        region frame m (the centre of its base)).
+    """
+    sx, sy, sz = (float(v) for v in size_m)
+    nx = max(1, int(math.ceil(sx / cell_m - 1e-9)))
+    ny = max(1, int(math.ceil(sy / cell_m - 1e-9)))
+    size = np.array([sx / nx, sy / ny, sz])
+    return [((i, j), size, np.array([-sx / 2 + (i + 0.5) * size[0], -sy / 2 + (j + 0.5) * size[1], 0.0]))
+            for i in range(nx) for j in range(ny)]
+
+
 def targets_from_places(places: Mapping[str, Place], specs: Sequence[TargetSpec], *,
-                        spacing_m: float = 0.2) -> list[Target]:
+                        spacing_m: float = 0.2, cell_m: float = DEFAULT_CELL_M) -> list[Target]:
     """Targets of the places and boxes ``specs`` name, in spec order then place-name order.
 
     Args:
         places: the environment's places (:meth:`usdscene.scene.catalog.Catalog.places`).
         specs: parsed ``--targets`` arguments.
         spacing_m: spacing of the sample grid in each region (metres).
+        cell_m: a region or box longer than this in X or Y becomes cells (:func:`region_cells`),
+            named ``<place>#<i>_<j>:<region>`` (``<box>#<i>_<j>``).
 
     Returns:
-        One :class:`Target` per (place, region) that exists, and one per box.
+        One :class:`Target` per (place, region) that exists (per cell of it), and per box.
 
     Raises:
         DocumentError: a pattern matches no place, or no matched place has a named region.
@@ -142,9 +166,11 @@ def targets_from_places(places: Mapping[str, Place], specs: Sequence[TargetSpec]
     for spec in specs:
         if spec.box_name:
             lo, hi = np.array(spec.box_min_m), np.array(spec.box_max_m)
-            local = box_points(hi - lo, spacing_m)
-            pts = local + np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-            targets.append(Target(spec.box_name, "", "box", pts))
+            cells = region_cells(hi - lo, cell_m)
+            for (i, j), size, origin in cells:
+                pts = box_points(size, spacing_m) + origin + np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+                name = spec.box_name if len(cells) == 1 else f"{spec.box_name}#{i:03d}_{j:03d}"
+                targets.append(Target(name, "", "box", pts, float(size[0] * size[1])))
             continue
         names = sorted(n for n in places if fnmatch.fnmatchcase(n, spec.pattern))
         if not names:
@@ -161,8 +187,11 @@ def targets_from_places(places: Mapping[str, Place], specs: Sequence[TargetSpec]
                     continue
                 seen.add(key)
                 found += 1
-                pts = r.pose.transform_points(box_points(r.size_m, spacing_m))
-                targets.append(Target(key, name, region, pts))
+                cells = region_cells(r.size_m, cell_m)
+                for (i, j), size, origin in cells:
+                    pts = r.pose.transform_points(box_points(size, spacing_m) + origin)
+                    cell_key = key if len(cells) == 1 else f"{name}#{i:03d}_{j:03d}:{region}"
+                    targets.append(Target(cell_key, name, region, pts, float(size[0] * size[1])))
         if not found:
             problems.add("--targets", f"no place matching {spec.pattern!r} has a region "
                                       f"{', '.join(spec.regions)}")
