@@ -24,6 +24,7 @@ from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
 from usdscene.document.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
+from usdscene.lens.fisheye import EQUISOLID_KB_COEFFS
 
 from usdscene.converters.openlabel.values import (
     IMAGE_SIDE_LIMIT,
@@ -39,10 +40,6 @@ from usdscene.converters.openlabel.values import (
 
 log = logging.getLogger(__name__)
 
-# Kannala-Brandt (OpenCV fisheye) coefficients of the equisolid projection r = 2 f sin(θ/2):
-# the Taylor series 2 sin(θ/2) = θ (1 - θ²/24 + θ⁴/1920 - θ⁶/322560 + θ⁸/92897280 - ...),
-# exact to 1e-10 rad for θ <= 1.1 rad.
-EQUISOLID_KB_COEFFS = (-1.0 / 24.0, 1.0 / 1920.0, -1.0 / 322560.0, 1.0 / 92897280.0)
 
 # The friendly camera block ``stream_properties.usdscene``.
 FRIENDLY_KEYS = ("model", "model_name", "resolution_px", "sensor_size_mm", "focal_length_mm", "fov_deg",
