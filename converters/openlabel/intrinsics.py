@@ -24,6 +24,7 @@ from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
 from usdscene.document.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
+from usdscene.lens.fisheye import EQUISOLID_KB_COEFFS
 
 from usdscene.converters.openlabel.values import (
     IMAGE_SIDE_LIMIT,
@@ -39,9 +40,6 @@ from usdscene.converters.openlabel.values import (
 
 log = logging.getLogger(__name__)
 
-# The equisolid lens's OpenCV-fisheye fit is the lens's own (usdscene.lens.fisheye); the
-# writer's name for it stays importable from here.
-from usdscene.lens.fisheye import EQUISOLID_KB_COEFFS  # noqa: E402
 
 # The friendly camera block ``stream_properties.usdscene``.
 FRIENDLY_KEYS = ("model", "model_name", "resolution_px", "sensor_size_mm", "focal_length_mm", "fov_deg",

@@ -27,9 +27,7 @@ from typing import Any, Iterable, Mapping
 
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import (
-    FISHEYE_LENSES,
     FrameInterval,
-    LensModel,
     Light,
     PlaceRef,
     Pose,
@@ -41,8 +39,8 @@ from usdscene.document.model import (
 )
 
 from usdscene.converters.openlabel.carry import merge_element, merge_scene, merge_stream
-from usdscene.converters.openlabel.intrinsics import EQUISOLID_KB_COEFFS
 from usdscene.converters.openlabel.load import SCHEMA_VERSION
+from usdscene.lens import lens_for
 from usdscene.converters.openlabel.objects import LIGHT_TYPE, PLACE_TYPE, UID_PATTERN
 
 log = logging.getLogger(__name__)
@@ -376,45 +374,10 @@ def _calibration(cam, problems: ProblemCollector) -> dict:
                                 "sensor_size_mm": [float(k.sensor_width_mm), float(k.sensor_height_mm)]}
     props: dict[str, Any] = {}
     size = {"width_px": int(k.width_px), "height_px": int(k.height_px)}
-    if k.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-        dist = [float(v) for v in k.distortion] if k.lens is LensModel.OPENCV_PINHOLE else []
-        if dist and len(dist) not in (4, 5, 8):
-            problems.add(f"{where}.distortion", f"OpenCV pinhole distortion has 4, 5 or 8 coefficients, got {len(dist)}")
-        # The schema asks for at least 5 coefficients: pad k3 (and zeros for no distortion).
-        dist = dist + [0.0] * (5 - len(dist)) if len(dist) < 5 else dist
-        props["intrinsics_pinhole"] = {
-            **size,
-            "camera_matrix": [float(k.fx_px), 0.0, float(k.cx_px), 0.0, 0.0, float(k.fy_px), float(k.cy_px), 0.0,
-                              0.0, 0.0, 1.0, 0.0],
-            "distortion_coeffs": dist}
-    elif k.lens in FISHEYE_LENSES:
-        fisheye_model = "opencv_fisheye"
-        if k.lens in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
-            coeffs = [float(v) for v in k.distortion]
-            if len(coeffs) != 4:
-                problems.add(f"{where}.distortion", f"{k.lens.value} has 4 coefficients k1..k4, got {len(coeffs)}")
-            if k.lens is LensModel.KANNALA:
-                # VCD's own form r = f (k1θ + k2θ³ + ...) with k1 = 1 is the normalised lens as it is
-                fisheye_model, coeffs = "kannala", [1.0, *coeffs]
-        elif k.lens is LensModel.RADIAL_POLY:
-            coeffs = [float(v) for v in k.distortion]
-            if len(coeffs) not in (3, 4):
-                problems.add(f"{where}.distortion", f"radial_poly has 3 or 4 coefficients d1..d4, got {len(coeffs)}")
-            fisheye_model, coeffs = "radial_poly", [1.0, *coeffs]
-        elif k.lens is LensModel.FISHEYE_EQUISOLID:
-            coeffs = list(EQUISOLID_KB_COEFFS)
-        else:
-            coeffs = [0.0, 0.0, 0.0, 0.0]
-        props["intrinsics_fisheye"] = {
-            **size, "focal_length_x": float(k.fx_px), "focal_length_y": float(k.fy_px),
-            "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px), "lens_coeffs": coeffs,
-            "model": fisheye_model}
-        if k.fov_deg is not None:
-            friendly["fov_deg"] = float(k.fov_deg)
-    else:
-        props["intrinsics_custom"] = {
-            "model": "orthographic", **size, "scale_x_px_per_m": float(k.fx_px),
-            "scale_y_px_per_m": float(k.fy_px), "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px)}
+    lens = lens_for(k)
+    props.update(lens.openlabel_calibration(k, size, where, problems))
+    if lens.radial and k.fov_deg is not None:
+        friendly["fov_deg"] = float(k.fov_deg)
     if cam.model_name:
         friendly["model_name"] = cam.model_name
     friendly["clip_range_m"] = [float(cam.clip_near_m), float(cam.clip_far_m)]

@@ -52,6 +52,7 @@ import numpy as np
 from usdscene import __version__
 from usdscene.document import stage_schema as ss
 from usdscene.errors import DocumentError, ProblemCollector
+from usdscene.lens import lens_for
 from usdscene.document.model import (Camera, DeclaredRegion, FrameInterval, Intrinsics, LensModel, Light, LightKind, PlaceRef, Pose,
                             Provenance, Relation, RenderSettings, SceneObject, SceneSpec, canonical_json,
                             union_intervals, usd_pose_to_cv_pose)
@@ -443,7 +444,7 @@ class _StageReader:
         exact = self._lens_attrs(prim)
         if exact is not None and self.mpu == 1.0:
             expected = camera_apertures(exact)
-            same_projection = (exact.lens == LensModel.ORTHOGRAPHIC) == ortho
+            same_projection = lens_for(exact).orthographic == ortho
             scale = max(abs(expected["horizontalAperture"]), abs(expected["verticalAperture"]), 1e-12)
             if same_projection and all(
                     usd[k] is not None and abs(float(usd[k]) - v) <= 1e-6 * max(abs(v), scale)
@@ -458,7 +459,7 @@ class _StageReader:
             h_ap, v_ap = usd["horizontalAperture"] or 20.955, usd["verticalAperture"] or 15.2908
             width, height = default_width, max(1, int(round(default_width * float(v_ap) / float(h_ap))))
         derived = _derive_intrinsics(usd, ortho, width, height, self.mpu)
-        if exact is not None and (exact.lens == LensModel.ORTHOGRAPHIC) == ortho:
+        if exact is not None and lens_for(exact).orthographic == ortho:
             # Keep the lens model the attributes name; the plain USD values win for the rest.
             return Intrinsics(exact.lens, width, height, derived.fx_px, derived.fy_px, derived.cx_px,
                               derived.cy_px, exact.distortion, exact.fov_deg, derived.sensor_width_mm)

@@ -56,6 +56,13 @@ class Lens:
             return math.radians(intrinsics.fov_deg) / 2.0
         return self.default_half_fov_rad
 
+    def openlabel_calibration(self, intrinsics, size: dict, where: str, problems) -> dict:
+        """The OpenLABEL ``stream_properties`` calibration that reproduces the lens
+        (``intrinsics_pinhole``, ``intrinsics_fisheye`` or ``intrinsics_custom``), ``size`` its
+        ``width_px`` / ``height_px``; a bad coefficient count is added to ``problems`` (a
+        :class:`usdscene.errors.ProblemCollector`) at ``where``."""
+        raise NotImplementedError
+
     def opencv_distortion(self, intrinsics):
         """``(OpenCV model, D)``: ``"pinhole"`` (``cv2.projectPoints``) or ``"fisheye"``
         (``cv2.fisheye``) and the distortion coefficients that reproduce the lens with the

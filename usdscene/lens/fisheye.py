@@ -15,7 +15,6 @@ import numpy as np
 from usdscene.lens.base import Lens
 from usdscene.lens.pinhole import distortion_coefficients
 
-
 class RadialLens(Lens):
     """A lens ``r = f·g(θ)``; subclasses give :meth:`radius` and :meth:`angle`."""
 
@@ -32,6 +31,18 @@ class RadialLens(Lens):
     def render_radius_px(self, f_px: float, theta: float) -> float:
         """Image radius in pixels of the angle ``theta`` with focal length ``f_px`` (a native fisheye)."""
         raise NotImplementedError
+
+    def openlabel_coeffs(self, intrinsics, where: str, problems) -> tuple[str, list]:
+        """``(model, lens_coeffs)`` of the OpenLABEL ``intrinsics_fisheye`` that reproduces the lens."""
+        return "opencv_fisheye", [0.0, 0.0, 0.0, 0.0]
+
+    def openlabel_calibration(self, intrinsics, size: dict, where: str, problems) -> dict:
+        k = intrinsics
+        fisheye_model, coeffs = self.openlabel_coeffs(k, where, problems)
+        return {"intrinsics_fisheye": {
+            **size, "focal_length_x": float(k.fx_px), "focal_length_y": float(k.fy_px),
+            "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px), "lens_coeffs": coeffs,
+            "model": fisheye_model}}
 
     def project(self, intrinsics, x, y, z):
         rho = np.hypot(x, y)
@@ -121,6 +132,9 @@ class EquisolidFisheye(RadialLens):
     def render_radius_px(self, f_px, theta):
         return 2 * f_px * math.sin(theta / 2)
 
+    def openlabel_coeffs(self, intrinsics, where, problems):
+        return "opencv_fisheye", list(EQUISOLID_KB_COEFFS)
+
     def blender_camera(self, intrinsics) -> dict:
         return {"type": "PANO", "panorama_type": "FISHEYE_EQUISOLID",
                 "fisheye_lens": intrinsics.fx_px * intrinsics.sensor_width_mm / intrinsics.width_px,
@@ -173,6 +187,12 @@ class OpenCVFisheye(PolynomialLens):
         d = list(intrinsics.distortion) + [0.0] * 4
         return "fisheye", np.asarray(d[:4], dtype=np.float64)
 
+    def openlabel_coeffs(self, intrinsics, where, problems):
+        coeffs = [float(v) for v in intrinsics.distortion]
+        if len(coeffs) != 4:
+            problems.add(f"{where}.distortion", f"{self.name} has 4 coefficients k1..k4, got {len(coeffs)}")
+        return "opencv_fisheye", coeffs
+
 
 class KannalaFisheye(OpenCVFisheye):
     """``kannala``: the Kannala-Brandt ``θd`` with the normalised coefficients d1..d4 of VCD's
@@ -181,11 +201,22 @@ class KannalaFisheye(OpenCVFisheye):
     name = "kannala"
     default_half_fov_rad = math.pi
 
+    def openlabel_coeffs(self, intrinsics, where, problems):
+        # VCD's own form r = f (k1θ + k2θ³ + ...) with k1 = 1 is the normalised lens as it is
+        _, coeffs = super().openlabel_coeffs(intrinsics, where, problems)
+        return "kannala", [1.0, *coeffs]
+
 
 class RadialPolynomial(PolynomialLens):
     """``radial_poly``: ``θd = θ(1 + d1θ + d2θ² + d3θ³ [+ d4θ⁴])``, any powers of ``θ``."""
 
     name = "radial_poly"
+
+    def openlabel_coeffs(self, intrinsics, where, problems):
+        coeffs = [float(v) for v in intrinsics.distortion]
+        if len(coeffs) not in (3, 4):
+            problems.add(f"{where}.distortion", f"radial_poly has 3 or 4 coefficients d1..d4, got {len(coeffs)}")
+        return "radial_poly", [1.0, *coeffs]
 
     def theta_d(self, theta, coeffs):
         # Horner from the highest power: q = d1θ + d2θ² + ..., q' = 2d1 + 3d2θ + ...

@@ -80,6 +80,20 @@ class Perspective(Lens):
     def opencv_distortion(self, intrinsics):
         return "pinhole", np.zeros(5)
 
+    def openlabel_calibration(self, intrinsics, size: dict, where: str, problems) -> dict:
+        k = intrinsics
+        dist = self._openlabel_distortion(k, where, problems)
+        # The schema asks for at least 5 coefficients: pad k3 (and zeros for no distortion).
+        dist = dist + [0.0] * (5 - len(dist)) if len(dist) < 5 else dist
+        return {"intrinsics_pinhole": {
+            **size,
+            "camera_matrix": [float(k.fx_px), 0.0, float(k.cx_px), 0.0, 0.0, float(k.fy_px), float(k.cy_px), 0.0,
+                              0.0, 0.0, 1.0, 0.0],
+            "distortion_coeffs": dist}}
+
+    def _openlabel_distortion(self, intrinsics, where, problems) -> list:
+        return []
+
     def blender_camera(self, intrinsics) -> dict:
         return {"type": "PERSP", "lens": intrinsics.fx_px * intrinsics.sensor_width_mm / intrinsics.width_px}
 
@@ -99,6 +113,12 @@ class OpenCVPinhole(Perspective):
 
     def _undistort(self, xd, yd, intrinsics, iterations):
         return _undistort_brown_conrady(xd, yd, intrinsics, iterations)
+
+    def _openlabel_distortion(self, intrinsics, where, problems) -> list:
+        dist = [float(v) for v in intrinsics.distortion]
+        if dist and len(dist) not in (4, 5, 8):
+            problems.add(f"{where}.distortion", f"OpenCV pinhole distortion has 4, 5 or 8 coefficients, got {len(dist)}")
+        return dist
 
     def opencv_distortion(self, intrinsics):
         d = list(intrinsics.distortion) + [0.0] * max(0, 5 - len(intrinsics.distortion))
@@ -121,6 +141,12 @@ class Orthographic(Lens):
 
     def unproject(self, intrinsics, xd, yd, iterations):
         return np.tile([0.0, 0.0, 1.0], (len(xd), 1)), np.ones(len(xd), dtype=bool)
+
+    def openlabel_calibration(self, intrinsics, size: dict, where: str, problems) -> dict:
+        k = intrinsics
+        return {"intrinsics_custom": {
+            "model": "orthographic", **size, "scale_x_px_per_m": float(k.fx_px),
+            "scale_y_px_per_m": float(k.fy_px), "center_x_px": float(k.cx_px), "center_y_px": float(k.cy_px)}}
 
     def blender_camera(self, intrinsics) -> dict:
         return {"type": "ORTHO", "ortho_scale": intrinsics.width_px / intrinsics.fx_px}  # metres across

@@ -91,9 +91,10 @@ from usdscene.scene.catalog import COMBINED_SETS, Catalog
 from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCollector
 from usdscene.files import make_folder, write_text_atomic
 from usdscene.document.output_layout import mask_ids
-from usdscene.document.model import (Camera, FrameInterval, Intrinsics, LensModel, Light, LightKind, Pose,
+from usdscene.document.model import (Camera, FrameInterval, Intrinsics, Light, LightKind, Pose,
                             Randomization, RenderSettings, SceneSpec, canonical_json, clip_intervals,
                             cv_pose_to_usd_pose, extra_data, union_intervals)
+from usdscene.lens import lens_for
 from usdscene.scene.placement import ObjectPlacement, check_placement_inputs, place_objects
 
 log = logging.getLogger(__name__)
@@ -669,7 +670,7 @@ def camera_apertures(intr: Intrinsics) -> dict[str, float]:
         ``horizontalApertureOffset``, ``verticalApertureOffset`` as floats.
     """
     w, h = intr.width_px, intr.height_px
-    if intr.lens == LensModel.ORTHOGRAPHIC:
+    if lens_for(intr).orthographic:
         # fx/fy are pixels per metre; apertures are the view size in tenths of a metre.
         h_ap, v_ap = 10.0 * w / intr.fx_px, 10.0 * h / intr.fy_px
         focal = intr.sensor_width_mm / MM_PER_TENTH_METRE
@@ -697,7 +698,7 @@ def _cameras_layer(scene: SceneSpec) -> str:
         _author_transform(layer, prim, base, per_frame, scene.frame_start)
         intr = cam.intrinsics
         _attr(prim, "projection", T.Token,
-              "orthographic" if intr.lens == LensModel.ORTHOGRAPHIC else "perspective")
+              "orthographic" if lens_for(intr).orthographic else "perspective")
         for name, value in camera_apertures(intr).items():
             _attr(prim, name, T.Float, value)
         _attr(prim, "clippingRange", T.Float2, Gf.Vec2f(cam.clip_near_m, cam.clip_far_m))
