@@ -9,9 +9,11 @@ regions), never internal state:
 * ``mot``: ``OUT/exports/mot/<camera>/`` MOTChallenge sequences (see :mod:`usdscene.converters.exports.mot`);
 * ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
   calibrations (see :mod:`usdscene.converters.exports.multiview`); persons are the catalog's person
-  classes (:func:`usdscene.generate.motion.person_classes`).
+  classes (:func:`usdscene.generate.motion.person_classes`);
+* ``aicity``: ``OUT/exports/aicity/<scene>/`` an AI City Challenge Track 1 scene (see
+  :mod:`usdscene.dataset.aicity_scene`).
 
-``mot`` and ``multiview`` need a moving sequence (a document with ``metadata.usdscene.fps``).
+``mot``, ``multiview`` and ``aicity`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -31,7 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-FORMATS = ("coco", "yolo", "rois", "mot", "multiview")
+FORMATS = ("coco", "yolo", "rois", "mot", "multiview", "aicity")
 """Dataset formats :func:`export_formats` writes."""
 
 
@@ -168,6 +170,13 @@ class ExportOptions:
     min_visible_fraction: float = 0.0
     rle_below_px: int = 0
     grid: Any = None
+    aicity: Any = None
+    """The AI City Challenge scene (:class:`usdscene.converters.exports.aicity.AicOptions`,
+    None = its defaults); ``aicity_map`` / ``aicity_videos``: render the map, write the videos."""
+    aicity_map: bool = True
+    aicity_videos: bool = True
+    aicity_map_samples: int | None = None
+    aicity_map_cut_m: float = 2.5
 
 
 def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -> dict:
@@ -199,10 +208,10 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     # the document (which can be large) and the catalog are read once for every format
     loaded = _load_annotated(out, options.extra_assets,
                              need_catalog="rois" in ordered or not options.document_classes)
-    if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
+    if {"mot", "multiview", "aicity"} & set(ordered):  # fail before writing any format
         from usdscene.converters.exports.tracks import require_tracks
 
-        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
+        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview", "aicity")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
@@ -225,6 +234,14 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
 
         people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
         written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
+    if "aicity" in ordered:
+        from usdscene.converters.exports.aicity import AicOptions
+        from usdscene.dataset.aicity_scene import export_aicity_scene
+
+        written["aicity"] = export_aicity_scene(out, loaded[0], loaded[1], options.aicity or AicOptions(),
+                                                render_the_map=options.aicity_map, videos=options.aicity_videos,
+                                                map_samples=options.aicity_map_samples,
+                                                map_cut_m=options.aicity_map_cut_m)
     return {fmt: written[fmt] for fmt in ordered}
 
 
