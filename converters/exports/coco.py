@@ -19,7 +19,9 @@ Reads only the document written by :func:`usdscene.converters.openlabel.annotati
   an uncompressed RLE of those pixels instead (``{"size": [h, w], "counts": [...]}``).
   Extra fields: ``uid``, ``visible_fraction``, ``truncated``, ``amodal_bbox``, and for a moving
   sequence (a document with ``metadata.usdscene.fps``) ``track_id``, the object's id in every
-  export (:func:`usdscene.converters.exports.tracks.track_ids`).
+  export (:func:`usdscene.converters.exports.tracks.track_ids`); ``box3d``, the object's 3D
+  box in that frame when the document has one (:mod:`usdscene.labels.cuboids`: OpenLABEL's
+  10 values ``[x, y, z, qx, qy, qz, qw, sx, sy, sz]``, world metres).
   People (labels with keypoints) also get ``keypoints`` (17 ``x, y, v`` triples in COCO's
   pixel convention, ``0, 0, 0`` where v = 0) and ``num_keypoints`` (v > 0); their category
   gets ``keypoints`` (the COCO-17 names) and ``skeleton``, supercategory ``person``.
@@ -40,6 +42,7 @@ from usdscene.converters.exports.tracks import document_fps, track_ids
 from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
 from usdscene.document import output_layout as layout
 from usdscene.files import write_json_atomic
+from usdscene.labels.cuboids import document_cuboids
 from usdscene.labels.image_labels import bridge_rings
 from usdscene.labels.pixel_outline import fill_rings
 
@@ -137,6 +140,7 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
     index = index or LabelIndex(document)
     # Only moving sequences carry track ids: the COCO files of other documents keep their bytes.
     tracks = track_ids(document) if document_fps(document) is not None else None
+    boxes3d = document_cuboids(document)
     for image_id, record in zip(image_ids, records):
         file_name = f"{uri_prefix}/{record['uri']}" if uri_prefix else record["uri"]
         images.append({"id": image_id, "file_name": file_name, "width": record["width_px"],
@@ -167,6 +171,9 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
             })
             if tracks is not None and label["uid"] in tracks:
                 annotations[-1]["track_id"] = tracks[label["uid"]]
+            box3d = boxes3d.get(int(record["frame"]), {}).get(label["uid"])
+            if box3d is not None:
+                annotations[-1]["box3d"] = box3d.openlabel_val()
             if label.get("keypoints") is not None:
                 # COCO's pixel convention (+0.5); x = y = 0 where v = 0.
                 flat: list[float] = []

@@ -52,6 +52,11 @@ Per labelled frame, objects placed through relations also get ``text`` object da
 chain of relations ends at (:func:`resolve_places`), so ``bag is_on suitcase is_below
 seat_03A`` reads as below seat_03A.
 
+Per labelled frame, every object with geometry present in it gets its 3D box
+(:mod:`usdscene.labels.cuboids`): ``cuboid`` object data named ``box3d``, ``val`` ``[x, y, z,
+qx, qy, qz, qw, sx, sy, sz]`` in the world coordinate system (the root ``scene_cs``), metres;
+:func:`usdscene.labels.cuboids.document_cuboids` reads them back.
+
 Every object gets ``object_data_pointers`` for these names (type, frame intervals,
 ``attribute_pointers``), its ``frame_intervals`` are widened to the labelled frames, and the
 root ``frame_intervals`` is the union of all frames. ``metadata.usdscene_annotations`` records
@@ -63,11 +68,12 @@ from __future__ import annotations
 import copy
 import os
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 from usdscene.document import output_layout as layout
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.labels.pixel_density import DoriClass, load_dori
+from usdscene.labels.cuboids import CUBOID_NAME, Cuboid, cuboid_data
 from usdscene.labels.cross_camera import CrossCameraRow, Densities, cross_camera_table
 from usdscene.labels.image_labels import Annotations, ObjectLabel
 from usdscene.document.model import FrameInterval, RelationType, SceneSpec, union_intervals
@@ -188,7 +194,7 @@ def keypoint_name(camera: str, keypoint: str) -> str:
 def _pointer_type_attrs(name: str, kind: str) -> dict[str, str]:
     if name == CAMERAS_DATA:
         return _CAMERAS_ATTRIBUTES
-    if kind == "text":
+    if kind in ("text", "cuboid"):
         return {}
     if kind == "point2d":
         return {"visibility": "num"}
@@ -340,7 +346,8 @@ def sensor_record(sensor, seed: int, camera: str, frame: int) -> dict:
 
 def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                     out_dir: str | os.PathLike, *, densities: Densities | None = None,
-                    dori_table: Sequence[DoriClass] | None = None) -> dict:
+                    dori_table: Sequence[DoriClass] | None = None,
+                    cuboids: Mapping[int, Mapping[str, Cuboid]] | None = None) -> dict:
     """The document plus per-frame image/mask uris, per-camera labels and the cross-camera
     table (a new dict).
 
@@ -353,6 +360,8 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
             (:func:`usdscene.labels.cross_camera.object_densities`); None = unknown (no ``px_per_m``
             and ``dori`` attributes).
         dori_table: ascending DORI classes; None = the shipped IEC 62676-4:2015 table.
+        cuboids: frame → uid → 3D box (:func:`usdscene.labels.cuboids.labelled_cuboids`),
+            written as ``cuboid`` object data named ``box3d``; None = no 3D boxes.
 
     Returns:
         A new ``{"openlabel": {...}}`` dict; see the module docstring for where things go.
@@ -438,6 +447,18 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
         vecs[:] = [v for v in vecs if v.get("name") != CAMERAS_DATA] + [_cameras_data(row)]
         pointer_frames.setdefault(key, {}).setdefault(CAMERAS_DATA, ("vec", set()))[1].add(row.frame)
 
+    world = next((name for name, system in (root.get("coordinate_systems") or {}).items()
+                  if isinstance(system, dict) and not system.get("parent")), "world")
+    for frame_number, boxes in sorted((cuboids or {}).items()):
+        for uid, cuboid in boxes.items():
+            key = _document_key(uid, objects, scene)
+            if key is None:
+                continue
+            frame_objects = frames.setdefault(str(int(frame_number)), {}).setdefault("objects", {})
+            items = frame_objects.setdefault(key, {}).setdefault("object_data", {}).setdefault("cuboid", [])
+            items[:] = [c for c in items if c.get("name") != CUBOID_NAME] + [cuboid_data(cuboid, world)]
+            pointer_frames.setdefault(key, {}).setdefault(CUBOID_NAME, ("cuboid", set()))[1].add(int(frame_number))
+
     for uid, names in pointer_frames.items():
         element = objects[uid]
         ptrs = element.setdefault("object_data_pointers", {})
@@ -470,6 +491,12 @@ def add_annotations(document: dict, scene: SceneSpec, annotations: Annotations,
                         "visible pixel; px_per_m at the object's bounds centre; dori per dori_classes",
         "dori_classes": [{"name": c.name, "px_per_m": float(c.px_per_m)} for c in dori_table],
     }
+    if cuboids:
+        metadata[ANNOTATION_METADATA_KEY]["cuboid"] = (
+            f"frames.<f>.objects.<uid>.object_data.cuboid[name={CUBOID_NAME}]: [x, y, z, qx, qy, qz, qw, "
+            f"sx, sy, sz] in {world!r} metres (Z up): centre, rotation about Z (the object's yaw), width "
+            "along the object's x, length along y, height along z; the tightest such box around "
+            "the object's posed geometry")
     return result
 
 

@@ -3,7 +3,8 @@
 For every mask ``OUT/masks/<camera>/<frame:06d>.png`` (ids explained by ``OUT/masks/ids.json``):
 tight boxes, polygons and pixel counts from the mask; amodal boxes, truncation and visible
 fractions from the objects' triangles in the composed stage (``OUT/stage/scene.usda``)
-projected through the exact camera the renderer used. The labels are added to the scene
+projected through the exact camera the renderer used; per labelled frame, each object's 3D
+box around the same triangles (:mod:`usdscene.labels.cuboids`). The labels are added to the scene
 document, which is, in this order: the ``document_path`` given; the source document recorded in
 the stage when it still exists unchanged (same sha256); or the scene read back from the stage.
 """
@@ -327,9 +328,13 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
             bar.stop()
     annotations = label_images(images, epsilon_px=labeller.epsilon_px,
                                min_visible_fraction=labeller.min_visible_fraction)
-    densities = None
+    densities = cuboids = None
     if labeller.geometry is not None:  # px/m of the cross-camera table, at the objects' centres
         from usdscene.labels.cross_camera import object_densities
 
         densities = object_densities(annotations, labeller.cameras, labeller.geometry)
-    return add_annotations(document, scene, annotations, out, densities=densities), annotations
+        from usdscene.labels.cuboids import labelled_cuboids
+
+        cuboids = labelled_cuboids(annotations.frames(), labeller.geometry, set(labeller.ids.values()))
+    return (add_annotations(document, scene, annotations, out, densities=densities, cuboids=cuboids),
+            annotations)

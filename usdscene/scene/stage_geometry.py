@@ -182,6 +182,24 @@ class StageGeometry:
         return result
 
 
+    def transforms(self, frame: int, uids: Collection[str] | None = None) -> dict[str, np.ndarray]:
+        """Local → world matrices of the objects' prims visible at ``frame`` (their pose; for
+        the yaw of their 3D boxes, :mod:`usdscene.labels.cuboids`).
+
+        Returns:
+            uid → (4, 4) float64 USD matrix (row vectors: ``p_world = p_local · M``).
+        """
+        time = Usd.TimeCode(frame)
+        xforms = UsdGeom.XformCache(time)
+        result = {}
+        for uid, (prim, _) in self._objects.items():
+            if uids is not None and uid not in uids:
+                continue
+            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+                continue
+            result[uid] = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
+        return result
+
     def keypoints(self, frame: int, uids: Collection[str] | None = None) -> dict[str, np.ndarray]:
         """World-space keypoints of the visible objects that carry them (people:
         ``stage_schema.ATTR_KEYPOINTS`` on the object's prim, from its selected variants).
