@@ -3,8 +3,8 @@ rendered small, exported as an AIC Track 1 scene and drawn from the export.
 
 Usage (from anywhere)::
 
-    python examples/car_park/make_aicity.py WORK [--frames 24] [--fps 8] [--people 10]
-        [--resolution 256 144] [--samples 4] [--pictures DIR]
+    python examples/car_park/make_aicity.py WORK [--frames 12] [--fps 6] [--people 10]
+        [--resolution 256 144] [--samples 2] [--pictures DIR]
 
 writes ``WORK/setup_aicity.openlabel.json`` (``setup_moving.openlabel.json`` with its fisheye
 and distorted cameras replaced by six perspective cameras: AIC's calibration has no distortion),
@@ -63,11 +63,11 @@ def run(*args: str) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("work", type=Path)
-    parser.add_argument("--frames", type=int, default=24)
-    parser.add_argument("--fps", type=float, default=8.0)
+    parser.add_argument("--frames", type=int, default=12)
+    parser.add_argument("--fps", type=float, default=6.0)
     parser.add_argument("--people", type=int, default=10)
     parser.add_argument("--resolution", type=int, nargs=2, default=(256, 144))
-    parser.add_argument("--samples", type=int, default=4)
+    parser.add_argument("--samples", type=int, default=2)
     parser.add_argument("--map-m-per-px", type=float, default=0.05)
     parser.add_argument("--pictures", type=Path)
     args = parser.parse_args()

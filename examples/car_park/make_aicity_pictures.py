@@ -5,7 +5,7 @@ video frame per camera with the ``2d bounding box`` (thin) and ``2d bounding box
 (thick) of ``ground_truth.json``.
 
 ``python examples/car_park/make_aicity_pictures.py SCENE_DIR OUT_DIR [--frame N] [--scale K]``
-writes ``OUT_DIR/aicity_map.png`` and ``OUT_DIR/aicity_frame.jpg``.
+writes ``OUT_DIR/aicity_map.jpg`` and ``OUT_DIR/aicity_frame.jpg``.
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def main() -> int:
     parser.add_argument("--scale", type=int, default=2)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(args.out / "aicity_map.png"), map_picture(args.scene, args.scale))
+    cv2.imwrite(str(args.out / "aicity_map.jpg"), map_picture(args.scene, args.scale), [cv2.IMWRITE_JPEG_QUALITY, 88])
     cv2.imwrite(str(args.out / "aicity_frame.jpg"), frame_picture(args.scene, args.frame, args.scale),
                 [cv2.IMWRITE_JPEG_QUALITY, 85])
     return 0
