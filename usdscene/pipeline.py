@@ -318,8 +318,9 @@ def summary_text(summary: RunSummary) -> str:
         f"{summary.hidden_labels} fully occluded (amodal only)"
         + (f"; {summary.images_labelled_while_rendering} images labelled while rendering"
            if summary.images_labelled_while_rendering else ""),
-        f"  outputs: {out / layout.IMAGES_DIR}/, {out / layout.MASKS_DIR}/, {out / layout.ANNOTATIONS_FILE}, "
-        f"{out / layout.STAGE_DIR}/",
+        f"  outputs: {out / layout.IMAGES_DIR}/, {out / layout.MASKS_DIR}/, "
+        + (f"{out / layout.DEPTH_DIR}/, " if (out / layout.DEPTH_DIR).is_dir() else "")
+        + f"{out / layout.ANNOTATIONS_FILE}, {out / layout.STAGE_DIR}/",
     ]
     report = summary.render
     if report is not None and (report.executor != "local" or report.retries or len(report.nodes) > 1):

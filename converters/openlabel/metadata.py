@@ -31,7 +31,9 @@ RENDER_KEYS = ("engine", "device", "samples", "adaptive_threshold", "adaptive_mi
                "denoiser", "denoising_quality", "denoising_prefilter", "denoising_input_passes", "light_tree",
                "path_guiding", "clamp_indirect", "sampling_pattern", "fast_gi", "fast_gi_method",
                "fast_gi_ao_bounces", "fast_gi_distance_m", "scrambling_distance", "auto_scrambling_distance",
-               "max_bounces", "caustics", "tile_size_px", "resolution_px", "seed")
+               "max_bounces", "caustics", "tile_size_px", "resolution_px", "seed", "depth")
+# Depth image encodings (usdscene.render.depth.DEPTH_FORMATS; a constant here keeps the reader pure).
+DEPTH_FORMATS = ("png16", "exr")
 ENGINES = ("cycles", "eevee", "workbench")
 DEVICES = ("cpu", "gpu")
 DENOISERS = ("openimagedenoise", "optix")
@@ -200,6 +202,14 @@ def read_render(value: Any, where: str, problems: ProblemCollector) -> RenderSet
                 parsed = None
         elif key in ("denoise", "caustics", "light_tree", "path_guiding", "fast_gi", "auto_scrambling_distance"):
             parsed = read_bool(item, here, P)
+        elif key == "depth":
+            if item is None:
+                continue
+            parsed = read_text(item, here, P)
+            if parsed is not None and parsed not in DEPTH_FORMATS:
+                problems.add(here, f"unknown depth format {parsed!r}; expected one of {', '.join(DEPTH_FORMATS)} "
+                                   "(or null for no depth images)")
+                parsed = None
         else:  # resolution_px
             parsed = read_resolution(item, here, P)
         if parsed is not None:

@@ -345,6 +345,8 @@ def _metadata(scene: SceneSpec) -> dict:
         "max_bounces": int(render.max_bounces), "caustics": bool(render.caustics),
         "tile_size_px": int(render.tile_size_px), "resolution_px": [int(v) for v in render.resolution_px],
         "seed": int(render.seed)}
+    if render.depth is not None:  # absent when off: documents without depth keep their bytes
+        block["render"]["depth"] = render.depth
     block["exports"] = list(scene.exports)
     block["roi_rules"] = dict(scene.roi_rules)
     if scene.roi_ignore:

@@ -344,7 +344,8 @@ class _StageReader:
                   ("scrambling_distance", ss.ATTR_RENDER_SCRAMBLING_DISTANCE, float),
                   ("auto_scrambling_distance", ss.ATTR_RENDER_AUTO_SCRAMBLING_DISTANCE, bool),
                   ("max_bounces", ss.ATTR_RENDER_MAX_BOUNCES, int), ("caustics", ss.ATTR_RENDER_CAUSTICS, bool),
-                  ("tile_size_px", ss.ATTR_RENDER_TILE_SIZE, int), ("seed", ss.ATTR_RENDER_SEED, int))
+                  ("tile_size_px", ss.ATTR_RENDER_TILE_SIZE, int), ("seed", ss.ATTR_RENDER_SEED, int),
+                  ("depth", ss.ATTR_RENDER_DEPTH, str))
         for field_name, attr, kind in fields:
             value = _value(prim, attr)
             if value is not None:

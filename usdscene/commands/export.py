@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
                                                aicity_map_samples=args.map_samples, aicity_map_cut_m=args.map_cut_m,
                                                **options))
     else:
-        for per_output in ("rois", "mot", "multiview", "aicity"):
+        for per_output in ("rois", "mot", "multiview", "video", "aicity"):
             if per_output in args.format:
                 raise OutputError([Problem("--dataset", f"{per_output} is exported per output folder; "
                                                         f"export {per_output} without --dataset")])

@@ -10,10 +10,12 @@ regions), never internal state:
 * ``multiview``: ``OUT/exports/multiview/`` WILDTRACK-style ground-plane positions and OpenCV
   calibrations (see :mod:`usdscene.converters.exports.multiview`); persons are the catalog's person
   classes (:func:`usdscene.generate.motion.person_classes`);
+* ``video``: ``OUT/exports/video/<camera>.mp4`` H.264 at the document's frame rate (see
+  :mod:`usdscene.converters.exports.video`; extra ``usdscene[video]``);
 * ``aicity``: ``OUT/exports/aicity/<scene>/`` an AI City Challenge Track 1 scene (see
-  :mod:`usdscene.dataset.aicity_scene`).
+  :mod:`usdscene.dataset.aicity_scene`; extra ``usdscene[aicity]``).
 
-``mot``, ``multiview`` and ``aicity`` need a moving sequence (a document with ``metadata.usdscene.fps``).
+``mot``, ``multiview``, ``video`` and ``aicity`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -33,7 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-FORMATS = ("coco", "yolo", "rois", "mot", "multiview", "aicity")
+FORMATS = ("coco", "yolo", "rois", "mot", "multiview", "video", "aicity")
 """Dataset formats :func:`export_formats` writes."""
 
 
@@ -208,10 +210,10 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     # the document (which can be large) and the catalog are read once for every format
     loaded = _load_annotated(out, options.extra_assets,
                              need_catalog="rois" in ordered or not options.document_classes)
-    if {"mot", "multiview", "aicity"} & set(ordered):  # fail before writing any format
+    if {"mot", "multiview", "video", "aicity"} & set(ordered):  # fail before writing any format
         from usdscene.converters.exports.tracks import require_tracks
 
-        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview", "aicity")))
+        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview", "video", "aicity")))
     dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
@@ -234,6 +236,10 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
 
         people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
         written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
+    if "video" in ordered:
+        from usdscene.converters.exports.video import export_video
+
+        written["video"] = export_video(loaded[0], out)
     if "aicity" in ordered:
         from usdscene.converters.exports.aicity import AicOptions
         from usdscene.dataset.aicity_scene import export_aicity_scene

@@ -633,6 +633,8 @@ class RenderSettings:
         tile_size_px: Cycles tile size in pixels.
         resolution_px: default (width, height) for cameras that do not give one.
         seed: Cycles sampling seed.
+        depth: also write a depth image per rendered image (distance to the image plane,
+            :mod:`usdscene.render.depth`): ``png16`` (millimetres) or ``exr`` (metres); None = none.
     """
 
     engine: str = "cycles"
@@ -667,6 +669,7 @@ class RenderSettings:
     tile_size_px: int = 2048
     resolution_px: tuple[int, int] = (640, 480)
     seed: int = 0
+    depth: str | None = None
 
 
 @dataclass(frozen=True)

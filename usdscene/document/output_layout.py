@@ -6,6 +6,8 @@
     out/images/<camera>/<frame:06d>.png 8-bit RGB
     out/masks/<camera>/<frame:06d>.png  16-bit instance ids, 0 = background
     out/masks/ids.json                  {"<mask id>": {"uid", "class", "name"}}
+    out/depth/<camera>/<frame:06d>.png|.exr  distance to the image plane (render.depth: 16-bit
+                                        millimetres or float metres; usdscene.render.depth)
     out/labels/<camera>/<frame:06d>.json labels of one image, kept so they are computed once
     out/annotations.openlabel.json      input + per-frame, per-camera labels and image uris
     out/exports/<format>/...            coco, yolo, rois
@@ -26,6 +28,7 @@ MASKS_DIR = "masks"
 CLEAN_IMAGES_DIR = "images_clean"  # images before sensor effects (--keep-clean)
 EXPORTS_DIR = "exports"
 LABELS_DIR = "labels"
+DEPTH_DIR = "depth"
 ID_MAP_FILE = "masks/ids.json"
 MANIFEST_FILE = "manifest.json"
 ANNOTATIONS_FILE = "annotations.openlabel.json"
@@ -47,6 +50,12 @@ def image_path(out_dir: str | Path, camera: str, frame: int) -> Path:
 def mask_path(out_dir: str | Path, camera: str, frame: int) -> Path:
     """``out/masks/<camera>/<frame:06d>.png`` (16-bit instance ids)."""
     return Path(out_dir) / MASKS_DIR / camera / frame_file(frame)
+
+
+def depth_path(out_dir: str | Path, camera: str, frame: int, depth_format: str) -> Path:
+    """``out/depth/<camera>/<frame:06d>.exr`` for ``exr``, ``.png`` for ``png16``."""
+    suffix = ".exr" if depth_format == "exr" else ".png"
+    return Path(out_dir) / DEPTH_DIR / camera / f"{frame:06d}{suffix}"
 
 
 def clean_image_path(out_dir: str | Path, camera: str, frame: int) -> Path:

@@ -98,6 +98,7 @@ ATTR_RENDER_CAUSTICS = "usdscene:render:caustics"            # bool
 ATTR_RENDER_TILE_SIZE = "usdscene:render:tileSizePx"         # int
 ATTR_RENDER_RESOLUTION = "usdscene:render:resolutionPx"      # int2 (width, height)
 ATTR_RENDER_SEED = "usdscene:render:seed"                    # int
+ATTR_RENDER_DEPTH = "usdscene:render:depth"                  # token png16 / exr; authored only when on
 # string, JSON {"world": <metadata.usdscene.world>, "hdri_path": absolute path or "",
 # "sun": {"elevation_rad", "rotation_rad", "irradiance_w_m2"} or null}; only when the document
 # has a world

@@ -153,6 +153,11 @@ def resolve_settings(base: RenderSettings, override: RenderSettings | Mapping[st
     for key in ("light_tree", "path_guiding", "fast_gi", "auto_scrambling_distance"):
         if not isinstance(settings[key], bool):
             problems.append(Problem(f"render.{key}", f"{key} {settings[key]!r} must be true or false"))
+    from usdscene.converters.openlabel.metadata import DEPTH_FORMATS
+
+    if settings["depth"] is not None and settings["depth"] not in DEPTH_FORMATS:
+        problems.append(Problem("render.depth", f"unknown depth format {settings['depth']!r}; expected one of "
+                                                f"{', '.join(DEPTH_FORMATS)} (or null for no depth images)"))
     if not 0 < float(settings["resolution_scale"]) <= 4:
         problems.append(Problem("render.resolution_scale",
                                 f"resolution_scale {settings['resolution_scale']!r} must be in (0, 4]"))
@@ -225,7 +230,8 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
 
     cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
     manifest = _open_manifest(out_dir, plan, settings, cam_json, keep_clean=keep_clean)
-    _remove_stale_temporaries(out_dir, camera_list)
+    manifest.depth_format = settings["depth"]
+    _remove_stale_temporaries(out_dir, camera_list, settings["depth"])
     remove_stale_scratch()
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
     total = len(frame_list) * len(camera_list)
@@ -248,7 +254,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
         finally:
             if tally.totals["retries"]:
                 # A killed worker may have died inside an atomic write; no worker runs now.
-                _remove_stale_temporaries(out_dir, camera_list)
+                _remove_stale_temporaries(out_dir, camera_list, settings["depth"])
             manifest.timings = {"wall_s": round(time.perf_counter() - started, 3),
                                 "render_s": round(tally.totals["render_s"], 3)}
             manifest.save()
@@ -364,11 +370,14 @@ def run_job(job: dict, what: str) -> list[dict]:
     return events
 
 
-def _remove_stale_temporaries(out_dir: Path, cameras: Sequence[str]) -> None:
+def _remove_stale_temporaries(out_dir: Path, cameras: Sequence[str], depth_format: str | None = None) -> None:
     """Delete the temporary files of atomic writes that a killed run left behind (a SIGKILL
     cannot be cleaned up after; the real files were never replaced by partial ones)."""
     for camera in cameras:
-        for folder in (layout.image_path(out_dir, camera, 0).parent, layout.mask_path(out_dir, camera, 0).parent):
+        folders = [layout.image_path(out_dir, camera, 0).parent, layout.mask_path(out_dir, camera, 0).parent]
+        if depth_format is not None:
+            folders.append(layout.depth_path(out_dir, camera, 0, depth_format).parent)
+        for folder in folders:
             if folder.is_dir():
                 for tmp in folder.glob(".*.tmp"):
                     tmp.unlink(missing_ok=True)

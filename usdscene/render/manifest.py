@@ -46,6 +46,8 @@ class Manifest:
     done: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
     versions: dict[str, str] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
+    # render.depth of the run (None = off): a pair is finished only with its depth image too
+    depth_format: str | None = None
 
     @property
     def path(self) -> Path:
@@ -72,7 +74,9 @@ class Manifest:
         if str(frame) not in self.done.get(camera, {}):
             return False
         return (layout.image_path(self.out_dir, camera, frame).is_file()
-                and layout.mask_path(self.out_dir, camera, frame).is_file())
+                and layout.mask_path(self.out_dir, camera, frame).is_file()
+                and (self.depth_format is None
+                     or layout.depth_path(self.out_dir, camera, frame, self.depth_format).is_file()))
 
     def mark_done(self, frame: int, camera: str, timing: dict[str, float]) -> None:
         """List the pair as finished with its timings (seconds, rounded to µs); :meth:`save` writes it."""

@@ -142,8 +142,12 @@ def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
         for event in iter_worker_events(job_path, scratch / "worker.log"):
             if event["event"] == "done":
                 frame, camera = int(event["frame"]), event["camera"]
-                for key, path in (("mask_png", layout.mask_path(out, camera, frame)),
-                                  ("image_png", layout.image_path(out, camera, frame))):
+                files = [("mask_png", layout.mask_path(out, camera, frame)),
+                         ("image_png", layout.image_path(out, camera, frame))]
+                depth = job["settings"].get("depth")
+                if depth:
+                    files.append(("depth_bytes", layout.depth_path(out, camera, frame, depth)))
+                for key, path in files:
                     event[key] = path.read_bytes()
                     path.unlink()
             event["node"] = node
@@ -272,10 +276,13 @@ class RayExecutor:
                 if event["event"] == "done":
                     frame, camera = int(event["frame"]), event["camera"]
                     mask, image = event.pop("mask_png"), event.pop("image_png")
+                    depth = event.pop("depth_bytes", None)
+                    if depth is not None:  # before the mask, as in the worker
+                        write_bytes_atomic(layout.depth_path(out_dir, camera, frame, job["settings"]["depth"]), depth)
                     # Mask first: a pair counts as done only when both exist (as in the worker).
                     write_bytes_atomic(layout.mask_path(out_dir, camera, frame), mask)
                     write_bytes_atomic(layout.image_path(out_dir, camera, frame), image)
-                    event["transfer_bytes"] = len(mask) + len(image)
+                    event["transfer_bytes"] = len(mask) + len(image) + len(depth or b"")
                 on_event(event)
         except ray.exceptions.RayTaskError as exc:
             return ShardExit(False, False, f"Ray task failed: {str(exc).splitlines()[-1]}")

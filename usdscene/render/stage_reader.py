@@ -249,9 +249,10 @@ def _read_settings(stage, problems: list[Problem]) -> RenderSettings:
         "auto_scrambling_distance": names.ATTR_RENDER_AUTO_SCRAMBLING_DISTANCE,
         "max_bounces": names.ATTR_RENDER_MAX_BOUNCES, "caustics": names.ATTR_RENDER_CAUSTICS,
         "tile_size_px": names.ATTR_RENDER_TILE_SIZE, "resolution_px": names.ATTR_RENDER_RESOLUTION,
-        "seed": names.ATTR_RENDER_SEED,
+        "seed": names.ATTR_RENDER_SEED, "depth": names.ATTR_RENDER_DEPTH,
     }
     types = {f.name: type(getattr(settings, f.name)) for f in fields(RenderSettings)}
+    types["depth"] = str
     values = {}
     for field_name, attr_name in attrs.items():
         attr = prim.GetAttribute(attr_name)

@@ -621,6 +621,8 @@ def _render_layer(scene: SceneSpec) -> str:
             (ss.ATTR_RENDER_RESOLUTION, T.Int2, Gf.Vec2i(*rs.resolution_px)),
             (ss.ATTR_RENDER_SEED, T.Int, int(rs.seed))):
         _attr(settings, name, type_name, value, custom=True)
+    if rs.depth is not None:  # authored only when on: stages without depth keep their bytes
+        _attr(settings, ss.ATTR_RENDER_DEPTH, T.Token, rs.depth, custom=True)
     if scene.world is not None:
         from usdscene.document.imaging import world_stage_json
 
