@@ -104,6 +104,21 @@ def test_depth_maps_hold_one_png_per_frame(tmp_path):
     assert decoded.dtype == np.uint16 and np.all(decoded == 3000)
 
 
+@pytest.mark.parametrize("lens, distortion, expressible", [
+    ("perspective", (), True), ("opencv_pinhole", (0.0, 0.0, 0.0, 0.0, 0.0), True),
+    ("opencv_pinhole", (-0.2, 0.04, 0.0, 0.0, 0.0), False), ("fisheye_equidistant", (), False),
+    ("opencv_fisheye", (0.0, 0.0, 0.0, 0.0), False), ("orthographic", (), False)])
+def test_only_ideal_pinhole_lenses_are_expressible(lens, distortion, expressible):
+    from usdscene.converters.exports.aicity import pinhole_problem
+    from usdscene.document.model import Camera, Intrinsics, LensModel
+
+    camera = Camera("c", Intrinsics(LensModel(lens), 64, 48, 40.0, 40.0, 31.5, 23.5, distortion=distortion))
+    problem = pinhole_problem(camera)
+    assert (problem is None) == expressible
+    if not expressible:
+        assert f"its {lens} lens cannot be written" in problem and "no distortion" in problem
+
+
 def test_an_unknown_aic_class_is_refused():
     from usdscene.converters.exports.aicity import check_class_map
     from usdscene.errors import DocumentError
@@ -127,7 +142,8 @@ def run(tmp_path_factory):
     setup = json.loads((CAR_PARK / "setup_moving.openlabel.json").read_text())
     for stream in setup["openlabel"]["streams"].values():
         stream["stream_properties"]["usdscene"]["resolution_px"] = [128, 96]
-    setup["openlabel"]["metadata"]["usdscene"]["render"].update(samples=1, denoise=False, max_bounces=1)
+    setup["openlabel"]["metadata"]["usdscene"]["render"].update(samples=1, denoise=False, max_bounces=1,
+                                                                depth="png16")
     (folder / "setup.json").write_text(json.dumps(setup))
     doc, out = folder / "doc.json", folder / "out"
     assert main(["generate", "tracks", "--setup", str(folder / "setup.json"), "-o", str(doc), "--frames", "8",
@@ -272,6 +288,22 @@ def test_videos_hold_the_rendered_images_in_order(run):
         for k, frame in enumerate(decoded):
             errors = [np.abs(frame.astype(int) - r[:h, :w].astype(int)).mean() for r in rendered]
             assert int(np.argmin(errors)) == k and errors[k] < 8.0, (camera, k, errors)
+
+
+@pytest.mark.blender
+def test_depth_maps_hold_the_rendered_depth_of_every_frame(run):
+    import h5py
+
+    scene = _scene(run)
+    for camera in json.loads((scene / "usdscene_aicity.json").read_text())["cameras"]:
+        pngs = sorted((run / "depth" / camera["usdscene_camera"]).glob("*.png"))
+        assert len(pngs) == 8
+        with h5py.File(scene / "depth_maps" / f"{camera['id']}.h5", "r") as h5:
+            assert sorted(h5) == [f"distance_to_image_plane_{k:05d}.png" for k in range(8)]
+            for k, png in enumerate(pngs):
+                decoded = cv2.imdecode(np.asarray(h5[f"distance_to_image_plane_{k:05d}.png"]), cv2.IMREAD_UNCHANGED)
+                assert np.array_equal(decoded, cv2.imread(str(png), cv2.IMREAD_UNCHANGED))
+                assert decoded.dtype == np.uint16 and decoded.max() > 0
 
 
 @pytest.mark.blender

@@ -1,7 +1,7 @@
 """``usdscene export aicity``: an annotated moving sequence as an AI City Challenge Track 1 scene
 (the layout is :mod:`usdscene.converters.exports.aicity`). This module supplies what the pure
 exporter cannot know: the class mapping's defaults, the catalog extents of the 3D boxes, the
-top-down map rendered through the ordinary pipeline, and the videos.
+top-down map rendered through the ordinary pipeline, and the videos (the video export's encoder).
 
 **Classes.** By default the catalog's person classes (:func:`usdscene.generate.motion.person_classes`)
 are ``Person``; every other class is left out (AIC has no name for cars, luggage or vans)
@@ -110,25 +110,20 @@ def render_map(source_path: Path, scratch: Path, target: Path, frame_map, *, sam
 
 
 def write_videos(folder: Path, images: Mapping[str, list[Path]], fps: float) -> None:
-    """``<folder>/<name>.mp4`` of each camera's images (in frame order), H.264 through PyAV."""
-    import av
-    import cv2
+    """``<folder>/<name>.mp4`` of each camera's images (in frame order): the video export's own
+    encoder (:mod:`usdscene.converters.exports.video`: H.264 yuv420p, crf 18, one thread)."""
+    from usdscene.converters.exports.video import DEFAULT_CRF, _encode, _rate
+    from usdscene.errors import OutputError
 
+    try:
+        import av
+    except ImportError:
+        raise OutputError("the AI City Challenge videos need PyAV: pip install 'usdscene[aicity]' "
+                          "(or export with --no-videos)", where="aicity videos") from None
     for name, paths in images.items():
         path = folder / f"{name}.mp4"
         path.parent.mkdir(parents=True, exist_ok=True)
-        with av.open(str(path), "w") as container:
-            first = cv2.imread(str(paths[0]))
-            h, w = first.shape[:2]
-            stream = container.add_stream("libx264", rate=int(round(fps)))
-            # H.264 4:2:0 needs even sizes: the last odd row/column is dropped.
-            stream.width, stream.height, stream.pix_fmt = w - w % 2, h - h % 2, "yuv420p"
-            for p in paths:
-                bgr = cv2.imread(str(p))[: h - h % 2, : w - w % 2]
-                for packet in stream.encode(av.VideoFrame.from_ndarray(bgr, format="bgr24")):
-                    container.mux(packet)
-            for packet in stream.encode():
-                container.mux(packet)
+        _encode(av, path, list(paths), _rate(fps), DEFAULT_CRF)
 
 
 def export_aicity_scene(out_dir, document: dict, catalog, options, *, render_the_map: bool = True,
