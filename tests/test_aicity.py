@@ -335,7 +335,7 @@ def _edit(out: Path, change) -> None:
 
 
 @pytest.mark.blender
-@pytest.mark.parametrize("case", ["still", "distorted", "class", "speed"])
+@pytest.mark.parametrize("case", ["still", "distorted", "class", "scene", "speed"])
 def test_bad_input_is_one_line_and_writes_nothing(run, tmp_path, capsys, case):
     out = _copy(run, tmp_path)
     args = ["export", "aicity", str(out), "--no-map", "--no-videos"]
@@ -352,6 +352,9 @@ def test_bad_input_is_one_line_and_writes_nothing(run, tmp_path, capsys, case):
     elif case == "class":
         args += ["--aic-class", "vehicle=Car"]
         expected = "--aic-class vehicle=Car"
+    elif case == "scene":
+        args += ["--aic-scene", "../elsewhere"]
+        expected = "--aic-scene"
     else:
         def jump(root):
             frame = root["frames"]["4"]["objects"]

@@ -55,9 +55,10 @@ import json
 import logging
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+from typing import Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -544,6 +545,9 @@ def export_aicity(document: dict, out_dir: str | os.PathLike, options: AicOption
         raise DocumentError(f"{options.edition!r} is not an edition; expected one of {', '.join(EDITIONS)}",
                             where="--edition")
     check_class_map(options.class_map)
+    if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]*", options.scene):
+        raise DocumentError(f"{options.scene!r} is not a folder name (letters, digits, '_', '-', '.')",
+                            where="--aic-scene")
     fps = require_tracks(document, "AI City Challenge")
     records = image_records(document)
     if not records:

@@ -8,7 +8,7 @@ Usage (from anywhere)::
 
 writes ``WORK/setup_aicity.openlabel.json`` (``setup_moving.openlabel.json`` with its fisheye
 and distorted cameras replaced by six perspective cameras: AIC's calibration has no distortion),
-``WORK/aicity.openlabel.json`` (``usdscene generate tracks``), the run ``WORK/out`` and its
+``WORK/aicity.openlabel.json`` (``usdscene generate tracks``), the run ``WORK/out`` (with 16-bit depth) and its
 export ``WORK/out/exports/aicity/Scene_000``; with ``--pictures`` also the map and frame
 pictures of ``make_aicity_pictures.py``. Nothing is written into the repository unless
 ``--pictures`` names a folder in it.
@@ -41,7 +41,7 @@ CAMERAS = (
 def setup_document(resolution: tuple[int, int], samples: int) -> dict:
     setup = json.loads((HERE / "setup_moving.openlabel.json").read_text())
     root = setup["openlabel"]
-    root["metadata"]["usdscene"]["render"].update(samples=samples, resolution_px=list(resolution))
+    root["metadata"]["usdscene"]["render"].update(samples=samples, resolution_px=list(resolution), depth="png16")
     root["metadata"]["usdscene"]["exports"] = []
     root["streams"] = {name: {"type": "camera", "description": f"AIC example: perspective camera {name}",
                               "stream_properties": {"usdscene": {

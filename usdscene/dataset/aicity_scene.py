@@ -19,13 +19,10 @@ replaced by that camera, validated, composed and rendered by the ordinary steps
 from __future__ import annotations
 
 import json
-import logging
 import os
 import shutil
 from pathlib import Path
 from typing import Mapping
-
-log = logging.getLogger(__name__)
 
 MAP_CAMERA = "aic_map"
 MAP_HEIGHT_ABOVE_M = 50.0
