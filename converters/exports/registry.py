@@ -204,5 +204,10 @@ for _format in (
                  needs=frozenset({MOVING_SEQUENCE}), options=(*_CLASSES, "grid", "multiview_flavour")),
     ExportFormat("video", "H.264 MP4 per camera", writer="usdscene.converters.exports.video:write_video",
                  needs=frozenset({MOVING_SEQUENCE})),
+    # The scene's map.png is a render of the environment (validate, compose, render), so its
+    # writer sits with the other steps of a run, in usdscene.dataset.
+    ExportFormat("aicity", "AI City Challenge scenes", writer="usdscene.dataset.aicity_scene:write_aicity",
+                 needs=frozenset({MOVING_SEQUENCE}), catalog=True,
+                 options=("aicity", "aicity_map", "aicity_videos", "aicity_map_samples", "aicity_map_cut_m")),
 ):
     register(_format)

@@ -69,6 +69,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="world metres of position 0")
     grid.add_argument("--grid-cell", type=float, metavar="M", help="grid spacing in metres")
     grid.add_argument("--grid-size", nargs=2, type=int, metavar=("NX", "NY"), help="grid points along x and y")
+    aic = parser.add_argument_group("aicity (AI City Challenge Track 1 scene)")
+    aic.add_argument("--edition", choices=("2025", "2024"), default="2025", help="layout edition (default 2025)")
+    aic.add_argument("--aic-class", action="append", default=[], metavar="CLASS=AIC_CLASS",
+                     help="map a usdscene class to an AIC class (Person, Forklift, NovaCarter, Transporter, "
+                          "FourierGR1T2, AgilityDigit); default: person classes are Person, others left out")
+    aic.add_argument("--aic-scene", default="Scene_000", metavar="NAME", help="scene folder name (default Scene_000)")
+    aic.add_argument("--aic-scene-id", type=int, default=0, metavar="N", help="scene id of track1.txt (default 0)")
+    aic.add_argument("--map-m-per-px", type=float, default=0.05, metavar="M",
+                     help="map.png scale in metres per pixel (default 0.05)")
+    aic.add_argument("--map-bounds", nargs=4, type=float, metavar=("X0", "Y0", "X1", "Y1"),
+                     help="world metres the map covers (default: cameras and positions + 2 m)")
+    aic.add_argument("--map-samples", type=int, metavar="N", help="samples per pixel of the map render")
+    aic.add_argument("--map-cut-m", type=float, default=2.5, metavar="Z",
+                     help="the map shows what lies below Z metres (default 2.5: no roofs or ceilings)")
+    aic.add_argument("--no-map", action="store_true", help="do not render map.png")
+    aic.add_argument("--no-videos", action="store_true", help="do not write the videos")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -97,12 +113,28 @@ def run(args: argparse.Namespace) -> int:
         from usdscene.converters.exports.multiview import GroundGrid
 
         grid = GroundGrid(tuple(args.grid_origin), args.grid_cell, tuple(args.grid_size))
+    aicity = None
+    if "aicity" in args.format:
+        from usdscene.converters.exports.aicity import AicOptions
+
+        pairs = {}
+        for item in args.aic_class:
+            name, sep, aic = item.partition("=")
+            if not sep or not name or not aic:
+                raise OutputError([Problem("--aic-class", f"{item!r} is not CLASS=AIC_CLASS")])
+            pairs[name] = aic
+        aicity = AicOptions(edition=args.edition, class_map=pairs, scene=args.aic_scene, scene_id=args.aic_scene_id,
+                            map_m_per_px=args.map_m_per_px,
+                            map_bounds_m=tuple(args.map_bounds) if args.map_bounds else None)
     if args.dataset is None:
         written = export_formats(args.outputs[0], args.format,
                                  ExportOptions(min_roi_px=args.min_roi_px, grid=grid, mot_class_map=tuple(args.mot_class),
                                                mot_static_people=args.mot_static_people,
                                                mot_ignore_occluded=args.mot_ignore_occluded, mot_layout=args.mot_layout,
-                                               multiview_flavour=args.multiview_flavour, **options))
+                                               multiview_flavour=args.multiview_flavour, aicity=aicity,
+                                               aicity_map=not args.no_map, aicity_videos=not args.no_videos,
+                                               aicity_map_samples=args.map_samples, aicity_map_cut_m=args.map_cut_m,
+                                               **options))
     else:
         for per_output in (name for name, fmt in FORMATS.items() if not fmt.dataset):
             if per_output in args.format:

@@ -12,9 +12,11 @@ regions), never internal state:
   :mod:`usdscene.converters.exports.multiview`); tracked are the catalog's person and vehicle classes
   (:func:`usdscene.generate.motion.person_classes`, ``vehicle_classes``);
 * ``video``: ``OUT/exports/video/<camera>.mp4`` H.264 at the document's frame rate (see
-  :mod:`usdscene.converters.exports.video`; extra ``usdscene[video]``).
+  :mod:`usdscene.converters.exports.video`; extra ``usdscene[video]``);
+* ``aicity``: ``OUT/exports/aicity/<scene>/`` an AI City Challenge Track 1 scene (see
+  :mod:`usdscene.dataset.aicity_scene`; extra ``usdscene[aicity]``).
 
-``mot``, ``multiview`` and ``video`` need a moving sequence (a document with ``metadata.usdscene.fps``).
+``mot``, ``multiview``, ``video`` and ``aicity`` need a moving sequence (a document with ``metadata.usdscene.fps``).
 
 Class lists come from the asset catalog (object and passenger classes, sorted), so ids are
 the same for every scene built from one library; the catalog is the shipped library plus the
@@ -179,6 +181,13 @@ class ExportOptions:
     mot_ignore_occluded: bool = False
     mot_layout: str = "cameras"
     multiview_flavour: str = "free"
+    aicity: Any = None
+    """The AI City Challenge scene (:class:`usdscene.converters.exports.aicity.AicOptions`,
+    None = its defaults); ``aicity_map`` / ``aicity_videos``: render the map, write the videos."""
+    aicity_map: bool = True
+    aicity_videos: bool = True
+    aicity_map_samples: int | None = None
+    aicity_map_cut_m: float = 2.5
 
 
 def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -> dict:
