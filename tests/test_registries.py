@@ -107,7 +107,7 @@ def test_a_name_is_registered_once_and_needs_are_known(toy):
 def test_built_in_formats_are_the_registry():
     assert format_names()[:5] == ("coco", "yolo", "rois", "mot", "multiview")
     assert [n for n, f in FORMATS.items() if f.dataset] == ["coco", "yolo"]
-    assert {n for n, f in FORMATS.items() if MOVING_SEQUENCE in f.needs} == {"mot", "multiview", "video"}
+    assert {n for n, f in FORMATS.items() if MOVING_SEQUENCE in f.needs} == {"mot", "multiview", "video", "aicity"}
     from dataclasses import fields
 
     from usdscene.dataset.export import ExportOptions
