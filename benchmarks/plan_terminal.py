@@ -61,7 +61,9 @@ def main() -> None:
         return
     for cell in cells:
         done = subprocess.run([sys.executable, __file__, "--child", "--cell", str(cell), "--out", str(root),
-                               "--time-limit", str(args.time_limit)], check=True, capture_output=True, text=True)
+                               "--time-limit", str(args.time_limit)], capture_output=True, text=True)
+        if done.returncode:
+            raise SystemExit(f"cell {cell:g} m failed:\n{done.stderr[-3000:]}")
         r = json.loads(done.stdout.strip().splitlines()[-1])
         area = r["area"] or {}
         print(f"cell {r['cell_m']:g} m: {r['targets']} targets, {r['candidates']} candidates ({r['mounts']} mounts), "
