@@ -263,3 +263,29 @@ def test_the_library_imports_no_engine_until_a_crowd_is_generated():
     code = ("import sys, usdscene.generate.crowd, usdscene.generate.crowd_area, usdscene.commands.generate; "
             "assert 'jupedsim' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_an_entrance_beside_the_platform_keeps_people_on_the_floor(setup, obstacles):
+    """A user's platform case: the stairs' entrance box sits beside the walk place and reaches
+    past the deck's west edge (x = -17 m), where there is no floor. People appear and walk only
+    where there is floor: every position stands on a walk place's support surface."""
+    from usdscene.generate.crowd_area import floor_missing
+
+    scene, catalog = setup
+    platform = _place("9301", "platform_test", [-8.0, 3.0, 0.0], (16.0, 4.0, 2.0))
+    stairs = _place("9302", "stairs_test", [-16.6, 3.0, 0.0], (2.0, 3.0, 2.0))  # half of it off the deck
+    door = _place("9303", "entrance_test_east", [0.5, 3.0, 0.0], (1.0, 4.0, 2.0))
+    cut = dataclasses.replace(scene, places=(platform, stairs, door))
+    layout = crowd_layout(cut, catalog, obstacles)
+    assert layout.walkable.bounds[0] >= -17.0 - 1e-6  # the part of the stairs' box off the deck is not walkable
+    generated = generate_crowd(cut, catalog, CrowdOptions(frames=100, fps=5, people=20, seed=2,
+                                                          person_classes=("person",)), obstacles=obstacles)
+    xy = _people_xy(generated).reshape(-1, 2)
+    xy = xy[np.isfinite(xy[:, 0])]
+    assert len(xy) > 1000
+    assert np.all(np.isfinite(layout.support_z(xy)))
+    assert not floor_missing(obstacles, xy, 0.0).any()
+    routes = [t.route for t in generated.tracks]
+    # directions drawn fairly: both doors are used as exits
+    exits = [r[-1] for r in routes]
+    assert exits.count("stairs_test") >= 5 and exits.count("entrance_test_east") >= 5

@@ -176,14 +176,15 @@ def _spawn_region(layout: CrowdLayout, entrance: StagePlace):
 
 
 def _exit_polygon(layout: CrowdLayout, entrance: StagePlace):
-    """The entrance's box on the walkable area, as one polygon without holes (the engine's exit)."""
+    """The entrance's box on the walkable area, as one convex polygon (the engine's exit)."""
     import shapely
 
     from usdscene.generate.crowd_area import _box
 
     piece = _box(entrance.area).intersection(layout.walkable)
     parts = sorted(getattr(piece, "geoms", [piece]), key=lambda p: -p.area)
-    return shapely.Polygon(parts[0].exterior) if parts and not parts[0].is_empty else None
+    # The engine takes convex exits only: the hull of the entrance's piece (inside its box).
+    return shapely.Polygon(parts[0].convex_hull.exterior) if parts and not parts[0].is_empty else None
 
 
 def _component_of(layout: CrowdLayout, point) -> int:
@@ -215,21 +216,23 @@ def check_crowd(layout: CrowdLayout, options: CrowdOptions, where: str) -> dict:
                             "lies on the walkable area (the walk places minus the obstacles); declare one")
         problems.raise_if_any(DocumentError)
     comp = {name: _component_of(layout, shapely.Point(region.representative_point())) for name, region in spawn.items()}
-    if len(spawn) > 1:
-        for name, k in sorted(comp.items()):
-            if sum(1 for other, j in comp.items() if other != name and j == k) == 0:
-                problems.add(f"place {name!r}", "the walkable area (the walk places minus the obstacles) does not "
-                                                 "connect this entrance to any other entrance or exit")
+    # The engine walks one connected piece: the one with the most entrances (then the largest).
+    pieces = list(getattr(layout.walkable, "geoms", [layout.walkable]))
+    main = max(set(comp.values()), key=lambda k: (sum(1 for j in comp.values() if j == k), pieces[k].area))
+    for name, k in sorted(comp.items()):
+        if k != main:
+            problems.add(f"place {name!r}", "the walkable area (the walk places minus the obstacles) does not "
+                                             "connect this entrance to the other entrances and exits")
     for stage in layout.stages:
         if stage.role in ("queue", "wait", "waypoint"):
             if not len(stage.points):
                 problems.add(f"place {stage.place!r}", f"this {stage.role} place has no spot on the walkable area "
                                                         "(it lies off the walk places or inside an obstacle)")
                 continue
-            if _component_of(layout, stage.points[0]) not in comp.values():
+            if _component_of(layout, stage.points[0]) != main:
                 problems.add(f"place {stage.place!r}", f"no entrance reaches this {stage.role} place over the "
                                                         "walkable area (the walk places minus the obstacles)")
-    area_m2 = float(layout.walkable.area)
+    area_m2 = float(pieces[main].area)
     most = int(math.floor(MAX_DENSITY_P_M2 * area_m2))
     wanted = int(round(options.density_p_m2 * area_m2)) if options.density_p_m2 else options.people
     if wanted + 3 * options.conversations > most:
@@ -244,7 +247,7 @@ def check_crowd(layout: CrowdLayout, options: CrowdOptions, where: str) -> dict:
             problems.add(f"place {e.place!r}", f"{rate:g} arrivals per minute do not fit through this {width:.1f} m "
                                                 f"entrance; it admits at most {cap:.0f} per minute")
     problems.raise_if_any(DocumentError)
-    return {"spawn": spawn, "exits": exits}
+    return {"spawn": spawn, "exits": exits, "area": pieces[main]}
 
 
 class _Engine:
@@ -254,7 +257,8 @@ class _Engine:
                  dt: float) -> None:
         jps = _jupedsim()
         self.jps, self.layout, self.options, self.rng, self.dt = jps, layout, options, rng, dt
-        self.sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(), geometry=layout.walkable, dt=dt)
+        self.area = regions["area"]
+        self.sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(), geometry=self.area, dt=dt)
         self.entrances = sorted(regions["spawn"])
         self.spawn = regions["spawn"]
         self.exit_stage = {name: self.sim.add_exit_stage(regions["exits"][name]) for name in self.entrances}
@@ -346,7 +350,7 @@ class _Engine:
         try:
             agent = self.sim.add_agent(params)
         except RuntimeError as exc:
-            log.debug("engine refused an agent: %s", exc)
+            log.warning("engine refused an agent: %s", exc)
             raise DocumentError(f"the crowd engine could not place a person at ({xy[0]:.2f}, {xy[1]:.2f}) m at "
                                 f"{self.time_s:.1f} s", where=f"place {self.layout.place_at(np.asarray(xy))!r}") from None
         self.agent_person[agent], self.person_agent[person] = person, agent
@@ -386,7 +390,7 @@ class _Engine:
 
     def place_inside(self, count: int) -> None:
         """``count`` people spread over the walkable area, each on its way (its own plan)."""
-        inner = self.layout.walkable.buffer(-PERSON_RADIUS_M - 0.02)
+        inner = self.area.buffer(-PERSON_RADIUS_M - 0.02)
         for p in self._random_points(inner, count):
             stages, route, spot = self._plan(None)
             person = self._add(p, stages, "walking", self._speed(), route=route)
@@ -420,7 +424,7 @@ class _Engine:
 
     def converse(self, count: int) -> None:
         """``count`` standing circles of 2-3 people on the walk places, kept for the whole run."""
-        inner = self.layout.walkable.buffer(-(CONVERSATION_RADIUS_M + PERSON_RADIUS_M + 0.1))
+        inner = self.area.buffer(-(CONVERSATION_RADIUS_M + PERSON_RADIUS_M + 0.1))
         for centre in self._random_points(inner, count):
             n = int(self.rng.integers(2, 4))
             turn = float(self.rng.uniform(0, 2 * math.pi))
@@ -517,14 +521,14 @@ def simulate(layout: CrowdLayout, options: CrowdOptions, regions: Mapping) -> Cr
     steps = max(1, int(math.ceil((1.0 / fps) / ENGINE_STEP_S - 1e-9)))
     dt = 1.0 / fps / steps
     engine = _Engine(layout, options, regions, rng, dt)
-    kept = int(round(options.density_p_m2 * layout.walkable.area)) if options.density_p_m2 else options.people
+    kept = int(round(options.density_p_m2 * regions["area"].area)) if options.density_p_m2 else options.people
     entrances = engine.entrances
     rates = {e.place: _rate(e, "arrivals_per_min", options.arrivals_per_min) for e in layout.of_role("entrance")
              if e.place in engine.spawn}
     if kept:
         warm = WARM_UP_S
     else:
-        x0, y0, x1, y1 = layout.walkable.bounds
+        x0, y0, x1, y1 = regions["area"].bounds
         warm = min(MAX_WARM_UP_S, math.hypot(x1 - x0, y1 - y0) / float(np.mean(options.speed_range_m_s)))
     warm_steps = int(math.ceil(warm / dt))
     engine.time_s = -warm_steps * dt
