@@ -23,6 +23,7 @@ import numpy as np
 
 PX_PER_M = 14
 MARGIN_PX = 10
+CAPTION_PX = 16
 
 
 def _colour(k: int) -> tuple[int, int, int]:
@@ -46,7 +47,7 @@ def main(argv=None) -> int:
     setup = dataclasses.replace(scene, objects=())
     layout = crowd_layout(setup, catalog, environment_obstacles(setup, catalog))
     x0, y0, x1, y1 = layout.walkable.bounds
-    width, height = int((x1 - x0) * PX_PER_M) + 2 * MARGIN_PX, int((y1 - y0) * PX_PER_M) + 2 * MARGIN_PX
+    width, height = int((x1 - x0) * PX_PER_M) + 2 * MARGIN_PX, int((y1 - y0) * PX_PER_M) + 2 * MARGIN_PX + CAPTION_PX
 
     def px(xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)

@@ -144,7 +144,8 @@ def _run_tracks(args: argparse.Namespace) -> int:
         queues = ", ".join(f"{name} up to {q['most_in_line']} in line, {q['released']} served"
                            for name, q in crowd["queues"].items())
         console.print(f"  crowd: {crowd['walkable_area_m2']:g} m² walkable, {crowd['people_at_frame_0']} people at "
-                      f"frame 0, {crowd['groups']} groups, {crowd['standing']} standing, {crowd['seated']} seated"
+                      f"frame 0, {crowd['groups']} groups, {crowd['waits']['started']} waits, {crowd['standing']} standing, "
+                      f"{crowd['seated']} seated"
                       + (f"; queues: {queues}" if queues else ""))
     console.print(f"  report: {report_path(args.output)}")
     return 0

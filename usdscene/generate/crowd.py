@@ -138,7 +138,7 @@ class CrowdRun:
         kind: (N,) ``walking``, ``standing`` or ``seated``; group: (N,) group index or -1;
         speed_m_s: (N,) desired speeds.
         queue_counts: place → (F,) people in line at each frame; released: place → count.
-        waited: (waits,) seconds each wait lasted.
+        waited: (waits,) seconds each finished wait lasted; waits_started: waits begun.
         place: (N,) the stage place of a standing or seated person ("" otherwise).
         facing_xy: (N, 2) where a standing person faces (its circle's centre), NaN otherwise.
     """
@@ -150,6 +150,7 @@ class CrowdRun:
     queue_counts: dict = field(default_factory=dict)
     released: dict = field(default_factory=dict)
     waited: list = field(default_factory=list)
+    waits_started: int = 0
     place: list = field(default_factory=list)
     facing_xy: np.ndarray | None = None
     routes: list = field(default_factory=list)
@@ -277,6 +278,7 @@ class _Engine:
         self.next_pop = {name: None for name in self.queues}
         self.released = {name: 0 for name in self.queues}
         self.waited: list[float] = []
+        self.waits_started = 0
         self.speeds: list[float] = []
         self.kinds: list[str] = []
         self.groups: list[int] = []
@@ -471,6 +473,7 @@ class _Engine:
                 low = _rate(stage_place, "wait_min_s", self.options.wait_s[0])
                 high = _rate(stage_place, "wait_max_s", self.options.wait_s[1])
                 self.spot_since[spot] = t
+                self.waits_started += 1
                 self.spot_until[spot] = t + float(self.rng.uniform(low, max(low, high)))
         for members in self.group_members.values():
             alive = [self.person_agent[m] for m in members if m in self.person_agent]
@@ -491,9 +494,9 @@ class _Engine:
             self.sim.iterate()
         except RuntimeError as exc:
             log.debug("engine step failed: %s", exc)
-            raise DocumentError(f"the crowd engine stopped at {t:.1f} s: a person left the walkable area or was "
-                                "pushed into an obstacle; widen the walk places or ask for fewer people",
-                                where="--motion crowd") from None
+            raise DocumentError(f"the crowd engine stopped at {t:.1f} s: a person near there left the walkable area "
+                                "or was pushed into an obstacle; widen the walk places or ask for fewer people",
+                                where=f"place {self._worst_place()!r}") from None
         self.time_s += self.dt
         # The engine reports the agents that reached their exit in this step; they leave the
         # agent list at the start of the next one (so their mapping goes then).
@@ -502,6 +505,18 @@ class _Engine:
             del self.person_agent[person]
         self.leaving = list(self.sim.removed_agents())
         self.walking -= len(self.leaving)
+
+    def _worst_place(self) -> str:
+        """The place of the person nearest to (or furthest beyond) the walkable area's edge."""
+        import shapely
+
+        agents = list(self.sim.agents())
+        if not agents:
+            return ""
+        xy = np.array([a.position for a in agents])
+        depth = shapely.distance(self.area.boundary, shapely.points(xy))
+        depth = np.where(shapely.contains_xy(self.area, xy[:, 0], xy[:, 1]), depth, -depth)
+        return self.layout.place_at(xy[int(np.argmin(depth))])
 
     def positions(self) -> dict[int, tuple[float, float]]:
         return {self.agent_person[a.id]: a.position for a in self.sim.agents()}
@@ -565,8 +580,8 @@ def simulate(layout: CrowdLayout, options: CrowdOptions, regions: Mapping) -> Cr
             xy[person, f] = p
     return CrowdRun(xy=xy, kind=np.array(engine.kinds, dtype=object), group=np.array(engine.groups),
                     speed_m_s=np.array(engine.speeds), queue_counts=queue_counts, released=engine.released,
-                    waited=engine.waited, place=engine.places, facing_xy=np.array(engine.facing, dtype=np.float64),
-                    routes=engine.routes)
+                    waited=engine.waited, waits_started=engine.waits_started, place=engine.places,
+                    facing_xy=np.array(engine.facing, dtype=np.float64), routes=engine.routes)
 
 
 # --------------------------------------------------------------------------------------------
@@ -790,7 +805,8 @@ def generate_crowd(setup: SceneSpec, catalog: Catalog, options: CrowdOptions, *,
         "people_at_frame_0": int(np.isfinite(run.xy[:, 0, 0]).sum()) if run.xy.size else 0,
         "queues": {name: {"most_in_line": int(c.max()) if len(c) else 0, "released": int(run.released[name])}
                    for name, c in sorted(run.queue_counts.items())},
-        "waits_s": {"count": len(run.waited), "mean": round(float(np.mean(run.waited)), 2) if run.waited else 0.0},
+        "waits": {"started": run.waits_started, "finished": len(run.waited),
+                  "mean_s": round(float(np.mean(run.waited)), 2) if run.waited else 0.0},
         "groups": int(len(set(int(g) for g in run.group if g >= 0))),
         "standing": int(sum(1 for k in run.kind if k == "standing")),
         "seated": seated,
