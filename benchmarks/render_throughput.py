@@ -39,24 +39,24 @@ REPO = Path(__file__).resolve().parent.parent
 NAIVE = textwrap.dedent("""
     import json, sys, time
     from pathlib import Path
-    from usdscene.render import worker
+    from usdscene.render.blender import outputs, session as sessions
     job = json.loads(Path(sys.argv[1]).read_text())
     for o in job["objects"]:
         o["_visible"] = set(o["visible_frames"])
     times = []
     for frame, camera in job["pairs"]:
         t0 = time.perf_counter()
-        session = worker.Session(job)          # factory reset + full USD import, every image
+        session = sessions.Session(job)          # factory reset + full USD import, every image
         session.set_frame(frame)
         session.set_camera(camera, frame)
         session.bpy.ops.render.render(write_still=True)       # beauty
-        rgb, _ = worker.read_exr(session.exr_path)
+        rgb, _ = outputs.read_exr(session.exr_path)
         cycles = session.scene.cycles                          # mask: a second render
         cycles.samples, cycles.use_denoising = 1, False
         session.bpy.ops.render.render(write_still=True)
-        _, ids = worker.read_exr(session.exr_path)
+        _, ids = outputs.read_exr(session.exr_path)
         rgb, ids = session._finish(camera, rgb, ids)
-        worker.write_outputs(Path(job["out_dir"]), camera, frame, rgb, ids)
+        outputs.write_outputs(Path(job["out_dir"]), camera, frame, rgb, ids)
         times.append(time.perf_counter() - t0)
     print("@naive " + json.dumps(times))
 """)

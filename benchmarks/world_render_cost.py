@@ -15,7 +15,7 @@ variant's images in an earlier run's OUT (what a change of render settings did t
 the difference between two equally good renders is their noise).
 
 The two worlds that carry the sky's light without a sky node: the sky rendered alone by Cycles
-into a 1024x512 equirectangular image (``usdscene.render.worker.bake_world``) and used as the
+into a 1024x512 equirectangular image (``usdscene.render.blender.world.bake_world``) and used as the
 world's HDRI, and one colour, the sky's radiance averaged over the upper hemisphere weighted by
 the cosine to the zenith (a horizontal surface open to it receives the sky's irradiance).
 """

@@ -23,6 +23,7 @@ RANKS: tuple[tuple[str, ...], ...] = (
     ("usdscene", "usdscene.errors", "usdscene.files", "usdscene.shipped", "usdscene.bulk",
      "usdscene.compiled"),
     ("usdscene.document",),    # the SceneSpec model, stage names, output layout, containment
+    ("usdscene.lens",),        # the lens models: projection, Blender camera settings (registry)
     ("usdscene.scene",),       # catalog, places, placement, composition
     ("usdscene.labels",),      # projection, amodal, boxes and polygons, pixel density
     ("usdscene.converters",),  # openlabel/ and stage/ ↔ SceneSpec; exports/ (COCO, YOLO, MOT ...)

@@ -14,9 +14,12 @@ from usdscene.scene.catalog import load_catalog
 from usdscene.converters.openlabel import read_openlabel, write_openlabel
 from usdscene.errors import DocumentError
 from usdscene.document.model import DeclaredRegion, PlaceRef, Pose
-from usdscene.generate.motion import (OBSTACLE_CELL_M, PERSON_MARGIN_M, STEP_HEIGHT_M, VEHICLE_MARGIN_M, Obstacles,
-                                     STRIDE_M, TrackOptions, environment_obstacles, foot_sliding, generate_tracks,
-                                     ground_areas, locked_stride, overlapping_frames, walk_phases)
+from usdscene.generate.motion import generate_tracks
+from usdscene.generate.movers import STRIDE_M, TrackOptions, overlapping_frames
+from usdscene.generate.obstacles import OBSTACLE_CELL_M, STEP_HEIGHT_M, Obstacles, environment_obstacles
+from usdscene.generate.routes import ground_areas
+from usdscene.generate.vehicles import VEHICLE_MARGIN_M
+from usdscene.generate.walkers import PERSON_MARGIN_M, foot_sliding, locked_stride, walk_phases
 
 CAR_PARK = Path(__file__).resolve().parents[1] / "examples" / "car_park"
 
@@ -281,11 +284,11 @@ def test_a_vehicle_class_longer_across_than_along_is_warned_about(setup, caplog)
     turned = dataclasses.replace(entry, extent_min_m=(lo[1], lo[0], lo[2]), extent_max_m=(hi[1], hi[0], hi[2]),
                                  forward_axis="-Y")
     catalog = dataclasses.replace(catalog, entries={**catalog.entries, "vehicle": turned})
-    with caplog.at_level("WARNING", logger="usdscene.generate.motion"):
+    with caplog.at_level("WARNING", logger="usdscene.generate.vehicles"):
         generate_tracks(scene, catalog, TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
     assert "--forward-axis" in caplog.text and "'vehicle'" in caplog.text
     caplog.clear()
-    with caplog.at_level("WARNING", logger="usdscene.generate.motion"):
+    with caplog.at_level("WARNING", logger="usdscene.generate.vehicles"):
         generate_tracks(scene, setup[1], TrackOptions(frames=20, fps=5, vehicles=1, seed=1))
     assert "--forward-axis" not in caplog.text
 

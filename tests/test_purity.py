@@ -33,6 +33,7 @@ PURE_MODULES = [
     "usdscene.document.splits",
     "usdscene.labels.cross_camera",
     "usdscene.labels.projection",
+    "usdscene.lens",
     "usdscene.labels.image_labels",
     "usdscene.validation",
     "usdscene.dataset.annotation",

@@ -122,3 +122,10 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
             "box": "whole projection clipped to the image (amodal), MOT 1-based pixels: left = cx - w/2 + 1.5",
         }) + "\n", encoding="utf-8")
     return target
+
+
+def write_mot(job) -> Path:
+    """The registry's writer (:mod:`usdscene.converters.exports.registry`): :func:`export_mot`
+    of an :class:`~usdscene.converters.exports.registry.ExportJob`."""
+    return export_mot(job.document, job.out_dir, classes=job.object_classes(), copy_images=job.options.copy_images,
+                      index=job.label_index())

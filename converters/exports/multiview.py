@@ -51,7 +51,7 @@ from usdscene.converters.openlabel.annotations import LabelIndex, image_records
 from usdscene.converters.exports.yolo import link_or_copy
 from usdscene.errors import DocumentError, OutputError
 from usdscene.files import dumps_json, staged_folder
-from usdscene.document.model import Camera, LensModel, RenderSettings
+from usdscene.document.model import Camera, RenderSettings
 
 log = logging.getLogger(__name__)
 
@@ -132,19 +132,11 @@ def default_grid(positions: dict[int, dict[str, np.ndarray]]) -> GroundGrid:
 def opencv_calibration(camera: Camera) -> tuple[str, np.ndarray, np.ndarray] | None:
     """``(distortion_model, K (3, 3), D)`` of a camera in OpenCV's models, None when OpenCV
     has none for its lens (see the module docstring)."""
+    from usdscene.lens import lens_for
+
     k = camera.intrinsics
-    K = k.camera_matrix()
-    if k.lens == LensModel.PERSPECTIVE:
-        return "pinhole", K, np.zeros(5)
-    if k.lens == LensModel.OPENCV_PINHOLE:
-        d = list(k.distortion) + [0.0] * max(0, 5 - len(k.distortion))
-        return "pinhole", K, np.asarray(d[:8] if len(d) > 5 else d[:5], dtype=np.float64)
-    if k.lens == LensModel.FISHEYE_EQUIDISTANT:
-        return "fisheye", K, np.zeros(4)
-    if k.lens in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
-        d = list(k.distortion) + [0.0] * 4
-        return "fisheye", K, np.asarray(d[:4], dtype=np.float64)
-    return None
+    found = lens_for(k).opencv_distortion(k)
+    return None if found is None else (found[0], k.camera_matrix(), found[1])
 
 
 def world_to_camera(camera: Camera, frame: int) -> tuple[np.ndarray, np.ndarray]:
@@ -300,3 +292,10 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
     if off_grid:
         log.warning("%d person-frames lie off the ground grid (positionID -1)", off_grid)
     return target
+
+
+def write_multiview(job) -> Path:
+    """The registry's writer (:mod:`usdscene.converters.exports.registry`): :func:`export_multiview`
+    of an :class:`~usdscene.converters.exports.registry.ExportJob`."""
+    return export_multiview(job.document, job.out_dir, grid=job.options.grid, classes=job.person_classes(),
+                            index=job.label_index())

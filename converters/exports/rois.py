@@ -234,3 +234,9 @@ def export_rois(document: dict, out_dir: str | os.PathLike, catalog: Catalog, *,
                          crop.x_max - crop.x_min + 1, crop.y_max - crop.y_min + 1, uri, ";".join(crop.ignored)])
     write_text_atomic(root / INDEX_FILE, buffer.getvalue())
     return root
+
+
+def write_rois(job) -> Path:
+    """The registry's writer (:mod:`usdscene.converters.exports.registry`): :func:`export_rois`
+    of an :class:`~usdscene.converters.exports.registry.ExportJob`."""
+    return export_rois(job.document, job.out_dir, job.catalog, min_size_px=job.options.min_roi_px)

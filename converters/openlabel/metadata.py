@@ -11,6 +11,7 @@ from typing import Any
 
 from usdscene.document.model import MAX_BOUNCES, MAX_FPS, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
 
+from usdscene.converters.exports.registry import FORMATS, format_names
 from usdscene.converters.openlabel.load import SCHEMA_VERSION, DocumentBody
 from usdscene.converters.openlabel.values import (
     describe,
@@ -40,7 +41,6 @@ DENOISING_PREFILTERS = ("accurate", "fast", "none")
 DENOISING_INPUT_PASSES = ("rgb_albedo_normal", "rgb_albedo", "rgb")
 SAMPLING_PATTERNS = ("tabulated_sobol", "blue_noise")
 FAST_GI_METHODS = ("replace", "add")
-EXPORT_FORMATS = ("coco", "yolo", "rois")
 RENDER_LIMITS = {"samples": (MAX_SAMPLES, "Cycles' most samples"),
                  "tile_size_px": (MAX_TILE_SIZE_PX, "Cycles' largest tile"),
                  "max_bounces": (MAX_BOUNCES, "Cycles' most bounces"),
@@ -105,9 +105,9 @@ def read_metadata(doc: DocumentBody) -> dict:
     if "exports" in block:
         exports = _read_strings(block["exports"], f"{where}.exports", problems)
         for index, fmt in enumerate(exports):
-            if fmt not in EXPORT_FORMATS:
+            if fmt not in FORMATS:
                 problems.add(f"{where}.exports[{index}]",
-                             f"unknown export format {fmt!r}; expected one of {', '.join(EXPORT_FORMATS)}")
+                             f"unknown export format {fmt!r}; expected one of {', '.join(format_names())}")
         out["exports"] = exports
     if "roi_rules" in block:
         rules = read_object(block["roi_rules"], f"{where}.roi_rules", problems) or {}

@@ -7,12 +7,13 @@ from __future__ import annotations
 import argparse
 
 from usdscene.commands._arguments import add_label_filter_arguments, add_split_arguments
-from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
+from usdscene.converters.exports.registry import FORMATS  # pure: names no writer
 
 NAME = "export"
-HELP = ("export annotated outputs as COCO, YOLO, ROI crops, MOTChallenge tracks or WILDTRACK-style "
-        "multi-view positions (from OUT/annotations.openlabel.json), with training splits; several outputs "
-        "as one COCO/YOLO dataset")
+_SUMMARIES = [f.summary for f in FORMATS.values()]
+HELP = (f"export annotated outputs as {', '.join(_SUMMARIES[:-1])} or {_SUMMARIES[-1]} (from "
+        "OUT/annotations.openlabel.json), with training splits; several outputs as one "
+        f"{'/'.join(f.summary for f in FORMATS.values() if f.dataset)} dataset")
 
 
 class _FormatsThenOutputs(argparse.Action):
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         written = export_formats(args.outputs[0], args.format,
                                  ExportOptions(min_roi_px=args.min_roi_px, grid=grid, **options))
     else:
-        for per_output in ("rois", "mot", "multiview"):
+        for per_output in (name for name, fmt in FORMATS.items() if not fmt.dataset):
             if per_output in args.format:
                 raise OutputError([Problem("--dataset", f"{per_output} is exported per output folder; "
                                                         f"export {per_output} without --dataset")])

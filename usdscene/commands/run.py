@@ -8,7 +8,7 @@ import sys
 from usdscene.commands._arguments import (add_executor_arguments, add_label_filter_arguments, add_split_arguments,
                                           positive_int)
 
-from usdscene.dataset.export import FORMATS  # a constant; the module imports nothing heavy
+from usdscene.converters.exports.registry import format_names  # pure: names no writer
 
 NAME = "run"
 HELP = ("the whole job: validate the scene document, compose the USD stage, render every camera "
@@ -25,8 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", required=True, type=output_path, metavar="OUT", help="output folder")
     parser.add_argument("--frames", metavar="A:B", help="closed frame range A:B, a frame N or a list N,M (default: all)")
     parser.add_argument("--cameras", nargs="+", metavar="NAME", help="cameras to render (default: all)")
-    parser.add_argument("--export", nargs="*", choices=FORMATS, metavar="FORMAT",
-                        help="dataset formats to export: coco, yolo, rois (default: the document's "
+    parser.add_argument("--export", nargs="*", choices=format_names(), metavar="FORMAT",
+                        help=f"dataset formats to export: {', '.join(format_names())} (default: the document's "
                              "metadata.usdscene.exports; give the flag alone for none)")
     parser.add_argument("--samples", type=int, metavar="N", help="override the samples per pixel")
     parser.add_argument("--workers", type=positive_int, metavar="N",

@@ -31,10 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-FORMATS = ("coco", "yolo", "rois", "mot", "multiview")
-"""Dataset formats :func:`export_formats` writes."""
-
-
 def _source_folder(out_dir):
     """Folder of the stage's source document (asset paths are relative to it), else None."""
     from usdscene.document import output_layout as layout
@@ -175,7 +171,8 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
 
     Args:
         out_dir: annotated output folder.
-        formats: names from :data:`FORMATS`, in order (duplicates ignored).
+        formats: names of :data:`usdscene.converters.exports.registry.FORMATS`, in order
+            (duplicates ignored).
         options: what to export and how (:class:`ExportOptions`).
 
     Returns:
@@ -187,45 +184,42 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     """
     from pathlib import Path
 
+    from usdscene.converters.exports.registry import FORMATS, ExportJob, format_names, require_needs
     from usdscene.document import output_layout as layout
     from usdscene.errors import OutputError
 
     out = Path(out_dir)
+    names = format_names()
     unknown = [f for f in formats if f not in FORMATS]
     if unknown:
-        raise OutputError(f"unknown export format {unknown[0]!r}; expected one of {FORMATS}", where="exports")
+        raise OutputError(f"unknown export format {unknown[0]!r}; expected one of {names}", where="exports")
     ordered = list(dict.fromkeys(formats))
     written = {}
     # the document (which can be large) and the catalog are read once for every format
     loaded = _load_annotated(out, options.extra_assets,
-                             need_catalog="rois" in ordered or not options.document_classes)
-    if "mot" in ordered or "multiview" in ordered:  # fail before writing any format
-        from usdscene.converters.exports.tracks import require_tracks
-
-        require_tracks(loaded[0], " and ".join(f for f in ordered if f in ("mot", "multiview")))
-    dataset_formats = [f for f in ordered if f in ("coco", "yolo")]
+                             need_catalog=any(FORMATS[f].catalog for f in ordered) or not options.document_classes)
+    require_needs(loaded[0], ordered)  # fail before writing any format
+    dataset_formats = [f for f in ordered if FORMATS[f].dataset]
     if dataset_formats:
         written.update(export_dataset([out], dataset_formats, out / layout.EXPORTS_DIR, options, loaded=[loaded]))
-    if "rois" in ordered:
-        from usdscene.converters.exports.rois import export_rois
-
-        written["rois"] = export_rois(loaded[0], out, loaded[1], min_size_px=options.min_roi_px)
-    if "mot" in ordered or "multiview" in ordered:
-        from usdscene.converters.openlabel.annotations import LabelIndex
-
-        index = LabelIndex(loaded[0])  # each frame's labels read once for both exports
-    if "mot" in ordered:
-        from usdscene.converters.exports.mot import export_mot
-
-        written["mot"] = export_mot(loaded[0], out, classes=_export_classes(loaded[0], loaded[1], options.document_classes),
-                                    copy_images=options.copy_images, index=index)
-    if "multiview" in ordered:
-        from usdscene.converters.exports.multiview import export_multiview
-        from usdscene.generate.motion import person_classes
-
-        people = person_classes(loaded[1]) if loaded[1] is not None and not options.document_classes else None
-        written["multiview"] = export_multiview(loaded[0], out, grid=options.grid, classes=people, index=index)
+    document, catalog = loaded
+    job = ExportJob(document, catalog, out, options,
+                    object_classes=lambda: _export_classes(document, catalog, options.document_classes),
+                    person_classes=lambda: _person_classes(catalog, options.document_classes))
+    for name in names:  # in the registry's order, whatever the order asked for
+        if name in ordered and not FORMATS[name].dataset:
+            written[name] = FORMATS[name].write(job)
     return {fmt: written[fmt] for fmt in ordered}
+
+
+def _person_classes(catalog, document_classes: bool):
+    """Multi-view persons: the catalog's person classes, or None (every object with ground
+    positions) with ``document_classes`` or without a catalog."""
+    if catalog is None or document_classes:
+        return None
+    from usdscene.generate.motion import person_classes
+
+    return person_classes(catalog)
 
 
 def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = ExportOptions(), *,
@@ -266,7 +260,9 @@ def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = Expo
 
     extra_assets, document_classes, copy_images = options.extra_assets, options.document_classes, options.copy_images
     split, split_seed = options.split, options.split_seed
-    bad = [f for f in formats if f not in ("coco", "yolo")]
+    from usdscene.converters.exports.registry import FORMATS
+
+    bad = [f for f in formats if f not in FORMATS or not FORMATS[f].dataset]
     if bad:
         raise OutputError(f"format {bad[0]!r} cannot be exported as one dataset of several output "
                           "folders; export it per output folder", where="exports")

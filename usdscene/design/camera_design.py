@@ -37,6 +37,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from usdscene.design.candidates import Mount, candidate_cameras, candidate_mounts, open_air_mounts
+from usdscene.design.coverage_file import Coverage, coverage_report, round_figure
 from usdscene.design.mount_surfaces import mount_surfaces
 from usdscene.design.user_mounts import load_mounts
 from usdscene.design.lenses import Lens, load_lenses
@@ -45,7 +46,7 @@ from usdscene.design.plan_picture import plan_picture
 from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
-from usdscene.design.visibility import Uncovered, Visibility, coverage_matrix, evaluate_visibility, why_uncovered
+from usdscene.design.visibility import coverage_matrix, evaluate_visibility, why_uncovered
 from usdscene.labels.pixel_density import (STANDARD_FILES, DoriClass, class_index, load_dori, pixel_density,
                                            standard_file, table_standard)
 from usdscene.errors import DocumentError, OutputError
@@ -253,8 +254,8 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path) -> PlanResult:
     planned = dataclasses.replace(setup, cameras=tuple(chosen), asset_paths=asset_paths)
     why = why_uncovered(visibility, selection.uncoverable, min_visible=request.min_visible,
                         candidates=len(candidates))
-    report = coverage_report(request.record([lens.name for lens in lenses], table, standard_name), target_list,
-                             candidates, chosen, selection, visibility, cover, table, mount_count, why)
+    report = coverage_report(request.record([lens.name for lens in lenses], table, standard_name), Coverage(
+        target_list, candidates, chosen, selection, visibility, cover, table, mount_count, why))
     out.mkdir(parents=True, exist_ok=True)
     write_document(out / CAMERAS_FILE, write_openlabel(planned), schema=default_schema_path())
     write_json_atomic(out / COVERAGE_FILE, report)
@@ -308,67 +309,6 @@ def _named_cameras(cameras: Sequence[Camera], *, keep_names: bool) -> list[Camer
                         f"candidate {cam.name}",
             custom={}))
     return out
-
-
-def _round(value: float, digits: int = 4) -> float:
-    return float(round(float(value), digits))
-
-
-def coverage_report(request: Mapping, targets: Sequence[Target], candidates: Sequence[Camera],
-                    chosen: Sequence[Camera], selection: Selection, visibility: Visibility,
-                    cover: np.ndarray, table: Sequence[DoriClass], mount_count: int,
-                    why: Sequence[Uncovered] = ()) -> dict:
-    """The ``coverage.json`` content: request, summary, per target, per chosen camera.
-
-    Per (camera, target) pair the visible fraction, the median px/m over the visible points
-    and its DORI class; ``covers`` says whether the pair meets the requirement. ``why``
-    (:func:`usdscene.design.visibility.why_uncovered`, one per uncoverable target) becomes
-    ``summary.why_uncoverable``: per target the reason and the best class any candidate reaches.
-    """
-    picked = list(selection.chosen)
-    names = {c: chosen[i].name for i, c in enumerate(picked)}
-
-    def pair(c: int, t: int) -> dict:
-        d = int(visibility.dori[c, t])
-        return {"camera": names[c], "visible_fraction": _round(visibility.visible[c, t]),
-                "in_image_fraction": _round(visibility.in_image[c, t]),
-                "px_per_m": _round(visibility.px_per_m[c, t], 1),
-                "dori": table[d].name if d >= 0 else None, "covers": bool(cover[c, t])}
-
-    target_rows = []
-    holes = []
-    for t, target in enumerate(targets):
-        seen = [pair(c, t) for c in picked if visibility.visible[c, t] > 0]
-        count = sum(1 for p in seen if p["covers"])
-        best = max((int(visibility.dori[c, t]) for c in picked if cover[c, t]), default=-1)
-        if count < int(request["k"]):
-            holes.append(target.name)
-        target_rows.append({"name": target.name, "place": target.place, "region": target.region,
-                            "covering_cameras": count, "best_dori": table[best].name if best >= 0 else None,
-                            "coverable_by_candidates": int(cover[:, t].sum()),
-                            "cameras": seen,
-                            "points_m": [[_round(v) for v in p] for p in target.points_m.tolist()]})
-    camera_rows = []
-    for i, c in enumerate(picked):
-        cam = chosen[i]
-        camera_rows.append({"name": cam.name, "candidate": candidates[c].name,
-                            "lens": candidates[c].custom.get("lens", cam.model_name) if candidates[c].custom else
-                            cam.model_name,
-                            "position_m": [_round(v) for v in cam.pose.translation_m],
-                            "forward": [_round(v) for v in cam.pose.rotation[:, 2]],
-                            "targets": [targets[t].name for t in np.flatnonzero(cover[c])]})
-    summary = {
-        "cameras": len(picked), "method": selection.method, "optimal": selection.optimal,
-        "lower_bound": selection.lower_bound, "gap": _round(selection.gap), "greedy_cameras": selection.greedy_size,
-        "candidates": len(candidates), "mounts": mount_count, "targets": len(targets),
-        "targets_covered": len(targets) - len(holes), "holes": holes,
-        "uncoverable": [targets[t].name for t in selection.uncoverable],
-        "short_of_k": [targets[t].name for t in selection.short],
-        "why_uncoverable": {targets[u.target].name: {"reason": u.reason, "best_dori": table[u.best_dori].name
-                                                     if u.best_dori >= 0 else None} for u in why},
-    }
-    return {"format": "usdscene-coverage", "version": 1, "request": dict(request), "summary": summary,
-            "cameras": camera_rows, "targets": target_rows}
 
 
 # --------------------------------------------------------------------------------------------
@@ -551,9 +491,9 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
             points += len(seen)
             points_ok += int((seen == pred).sum())
             rows.append({"camera": camera.name, "target": target.name,
-                         "predicted_visible_fraction": _round(predicted_fraction),
-                         "rendered_visible_fraction": _round(rendered_fraction), "agree": bool(ok)})
-    summary = {"pairs": pairs, "agreeing_pairs": agreeing, "agreement": _round(agreeing / pairs if pairs else 1.0),
+                         "predicted_visible_fraction": round_figure(predicted_fraction),
+                         "rendered_visible_fraction": round_figure(rendered_fraction), "agree": bool(ok)})
+    summary = {"pairs": pairs, "agreeing_pairs": agreeing, "agreement": round_figure(agreeing / pairs if pairs else 1.0),
                "tolerance": tolerance, "points": points, "agreeing_points": points_ok,
                "resolution_scale": resolution_scale, "samples": samples, "marker_radius_m": marker_radius_m}
     out = {"format": "usdscene-verification", "version": 1, "summary": summary, "pairs": rows}

@@ -53,13 +53,14 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from usdscene.document.model import FrameInterval, SceneObject, SceneSpec, canonical_json
+from usdscene.document.model import SceneSpec
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import MAX_FPS
 from usdscene.generate.crowd_area import PERSON_RADIUS_M, SEAT_SPACING_M, CrowdLayout, StagePlace, crowd_layout
-from usdscene.generate.motion import (FRONT_YAW, MAX_PEOPLE, GeneratedTracks, Obstacles, TrackOptions, Track,
-                                      _draw_look, _next_uid, _runs, _walk_variants, _yaw_pose, cycle_poses,
-                                      environment_obstacles, locked_stride, person_classes, tracks_report, walk_phases)
+from usdscene.generate.motion import MAX_PEOPLE, GeneratedTracks, _scene, tracks_report
+from usdscene.generate.movers import FRONT_YAW, Track, TrackOptions, draw_look
+from usdscene.generate.obstacles import Obstacles, environment_obstacles
+from usdscene.generate.walkers import locked_stride, person_classes, walk_variants
 from usdscene.scene.catalog import Catalog
 
 log = logging.getLogger(__name__)
@@ -613,7 +614,7 @@ def person_tracks(run: CrowdRun, layout: CrowdLayout, catalog: Catalog, classes:
             continue
         cls = classes[int(rng.integers(len(classes)))]
         entry = catalog[cls]
-        look, _ = _draw_look(entry, rng)
+        look, _ = draw_look(entry, rng)
         filled = np.where(present[:, None], xy, xy[present][0])
         z = layout.support_z(filled)
         z = np.where(np.isfinite(z), z, 0.0)
@@ -638,13 +639,15 @@ def person_tracks(run: CrowdRun, layout: CrowdLayout, catalog: Catalog, classes:
         step = np.where(present & np.concatenate([[False], present[:-1]]), step, 0.0)
         walked = np.cumsum(step)
         mean_speed = float(step[moving].sum() / max(moving.sum(), 1) * fps) if moving.any() else 0.0
-        cycle = _walk_variants(entry)
-        track = Track("walking" if run.kind[p] == "walking" else "standing", cls, present, position,
+        cycle = walk_variants(entry)
+        still = next((v for v in STANDING_POSES if v in entry.variants.get("pose", ())), None)
+        walking = run.kind[p] == "walking"
+        track = Track("walking" if walking else "standing", cls, present, position,
                       np.mod(yaw + math.pi, 2 * math.pi) - math.pi, walked, float(run.speed_m_s[p]),
                       route=tuple(run.routes[p].split()), appearance=look,
-                      pose_variant=(cycle[0] if cycle else None),
-                      stride_m=locked_stride(max(mean_speed, 0.5), fps, len(cycle)))
-        track.moving = moving  # frames that show the walk cycle; the others a standing pose
+                      pose_variant=(cycle[0] if cycle and walking else still),
+                      stride_m=locked_stride(max(mean_speed, 0.5), fps, len(cycle)),
+                      moving=moving, still_pose=still)
         tracks.append(track)
     return tracks
 
@@ -663,7 +666,7 @@ def seated_tracks(layout: CrowdLayout, catalog: Catalog, classes: Sequence[str],
     for i in sorted(order.tolist()):
         stage, k = spots[i]
         cls = classes[int(rng.integers(len(classes)))]
-        look, _ = _draw_look(catalog[cls], rng)
+        look, _ = draw_look(catalog[cls], rng)
         xy = stage.points[k]
         position = np.tile([xy[0], xy[1], stage.area.centre[2]], (F, 1))
         yaw = math.atan2(stage.area.axes[1, 0], stage.area.axes[0, 0])
@@ -677,54 +680,6 @@ def seated_tracks(layout: CrowdLayout, catalog: Catalog, classes: Sequence[str],
 def seated_classes(catalog: Catalog) -> tuple[str, ...]:
     """Catalog classes of kind ``passenger`` (seated people), sorted."""
     return catalog.classes("passenger")
-
-
-def _crowd_scene(setup: SceneSpec, catalog: Catalog, tracks: Sequence[Track], options: CrowdOptions) -> SceneSpec:
-    """The document: one object per track, like the route generator's, with the per-frame pose
-    the walk cycle while moving and the class's standing pose while still."""
-    first = _next_uid(setup)
-    counters: dict[str, int] = {}
-    objects = []
-    for k, track in enumerate(tracks):
-        n = counters.get(track.kind, 0)
-        counters[track.kind] = n + 1
-        entry = catalog[track.class_name]
-        poses_of = entry.variants.get("pose", ())
-        cycle = _walk_variants(entry) if track.kind in ("walking", "standing") else ()
-        still = next((v for v in STANDING_POSES if v in poses_of), None)
-        idx = np.flatnonzero(track.present)
-        poses = tuple((int(f), _yaw_pose(track.position[f], float(track.yaw[f]))) for f in idx)
-        phases = walk_phases(track)
-        shown = cycle_poses(track, len(cycle)) if cycle else None
-        moving = getattr(track, "moving", np.ones(len(track.present), bool))
-        frame_extra = []
-        for f in idx:
-            data: dict = {"vec": [{"name": "ground_position_m", "val": [float(v) for v in track.position[f]]}]}
-            if cycle:
-                pose = cycle[int(shown[f])] if (moving[f] or still is None) else still
-                data["num"] = [{"name": "walk_phase", "val": float(phases[f])}]
-                data["text"] = [{"name": "walk_pose_variant", "val": pose}]
-            frame_extra.append((int(f), canonical_json({"object_data": data})))
-        intervals = [{"frame_start": iv.frame_start, "frame_end": iv.frame_end} for iv in _runs(track.present)]
-        pointers = {"ground_position_m": {"type": "vec", "frame_intervals": intervals}}
-        if cycle:
-            pointers["walk_phase"] = {"type": "num", "frame_intervals": intervals}
-            pointers["walk_pose_variant"] = {"type": "text", "frame_intervals": intervals}
-        texts = [{"name": "motion", "val": track.kind}, {"name": "route", "val": " ".join(track.route)}]
-        nums = [{"name": "speed_m_s", "val": float(track.speed_m_s)}]
-        if track.kind == "walking":
-            nums.append({"name": "stride_m", "val": float(track.stride_m)})
-        for item in texts:
-            pointers[item["name"]] = {"type": "text", "frame_intervals": []}
-        for item in nums:
-            pointers[item["name"]] = {"type": "num", "frame_intervals": []}
-        extra = canonical_json({"object_data": {"text": texts, "num": nums}, "object_data_pointers": pointers})
-        objects.append(SceneObject(
-            uid=str(first + k), name=f"{track.kind}_{n:03d}", class_name=track.class_name,
-            frame_intervals=_runs(track.present), frame_poses=poses, appearance=track.appearance,
-            pose_variant=track.pose_variant, extra=extra, frame_extra=tuple(frame_extra)))
-    return dataclasses.replace(setup, frame_start=0, frame_end=options.frames - 1, fps=float(options.fps),
-                               seed=options.seed, objects=(*setup.objects, *objects))
 
 
 def _check_options(setup: SceneSpec, catalog: Catalog, options: CrowdOptions) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -795,7 +750,7 @@ def generate_crowd(setup: SceneSpec, catalog: Catalog, options: CrowdOptions, *,
     seated = int(options.seated) + sum(int(s.numbers.get("seated", 0)) for s in layout.of_role("seat"))
     if seated:
         tracks += seated_tracks(layout, catalog, sitting, seated, options, rng)
-    scene = _crowd_scene(setup, catalog, tracks, options)
+    scene = _scene(setup, catalog, tracks, TrackOptions(frames=options.frames, fps=options.fps, seed=options.seed))
     route_options = TrackOptions(frames=options.frames, fps=options.fps, people=len(tracks), seed=options.seed)
     report = tracks_report(scene, tracks, catalog, route_options, setup_sha256=setup_sha256)
     report["strategy"] = "tracks"

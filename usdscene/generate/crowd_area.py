@@ -29,7 +29,8 @@ import numpy as np
 
 from usdscene.document.model import SceneSpec
 from usdscene.errors import DocumentError
-from usdscene.generate.motion import ENTRANCE_WORDS, STEP_HEIGHT_M, WALK_WORDS, Area, Obstacles, _touch
+from usdscene.generate.obstacles import STEP_HEIGHT_M, Obstacles
+from usdscene.generate.routes import ENTRANCE_WORDS, WALK_WORDS, Area, touch
 from usdscene.scene.catalog import Catalog, scene_catalog
 
 QUEUE_WORDS = ("queue", "gate", "counter", "kiosk", "ticket")
@@ -68,7 +69,7 @@ class StagePlace:
 
     Attributes:
         place: place name; role: ``queue``, ``wait``, ``seat``, ``waypoint``, ``entrance``.
-        area: its ground box (see :class:`usdscene.generate.motion.Area`).
+        area: its ground box (see :class:`usdscene.generate.routes.Area`).
         numbers: the ``num`` object data of its place object in the setup (behaviour values).
         points: (P, 2) its positions in world metres: a queue's places from head to back, a
             waiting place's or bench's spots, a waypoint's centre; entrances: none.
@@ -255,7 +256,7 @@ def crowd_layout(setup: SceneSpec, catalog: Catalog, obstacles: Obstacles | None
     found = _areas(catalog, setup)
     walk = [a for a, _ in found if a.role == "walk"]
     # Entrances serve the crowd where they touch a walk place (a vehicle gate on a lane does not).
-    ground = tuple(a for a, _ in found if a.role == "walk" or (a.role == "entrance" and any(_touch(a, w) for w in walk)))
+    ground = tuple(a for a, _ in found if a.role == "walk" or (a.role == "entrance" and any(touch(a, w) for w in walk)))
     where = f"setup environment {setup.environment!r}"
     if not any(a.role == "walk" for a in ground):
         raise DocumentError("no walkable space: no place whose name or kind says "

@@ -218,7 +218,7 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         is out of view).
     """
     from usdscene.labels.amodal_kernels import faces_to_fill, to_camera, used_vertices
-    from usdscene.document.model import LensModel
+    from usdscene.lens import lens_for
 
     intr = camera.intrinsics
     size = (intr.width_px, intr.height_px)
@@ -245,17 +245,18 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     # world → camera (OpenCV axes): R^T (p - t).
     cam_points = to_camera(points, np.ascontiguousarray(m, dtype=np.float64))
     near_cut = np.zeros(len(visible), dtype=bool)
-    if intr.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+    lens = lens_for(intr)
+    if lens.pinhole:
         cam_points, faces, owner, clipped = _clip_near(cam_points, faces, owner, near_m)
         near_cut[clipped] = True
     single_facing = (np.array([mesh.closed for mesh in indexed], dtype=bool) & camera_clear[visible]
-                     & ~near_cut & (intr.lens is not LensModel.ORTHOGRAPHIC))
+                     & ~near_cut & (not lens.orthographic))
     if single_facing.any():
         faces, owner = faces_to_fill(cam_points, faces, owner, single_facing)
         # About half the vertices of a closed mesh belong to faces turned away only.
         cam_points, faces = used_vertices(cam_points, faces)
     uv, ok, inside, clamped = _project_points(intr, cam_points)
-    if intr.lens not in (LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC) or any(intr.distortion):
+    if not lens.straight or any(intr.distortion):
         uv, ok, inside, clamped, faces, owner = _split_curved(intr, cam_points, uv, ok, inside, clamped, faces,
                                                               owner, float(max_edge_px))
     projections = _rasterize_objects(uv, ok, inside, clamped, faces, owner, len(visible), intr.width_px,
@@ -504,13 +505,14 @@ def _onto_cone(points_cam: np.ndarray, half_angle_rad: float) -> np.ndarray:
 def _view_half_angle_rad(intrinsics: Intrinsics) -> float:
     """Largest angle from the optical axis (radians) of any ray the image can show; π when
     unknown (orthographic, or a distortion that cannot be inverted at the border)."""
-    from usdscene.document.model import LensModel
     from usdscene.labels.projection import _border_pixels, pixel_rays
+    from usdscene.lens import lens_for
 
-    if intrinsics.lens is LensModel.ORTHOGRAPHIC:
+    lens = lens_for(intrinsics)
+    if lens.orthographic:
         return math.pi
     cone = _fisheye_cone_rad(intrinsics)
-    if intrinsics.lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+    if lens.pinhole:
         rays, valid = pixel_rays(intrinsics, _border_pixels(intrinsics.width_px, intrinsics.height_px))
         if not valid.all():
             return math.pi

@@ -1,7 +1,8 @@
 """Camera projection for every lens model, and the remap grids of lenses Blender lacks. Pure.
 
-numpy only (no pxr, no bpy, no cv2): the functions here are the *definition* of each
-:class:`usdscene.document.model.LensModel`; tests check them against OpenCV's ``cv2.projectPoints`` and
+numpy only (no pxr, no bpy, no cv2): with the lens classes of :mod:`usdscene.lens` (one per
+:class:`usdscene.document.model.LensModel`, looked up by name), the functions here are the
+*definition* of each model; tests check them against OpenCV's ``cv2.projectPoints`` and
 ``cv2.fisheye.projectPoints``, and the renderer is checked against them.
 
 Pixel convention (see :class:`usdscene.document.model.Intrinsics`): x right, y down, pixel centres at
@@ -37,6 +38,7 @@ from dataclasses import replace
 import numpy as np
 
 from usdscene.document.model import Camera, Intrinsics, LensModel
+from usdscene.lens import LENSES, lens_for
 
 __all__ = [
     "project_points",
@@ -50,9 +52,8 @@ __all__ = [
 ]
 
 # Lens models Blender/Cycles renders directly; the others are rendered through a native lens
-# and remapped (see remap_grids).
-NATIVE_LENSES = frozenset({LensModel.PERSPECTIVE, LensModel.ORTHOGRAPHIC,
-                           LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID})
+# and remapped (see remap_grids). Read from the lens registry (usdscene.lens) when imported.
+NATIVE_LENSES = frozenset(name for name, lens in LENSES.items() if lens.native)
 
 
 def project_points(camera: Camera, points_world: np.ndarray,
@@ -94,33 +95,9 @@ def project_camera_points_with_angle(intrinsics: Intrinsics, points_cam: np.ndar
     other models."""
     p = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
     x, y, z = np.ascontiguousarray(p.T)  # contiguous columns: the element-wise passes run faster
-    lens = LensModel(intrinsics.lens)
     fx, fy, cx, cy = intrinsics.fx_px, intrinsics.fy_px, intrinsics.cx_px, intrinsics.cy_px
-    theta = None
     with np.errstate(divide="ignore", invalid="ignore"):
-        if lens is LensModel.ORTHOGRAPHIC:
-            xn, yn = x, y
-            valid = z > 0
-        elif lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-            valid = z > 0
-            zs = np.where(valid, z, 1.0)
-            xn, yn = x / zs, y / zs
-            if lens is LensModel.OPENCV_PINHOLE:
-                xn, yn, growing = _brown_conrady(xn, yn, intrinsics.distortion)
-                valid &= growing
-        else:
-            rho = np.hypot(x, y)
-            theta = np.arctan2(rho, z)
-            if lens is LensModel.FISHEYE_EQUIDISTANT:
-                radius, growing = theta, np.ones_like(theta, dtype=bool)
-            elif lens is LensModel.FISHEYE_EQUISOLID:
-                radius, growing = 2.0 * np.sin(theta / 2.0), theta < math.pi
-            else:  # OPENCV_FISHEYE, KANNALA, RADIAL_POLY
-                radius, growing = _radial_theta_d(theta, lens, intrinsics.distortion)
-            valid = growing & (theta <= _half_fov_rad(intrinsics, lens)) & (rho + np.abs(z) > 0)
-            safe_rho = np.where(rho > 0, rho, 1.0)
-            xn = np.where(rho > 0, radius * x / safe_rho, 0.0)
-            yn = np.where(rho > 0, radius * y / safe_rho, 0.0)
+        xn, yn, valid, theta = lens_for(intrinsics).project(intrinsics, x, y, z)
         uv = np.empty((len(p), 2))
         uv[:, 0] = fx * xn + cx
         uv[:, 1] = fy * yn + cy
@@ -128,71 +105,8 @@ def project_camera_points_with_angle(intrinsics: Intrinsics, points_cam: np.ndar
     return uv, valid, theta
 
 
-def _half_fov_rad(intrinsics: Intrinsics, lens: LensModel) -> float:
-    if intrinsics.fov_deg is not None:
-        return math.radians(intrinsics.fov_deg) / 2.0
-    # cv2.fisheye is only defined in front of the camera.
-    return math.pi / 2.0 if lens is LensModel.OPENCV_FISHEYE else math.pi
-
-
-def _distortion(coeffs: tuple[float, ...], count: int) -> np.ndarray:
-    out = np.zeros(count)
-    values = np.asarray(coeffs, dtype=np.float64)[:count]
-    out[: values.size] = values
-    return out
-
-
-def _brown_conrady(xn: np.ndarray, yn: np.ndarray, coeffs: tuple[float, ...]):
-    """OpenCV's distortion of normalised coordinates → (xd, yd, radius_still_growing)."""
-    k1, k2, p1, p2, k3, k4, k5, k6 = _distortion(coeffs, 8)
-    r2 = xn * xn + yn * yn
-    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
-    radial = num / den
-    xd = xn * radial + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
-    yd = yn * radial + p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
-    # d(r·radial)/dr = radial + r · d radial/dr; d radial/d(r²) by the quotient rule.
-    dnum = k1 + r2 * (2 * k2 + 3 * k3 * r2)
-    dden = k4 + r2 * (2 * k5 + 3 * k6 * r2)
-    growing = (radial + 2 * r2 * (dnum * den - num * dden) / (den * den)) > 0
-    return xd, yd, growing & (den > 0)
-
-
-# Lens models whose image radius is a polynomial r = f·θd(θ) (see _radial_polynomial).
-RADIAL_POLYNOMIAL_LENSES = frozenset({LensModel.OPENCV_FISHEYE, LensModel.KANNALA, LensModel.RADIAL_POLY})
-
-
-def _radial_polynomial(theta: np.ndarray, lens: LensModel, coeffs: tuple[float, ...]):
-    """``(θd, dθd/dθ)`` of a radial polynomial lens: Kannala-Brandt ``θ(1 + k1θ² + ... + k4θ⁸)``
-    for opencv_fisheye and kannala, ``θ(1 + d1θ + d2θ² + ...)`` for radial_poly.
-
-    Args:
-        theta: angles off the optical axis, radians, any shape.
-        lens: one of :data:`RADIAL_POLYNOMIAL_LENSES`.
-        coeffs: the lens's ``distortion``.
-
-    Returns:
-        θd and its derivative, arrays shaped like ``theta``.
-    """
-    if lens is LensModel.RADIAL_POLY:
-        # Horner from the highest power: q = d1θ + d2θ² + ..., q' = 2d1 + 3d2θ + ...
-        q = np.zeros_like(theta)
-        q_slope = np.zeros_like(theta)
-        for power, d in reversed(list(enumerate(coeffs, start=2))):
-            q = theta * (q + d)
-            q_slope = theta * q_slope + power * d
-        return theta * (1 + q), 1 + theta * q_slope
-    k1, k2, k3, k4 = _distortion(coeffs, 4)
-    t2 = theta * theta
-    theta_d = theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
-    slope = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
-    return theta_d, slope
-
-
-def _radial_theta_d(theta: np.ndarray, lens: LensModel, coeffs: tuple[float, ...]):
-    """θd of a radial polynomial lens and whether it still grows with θ."""
-    theta_d, slope = _radial_polynomial(theta, lens, coeffs)
-    return theta_d, slope > 0
+# Lens models whose image radius is a polynomial r = f·θd(θ) (usdscene.lens.fisheye.PolynomialLens).
+RADIAL_POLYNOMIAL_LENSES = frozenset(name for name, lens in LENSES.items() if lens.polynomial)
 
 
 def pixel_rays(intrinsics: Intrinsics, uv: np.ndarray,
@@ -211,72 +125,18 @@ def pixel_rays(intrinsics: Intrinsics, uv: np.ndarray,
         distortion did not converge to 1e-6 px).
     """
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    lens = LensModel(intrinsics.lens)
     xd = (uv[:, 0] - intrinsics.cx_px) / intrinsics.fx_px
     yd = (uv[:, 1] - intrinsics.cy_px) / intrinsics.fy_px
-    valid = np.ones(len(uv), dtype=bool)
-    if lens is LensModel.ORTHOGRAPHIC:
-        rays = np.tile([0.0, 0.0, 1.0], (len(uv), 1))
-        return rays, valid
-    if lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
-        xn, yn = xd.copy(), yd.copy()
-        if lens is LensModel.OPENCV_PINHOLE:
-            xn, yn, valid = _undistort_brown_conrady(xd, yd, intrinsics, iterations)
-        rays = np.stack([xn, yn, np.ones_like(xn)], axis=1)
-        return rays / np.linalg.norm(rays, axis=1, keepdims=True), valid
-    radius = np.hypot(xd, yd)
-    if lens is LensModel.FISHEYE_EQUIDISTANT:
-        theta = radius
-    elif lens is LensModel.FISHEYE_EQUISOLID:
-        valid &= radius <= 2.0
-        theta = 2.0 * np.arcsin(np.clip(radius / 2.0, 0.0, 1.0))
-    else:
-        theta, ok = _invert_radial_polynomial(radius, lens, intrinsics.distortion, iterations)
-        valid &= ok
-    valid &= theta <= _half_fov_rad(intrinsics, lens)
-    safe = np.where(radius > 0, radius, 1.0)
-    s = np.sin(theta)
-    rays = np.stack([np.where(radius > 0, s * xd / safe, 0.0),
-                     np.where(radius > 0, s * yd / safe, 0.0), np.cos(theta)], axis=1)
-    return rays, valid
-
-
-def _undistort_brown_conrady(xd, yd, intrinsics: Intrinsics, iterations: int):
-    # The same fixed-point scheme as cv2.undistortPoints, run long enough to converge; the
-    # residual check rejects pixels outside the region where the distortion is invertible.
-    k1, k2, p1, p2, k3, k4, k5, k6 = _distortion(intrinsics.distortion, 8)
-    xn, yn = xd.copy(), yd.copy()
-    for _ in range(iterations):
-        r2 = xn * xn + yn * yn
-        icdist = (1 + r2 * (k4 + r2 * (k5 + r2 * k6))) / (1 + r2 * (k1 + r2 * (k2 + r2 * k3)))
-        dx = 2 * p1 * xn * yn + p2 * (r2 + 2 * xn * xn)
-        dy = p1 * (r2 + 2 * yn * yn) + 2 * p2 * xn * yn
-        xn, yn = (xd - dx) * icdist, (yd - dy) * icdist
-    xr, yr, growing = _brown_conrady(xn, yn, intrinsics.distortion)
-    err = np.hypot((xr - xd) * intrinsics.fx_px, (yr - yd) * intrinsics.fy_px)
-    # A converged pixel reprojects to within far less than 1e-3 px.
-    valid = np.isfinite(err) & (err < 1e-3) & growing
-    return xn, yn, valid
-
-
-def _invert_radial_polynomial(theta_d, lens: LensModel, coeffs, iterations: int):
-    theta = theta_d.copy()
-    for _ in range(iterations):  # Newton on θd(θ) - θd = 0
-        value, slope = _radial_polynomial(theta, lens, coeffs)
-        theta = theta - (value - theta_d) / np.where(np.abs(slope) > 1e-12, slope, 1e-12)
-        theta = np.clip(theta, 0.0, math.pi)
-    value, growing = _radial_theta_d(theta, lens, coeffs)
-    ok = np.isfinite(theta) & (np.abs(value - theta_d) < 1e-9) & growing
-    return theta, ok
+    return lens_for(intrinsics).unproject(intrinsics, xd, yd, iterations)
 
 
 def native_renderable(intrinsics: Intrinsics) -> bool:
     """Whether Blender renders this camera directly: a native lens with square pixels, and for
     fisheyes a centred principal point (Cycles' panoramic cameras ignore lens shift)."""
-    lens = LensModel(intrinsics.lens)
-    if lens not in NATIVE_LENSES or abs(intrinsics.fx_px - intrinsics.fy_px) > 1e-9 * intrinsics.fx_px:
+    lens = lens_for(intrinsics)
+    if not lens.native or abs(intrinsics.fx_px - intrinsics.fy_px) > 1e-9 * intrinsics.fx_px:
         return False
-    if lens in (LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID):
+    if lens.centred:
         return (abs(intrinsics.cx_px - (intrinsics.width_px - 1) / 2) < 1e-6
                 and abs(intrinsics.cy_px - (intrinsics.height_px - 1) / 2) < 1e-6)
     return True
@@ -305,10 +165,10 @@ def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 
     Raises:
         ValueError: an orthographic camera with non-square pixels (not supported).
     """
-    lens = LensModel(intrinsics.lens)
+    lens = lens_for(intrinsics)
     if native_renderable(intrinsics):
         return intrinsics
-    if lens is LensModel.ORTHOGRAPHIC:
+    if lens.orthographic:
         raise ValueError(f"orthographic camera with non-square pixels (fx {intrinsics.fx_px} px/m, "
                          f"fy {intrinsics.fy_px} px/m) is not supported")
     w, h = intrinsics.width_px, intrinsics.height_px
@@ -328,8 +188,7 @@ def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 
         rays = np.array([[0.0, 0.0, 1.0]])
     theta_max = float(np.max(np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])))
     f = max(intrinsics.fx_px, intrinsics.fy_px)
-    pinhole_like = lens in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE) or (
-        lens in RADIAL_POLYNOMIAL_LENSES and theta_max < math.radians(60.0))
+    pinhole_like = lens.pinhole or (lens.polynomial and theta_max < math.radians(60.0))
     if pinhole_like:
         tx = np.abs(rays[:, 0] / rays[:, 2])
         ty = np.abs(rays[:, 1] / rays[:, 2])
@@ -344,8 +203,9 @@ def undistorted_render_intrinsics(intrinsics: Intrinsics, *, max_scale: float = 
         return replace(intrinsics, lens=LensModel.PERSPECTIVE, width_px=rw, height_px=rh, fx_px=f, fy_px=f,
                        cx_px=cx, cy_px=cy, distortion=(), fov_deg=None,
                        sensor_width_mm=intrinsics.sensor_width_mm * rw / w)
-    render_lens = LensModel.FISHEYE_EQUISOLID if lens is LensModel.FISHEYE_EQUISOLID else LensModel.FISHEYE_EQUIDISTANT
-    radius = 2 * f * math.sin(theta_max / 2) if render_lens is LensModel.FISHEYE_EQUISOLID else f * theta_max
+    # A native fisheye renders itself (off centre); any other, through an equidistant one.
+    render_lens = LensModel(lens.name) if lens.native and lens.radial else LensModel.FISHEYE_EQUIDISTANT
+    radius = lens_for(render_lens).render_radius_px(f, theta_max)
     half = min(radius + 2.0, max_scale * max(w, h) / 2.0)
     # Native fisheyes are centred: pick each side's parity so the centre's sub-pixel phase
     # (integer or half) is the closest to the output's (see the pinhole case).

@@ -1,0 +1,198 @@
+"""People: walkers between entrances over the walk places, people standing at walk places, and
+the walk cycle (the phase from the distance walked, the stride locked to the frame rate, foot
+sliding; see :mod:`usdscene.generate.motion`)."""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Sequence
+
+import numpy as np
+
+from usdscene.scene.catalog import AssetEntry, Catalog
+from usdscene.generate.movers import (FRONT_YAW, STRIDE_M, Ground, Track, TrackOptions, draw_mover, footprint_of,
+                                      full_fail, place, problem)
+from usdscene.generate.routes import (Area, Polyline, has_word, offset_sideways, place_graph, rounded,
+                                      route_points, shortest_path, speed_profile, timed_distances)
+
+PERSON_WORDS = ("person", "pedestrian", "human", "walker", "people")
+WALK_VARIANT = re.compile(r"^walk_(\d+)$")
+IDLE_VARIANTS = ("stand", "idle", "phone")
+STRIDE_RANGE_M = (0.9, 1.8)
+"""Strides a walker may take so that its phase advances a whole number of cycle poses per frame."""
+PERSON_MARGIN_M = 0.05
+"""Added around a person's footprint against others (swinging arms and legs)."""
+WALK_TURN_RADIUS_M = 0.8
+
+
+def walk_variants(entry: AssetEntry) -> tuple[str, ...]:
+    """The class's walk cycle ``walk_0`` .. ``walk_<n-1>`` in phase order (empty if none)."""
+    found = {}
+    for name in entry.variants.get("pose", ()):
+        match = WALK_VARIANT.match(name)
+        if match:
+            found[int(match.group(1))] = name
+    n = len(found)
+    return tuple(found[k] for k in range(n)) if n and set(found) == set(range(n)) else ()
+
+
+def person_classes(catalog: Catalog) -> tuple[str, ...]:
+    """Classes that walk: a walk cycle, or a person word in the class name (sorted)."""
+    return tuple(sorted(name for name in catalog.classes()
+                        if catalog[name].kind != "environment"
+                        and (walk_variants(catalog[name]) or has_word(name, PERSON_WORDS))))
+
+
+def _check_capacity(areas: Sequence[Area], routes_m: Sequence[float], options: TrackOptions,
+                    footprint_m2: float) -> None:
+    """Fail at once when the walkers asked for cannot share the walk places: about ``people ·
+    min(1, route time / sequence time)`` are on them at once (plus the standing people), and
+    the walk places hold at most a third of their area in footprints."""
+    area_m2 = sum(float(4.0 * np.prod(a.half)) for a in areas if a.role == "walk")
+    capacity = int(area_m2 / 3.0 / max(footprint_m2, 1e-6))
+    route_s = float(np.mean(routes_m)) / float(np.mean(options.speed_range_m_s))
+    seconds = options.frames / float(options.fps)
+    at_once = options.people * min(1.0, route_s / seconds) + options.standing
+    if at_once > capacity:
+        raise problem("--people", f"about {at_once:.0f} people would be on the walk places at once (a route "
+                                  f"takes about {route_s:.0f} s, the sequence {seconds:g} s); their {area_m2:.0f} m² "
+                                  f"hold about {capacity}: ask for fewer people or a longer sequence")
+
+
+def walkers(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> list[Track]:
+    """Walkers between entrances over the walk places, clear of ``accepted`` (see
+    :mod:`usdscene.generate.motion`)."""
+    areas, catalog, options, rng, obstacles = ground.areas, ground.catalog, ground.options, ground.rng, ground.obstacles
+    if not options.people:
+        return []
+    F, fps = options.frames, float(options.fps)
+    walk_roles = {"walk", "entrance"}
+    edges = place_graph(areas, walk_roles)
+    walk = [i for i, a in enumerate(areas) if a.role == "walk"]
+    gates = [i for i in edges if areas[i].role == "entrance" and any(areas[j].role == "walk" for j in edges[i])]
+    routes: list[list[int]] = []
+    for a in gates:
+        for b in gates:
+            if a != b:
+                path = shortest_path(areas, edges, a, b, {"walk"})
+                if path is not None:
+                    routes.append(path)
+    if not routes:
+        if len(gates) == 1:  # one door: walk in, turn at the far end of the walk space, walk out
+            far = max(walk, key=lambda i: float(np.linalg.norm(areas[i].centre[:2] - areas[gates[0]].centre[:2])))
+            there = shortest_path(areas, edges, gates[0], far, {"walk"})
+            if there is not None:
+                routes.append(there + there[::-1][1:])
+    if not routes:
+        raise problem("setup places", "no route between two entrances over the walk places")
+    sizes = [np.prod(2.0 * footprint_of(catalog[c], PERSON_MARGIN_M)[1]) for c in classes]
+    _check_capacity(areas, [Polyline(route_points(areas, r)).length for r in routes], options, float(np.mean(sizes)))
+    out: list[Track] = []
+    low, high = options.speed_range_m_s
+    for k in range(options.people):
+        mover = draw_mover(catalog, classes, rng, PERSON_MARGIN_M)
+        across = mover.footprint[1][0]  # facing -Y: the asset's x is across the path
+
+        def draw() -> Track | None:
+            path = routes[int(rng.integers(len(routes)))]
+            width = min(float(2 * areas[i].half.min()) for i in path if areas[i].role == "walk") \
+                if any(areas[i].role == "walk" for i in path) else 0.0
+            room = max(0.0, width / 2.0 - float(across))
+            side = float(rng.uniform(-room, room)) if room > 0 else 0.0
+            line = Polyline(rounded(offset_sideways(route_points(areas, path), side), WALK_TURN_RADIUS_M))
+            speed = float(rng.uniform(low, high))
+            duration_s = line.length / speed
+            start_s = float(rng.uniform(-duration_s / 2.0, max(F / fps - duration_s / 2.0, 0.0)))
+            s = timed_distances(speed_profile(line.length, speed, from_rest=False, to_rest=False, accel=1.0),
+                                start_s=start_s, fps=fps, frames=F)
+            present = np.isfinite(s) & (s <= line.length)
+            if not present.any():
+                return None
+            pos, heading = line.at(np.nan_to_num(s, nan=0.0))
+            return Track("walking", mover.class_name, present, pos, heading + FRONT_YAW, np.where(present, s, 0.0),
+                         speed, route=tuple(areas[i].place for i in path), footprint=mover.footprint,
+                         stride_m=locked_stride(speed, fps, len(walk_variants(mover.entry))))
+
+        track, blocked = place(mover, draw, [*accepted, *out], obstacles)
+        if track is None:
+            raise full_fail("--people", len(out), options.people, "walkers", blocked)
+        cycle = walk_variants(mover.entry)
+        track.pose_variant = cycle[0] if cycle else None
+        out.append(track)
+    return out
+
+
+def standing_people(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> list[Track]:
+    """People standing at random spots of the walk places for the whole sequence, clear of ``accepted``."""
+    areas, catalog, options, rng, obstacles = ground.areas, ground.catalog, ground.options, ground.rng, ground.obstacles
+    if not options.standing:
+        return []
+    F = options.frames
+    walk = [a for a in areas if a.role == "walk"]
+    out: list[Track] = []
+    for k in range(options.standing):
+        mover = draw_mover(catalog, classes, rng, PERSON_MARGIN_M)
+        half = mover.footprint[1]
+
+        def draw() -> Track:
+            area = walk[int(rng.integers(len(walk)))]
+            room = np.maximum(area.half - float(np.linalg.norm(half)), 0.0)
+            local = rng.uniform(-room, room)
+            xy = area.centre[:2] + area.axes @ local
+            position = np.tile([xy[0], xy[1], area.centre[2]], (F, 1))
+            yaw = np.full(F, float(rng.uniform(-math.pi, math.pi)))
+            return Track("standing", mover.class_name, np.ones(F, dtype=bool), position, yaw, np.zeros(F), 0.0,
+                         route=(area.place,), footprint=mover.footprint)
+
+        track, blocked = place(mover, draw, [*accepted, *out], obstacles)
+        if track is None:
+            raise full_fail("--standing", len(out), options.standing, "standing people", blocked)
+        idle = [v for v in mover.entry.variants.get("pose", ()) if v.startswith(IDLE_VARIANTS)]
+        track.pose_variant = idle[int(rng.integers(len(idle)))] if idle else None
+        out.append(track)
+    return out
+
+
+def locked_stride(speed_m_s: float, fps: float, cycle_length: int) -> float:
+    """The stride (m) at which a walker's phase advances a whole number m of the cycle's poses
+    per frame (``speed / fps = m · stride / n``), so the shown poses keep pace with the ground
+    and no foot slides; the one nearest :data:`STRIDE_M` within :data:`STRIDE_RANGE_M`, else
+    :data:`STRIDE_M` (a slow walker filmed fast: its feet slide, see :func:`foot_sliding`)."""
+    if not cycle_length:
+        return STRIDE_M
+    step = speed_m_s / fps * cycle_length  # m · stride
+    best = None
+    for m in range(1, cycle_length):
+        stride = step / m
+        if STRIDE_RANGE_M[0] <= stride <= STRIDE_RANGE_M[1] and (best is None or abs(stride - STRIDE_M) < abs(best - STRIDE_M)):
+            best = stride
+    return STRIDE_M if best is None else best
+
+
+def walk_phases(track: Track) -> np.ndarray:
+    """(F,) walk-cycle phase in [0, 1) of a track (distance walked over its stride)."""
+    return np.mod(track.walked / track.stride_m, 1.0)
+
+
+def cycle_poses(track: Track, cycle_length: int) -> np.ndarray:
+    """(F,) index k of the cycle pose shown at each frame, ``floor(phase · n)`` (a millionth of
+    a pose of rounding allowance: a locked walker lands on whole poses)."""
+    return np.mod(np.floor(track.walked / track.stride_m * cycle_length + 1e-6), cycle_length).astype(np.int64)
+
+
+def foot_sliding(track: Track, cycle_length: int) -> float:
+    """Foot sliding of a walker, metres per metre walked (see the module docstring); 1.0 for a
+    class without a walk cycle (``cycle_length`` 0)."""
+    idx = np.flatnonzero(track.present)
+    if len(idx) < 2:
+        return 0.0
+    walked = np.diff(track.walked[idx])
+    distance = float(np.abs(walked).sum())
+    if distance == 0.0:
+        return 0.0
+    if not cycle_length:
+        return 1.0
+    k = cycle_poses(track, cycle_length)[idx]
+    steps = np.mod(np.diff(k), cycle_length)
+    return float(np.abs(walked - track.stride_m * steps / cycle_length).sum() / distance)

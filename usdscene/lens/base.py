@@ -1,0 +1,97 @@
+"""The lens interface and its registry (see :mod:`usdscene.lens`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class Lens:
+    """One projection model. Subclasses set the class attributes and implement :meth:`project`
+    and :meth:`unproject`; Blender-native models implement :meth:`blender_camera`.
+
+    Attributes:
+        name: the model's name (``Intrinsics.lens``, a :class:`usdscene.document.model.LensModel` value).
+        pinhole: a central projection onto a plane (``u = fx·x/z + cx`` before distortion);
+            valid in front of the camera only.
+        orthographic: a parallel projection (``fx`` in pixels per metre).
+        radial: maps the angle ``θ`` off the axis to an image radius; has an image circle
+            (``Intrinsics.fov_deg``).
+        straight: straight lines stay straight in the image (an undistorted pinhole or a
+            parallel projection): a triangle projects to a triangle.
+        native: Blender renders the model directly (else through a native lens and a remap).
+        centred: natively rendered only with the principal point at the image centre (Cycles'
+            panoramic cameras ignore lens shift).
+        polynomial: a radial lens whose ``θd(θ)`` is a polynomial (rendered through a native
+            fisheye, or a perspective view when it is narrow).
+        default_half_fov_rad: the widest angle off the axis without a ``fov_deg``.
+    """
+
+    name = ""
+    pinhole = False
+    orthographic = False
+    radial = False
+    straight = False
+    native = False
+    centred = False
+    polynomial = False
+    default_half_fov_rad = math.pi
+
+    def project(self, intrinsics, x: np.ndarray, y: np.ndarray, z: np.ndarray):
+        """Camera-frame coordinates (N,) each (OpenCV axes, metres) → ``(xn, yn, valid, theta)``:
+        normalised image coordinates (pixels are ``fx·xn + cx``, ``fy·yn + cy``), whether each
+        point is imaged, and for radial models the angle off the axis (radians), else None."""
+        raise NotImplementedError
+
+    def unproject(self, intrinsics, xd: np.ndarray, yd: np.ndarray, iterations: int):
+        """Normalised image coordinates (N,) each → ``(rays (N, 3), valid (N,))``: unit directions
+        in the camera frame and whether the position has a ray (see
+        :func:`usdscene.labels.projection.pixel_rays`)."""
+        raise NotImplementedError
+
+    def half_fov_rad(self, intrinsics) -> float:
+        """Largest angle off the axis that the lens images: ``fov_deg / 2``, else the model's default."""
+        if intrinsics.fov_deg is not None:
+            return math.radians(intrinsics.fov_deg) / 2.0
+        return self.default_half_fov_rad
+
+    def opencv_distortion(self, intrinsics):
+        """``(OpenCV model, D)``: ``"pinhole"`` (``cv2.projectPoints``) or ``"fisheye"``
+        (``cv2.fisheye``) and the distortion coefficients that reproduce the lens with the
+        camera matrix K; None when OpenCV has no model for it."""
+        return None
+
+    def blender_camera(self, intrinsics) -> dict:
+        """Blender camera data settings (attribute → value, in the order they are set) beyond the
+        sensor and lens shift, for a native lens.
+
+        Raises:
+            ValueError: the model is not native to Blender.
+        """
+        raise ValueError(f"lens {self.name!r} is not native to Blender")
+
+
+LENSES: dict[str, Lens] = {}
+"""Model name → lens."""
+
+
+def register(lens: Lens) -> Lens:
+    """Add ``lens`` to :data:`LENSES` under its name (once); returns it."""
+    if not lens.name:
+        raise ValueError(f"{type(lens).__name__} has no name")
+    if lens.name in LENSES:
+        raise ValueError(f"lens {lens.name!r} is registered already")
+    LENSES[lens.name] = lens
+    return lens
+
+
+def lens_for(model) -> Lens:
+    """The lens of a model name, a :class:`~usdscene.document.model.LensModel` or an object with
+    a ``lens`` (an :class:`~usdscene.document.model.Intrinsics`).
+
+    Raises:
+        KeyError: no lens of that name is registered.
+    """
+    name = getattr(model, "lens", model)
+    return LENSES[getattr(name, "value", name)]

@@ -1,0 +1,383 @@
+"""A render session: one Blender scene holding one imported stage shard and one render camera,
+driven per (frame, camera) pair from the job; :func:`render_pairs` renders a shard's pairs."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from usdscene.render.blender.camera import apply_intrinsics
+from usdscene.render.blender.cycles import apply_settings, enable_gpu
+from usdscene.render.blender.outputs import linear_to_srgb8, read_exr, write_display_outputs
+from usdscene.render.blender.process import emit, import_bpy, rss_mb
+from usdscene.render.blender.world import WorldNodes
+
+
+class Session:
+    """A Blender scene holding one imported stage shard and one render camera."""
+
+    def __init__(self, job: dict) -> None:
+        self.job = job
+        self.bpy = import_bpy()
+        self.scratch = Path(job["scratch_dir"])
+        self.scratch.mkdir(parents=True, exist_ok=True)
+        self.exr_path = self.scratch / f"render-{os.getpid()}.exr"
+        self.current_frame: int | None = None
+        self.hidden: dict[str, bool] = {}
+        self._remaps: dict[str, tuple] = {}
+        self._fov_masks: dict[str, object] = {}
+        self._setup_scene()
+        # Before the import: a missing GPU is reported in a second, not after the stage loads.
+        self.rendering = job.get("mode", "render") == "render"
+        if self.rendering and job["settings"]["device"] == "gpu":
+            enable_gpu(self.bpy)
+        self._import_stage()
+        self._setup_render()
+        self._setup_imaging()
+
+    # ---------------------------------------------------------------------------------------
+    def _setup_scene(self) -> None:
+        bpy = self.bpy
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        world = bpy.data.worlds.new("World")
+        scene.world = world
+        # Black unless the stage brings a dome light (the importer rebuilds the world then).
+        background = world.node_tree.nodes.get("Background") if world.node_tree else None
+        if background is not None:
+            background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        world.color = (0.0, 0.0, 0.0)
+        self.scene = scene
+
+    def _import_stage(self) -> None:
+        bpy = self.bpy
+        started = time.perf_counter()
+        result = bpy.ops.wm.usd_import(
+            filepath=self.job["stage"],
+            prim_path_mask=self.job.get("prim_path_mask", ""),
+            import_cameras=False,
+            import_visible_only=False,  # presence is per frame, applied below
+            support_scene_instancing=False,  # realise instances: each needs its own pass index
+            property_import_mode="USER",
+            set_frame_range=True,
+            create_collection=False,
+        )
+        if "FINISHED" not in result:
+            raise RuntimeError(f"USD import of {self.job['stage']} failed: {result}")
+        # uid → Blender objects carrying it (the object and everything below it).
+        wanted = {o["uid"]: o for o in self.job["objects"]}
+        self.objects: dict[str, list] = {}
+        for ob in bpy.data.objects:
+            uid = ob.get("usdscene_uid")
+            if uid is None and ob.data is not None and hasattr(ob.data, "get"):
+                uid = ob.data.get("usdscene_uid")
+            if uid is None or uid not in wanted:
+                continue
+            members = [ob, *ob.children_recursive]
+            self.objects.setdefault(str(uid), []).extend(members)
+        # uid → pose variant → the Blender objects of that pose child (objects whose pose
+        # changes per frame, stage_schema.POSE_CHILD_PREFIX); only those show per frame.
+        self.poses: dict[str, dict[str, list]] = {}
+        for uid, members in self.objects.items():
+            for ob in members:
+                variant = ob.get("usdscene_pose")
+                if variant is not None and "pose_frames" in wanted[uid]:
+                    self.poses.setdefault(uid, {})[str(variant)] = [ob, *ob.children_recursive]
+        for uid, members in self.objects.items():
+            mask_id = int(wanted[uid]["mask_id"])
+            for ob in members:
+                ob.pass_index = mask_id
+        missing = sorted(set(wanted) - set(self.objects))
+        emit({"event": "imported", "seconds": time.perf_counter() - started, "pid": os.getpid(),
+              "objects": len(bpy.data.objects), "missing_uids": missing[:20],
+              "missing_count": len(missing)})
+
+    def _setup_render(self) -> None:
+        bpy = self.bpy
+        scene = self.scene
+        apply_settings(scene, self.job["settings"], rendering=self.rendering, exr_path=self.exr_path,
+                       threads=self.job.get("threads"))
+        data = bpy.data.cameras.new("usdscene_render_camera")
+        self.camera = bpy.data.objects.new("usdscene_render_camera", data)
+        scene.collection.objects.link(self.camera)
+        scene.camera = self.camera
+
+    def _setup_imaging(self) -> None:
+        """The document's world (background, sky or HDRI, view transform) and the cameras'
+        render-time sensor parts (shutter, IR illuminator). Nothing is touched for a stage
+        without them, so its images stay byte-identical to before they existed."""
+        from usdscene.document.imaging import Sensor, World, spec_from_json
+
+        self.world = None
+        self.world_at = None
+        self.display_png = self.scratch / f"display-{os.getpid()}.png"
+        self.sensors = {name: (spec_from_json(Sensor, cam["sensor"]["sensor"]), int(cam["sensor"]["seed"]))
+                        for name, cam in self.job["cameras"].items() if "sensor" in cam}
+        self.ir_light = None
+        self._shutter = 0.0
+        world_job = self.job.get("world")
+        if world_job is None:
+            return
+        self.world = spec_from_json(World, world_job["world"])
+        self.world_job = world_job
+        self._build_world()
+
+    def _build_world(self) -> None:
+        """The document's world (:class:`WorldNodes`) and its view transform."""
+        self.world_nodes = WorldNodes(self.bpy, self.scene, self.world, self.world_job)
+        self.scene.world.light_settings.distance = float(self.job["settings"]["fast_gi_distance_m"])
+        view = self.scene.view_settings
+        if self.world.view_transform != "standard":
+            from usdscene.document.imaging import VIEW_TRANSFORMS
+
+            view.view_transform = VIEW_TRANSFORMS[self.world.view_transform]
+        self._apply_world(self.current_frame if self.current_frame is not None else 0)
+
+    def _apply_world(self, frame: int) -> None:
+        """Set the world's per-frame values (only what changed: each change re-syncs the world)."""
+        at = self.world.at_frame(frame)
+        if at == self.world_at:
+            return
+        self.world_nodes.apply(at)
+        if at.view_transform != "standard":
+            self.scene.view_settings.exposure = at.exposure_ev
+        self.world_at = at
+
+    def _apply_camera_sensor(self, name: str) -> None:
+        """Shutter (Cycles motion blur, centred on the frame: labels are at the frame time) and
+        the IR illuminator of the camera about to render; reset for cameras without them."""
+        from usdscene.document.imaging import ir_illuminator_power_w
+
+        sensor = self.sensors.get(name, (None, 0))[0]
+        shutter = sensor.shutter_frames if sensor is not None else 0.0
+        if shutter != self._shutter:
+            render = self.scene.render
+            render.use_motion_blur = shutter > 0
+            if shutter > 0:
+                render.motion_blur_shutter = shutter
+                render.motion_blur_position = "CENTER"
+            self._shutter = shutter
+        ir = sensor is not None and sensor.ir_night
+        if ir and self.ir_light is None:
+            data = self.bpy.data.lights.new("usdscene_ir_illuminator", type="SPOT")
+            data.shadow_soft_size = 0.02
+            self.ir_light = self.bpy.data.objects.new("usdscene_ir_illuminator", data)
+            self.scene.collection.objects.link(self.ir_light)
+            # At the camera, shining along its view axis (-Z of both).
+            self.ir_light.parent = self.camera
+        if self.ir_light is not None:
+            if ir:
+                import math
+
+                render_intr = self.job["cameras"][name]["render_intrinsics"]
+                if render_intr.get("fov_deg"):  # a fisheye: its image circle
+                    field = math.radians(float(render_intr["fov_deg"]))
+                else:
+                    w, h, fx = render_intr["width_px"], render_intr["height_px"], render_intr["fx_px"]
+                    field = 2.0 * math.atan(math.hypot(w, h) / 2.0 / fx)  # the diagonal
+                self.ir_light.data.spot_size = min(math.pi, field + math.radians(10.0))
+                self.ir_light.data.energy = ir_illuminator_power_w(sensor.ir_range_m)
+            if self.ir_light.hide_render == ir:
+                self.ir_light.hide_render = not ir
+
+    # ---------------------------------------------------------------------------------------
+    def set_frame(self, frame: int) -> None:
+        """Go to ``frame`` and hide the objects absent from it (only what changed is touched)."""
+        if frame == self.current_frame:
+            return
+        self.scene.frame_set(frame)
+        for o in self.job["objects"]:
+            members = self.objects.get(o["uid"])
+            if not members:
+                continue
+            poses = self.poses.get(o["uid"])
+            if poses:
+                for ob, hide in member_hides(o, members, poses, frame):
+                    ob.hide_render = hide
+                continue
+            hide = frame not in o["_visible"]
+            if self.hidden.get(o["uid"]) == hide:
+                continue
+            self.hidden[o["uid"]] = hide
+            for ob in members:
+                ob.hide_render = hide
+        if self.world is not None:
+            self._apply_world(frame)
+        self.current_frame = frame
+
+    def set_camera(self, name: str, frame: int) -> None:
+        """Point the render camera at camera ``name``'s pose and lens for ``frame``."""
+        from usdscene.render.job import intrinsics_from_json, usd_camera_matrix
+
+        cam_job = self.job["cameras"][name]
+        pose = cam_job["poses"].get(str(frame), cam_job["pose"])
+        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        ob, data = self.camera, self.camera.data
+        import mathutils
+
+        # Touch only what changes: every assignment tags Blender data for a Cycles update.
+        key = (tuple(pose), tuple(cam_job["clip_m"]))
+        if key != getattr(self, "_pose_key", None):
+            # mathutils.Matrix takes rows; a bare nested list would be read column by column.
+            ob.matrix_world = mathutils.Matrix(usd_camera_matrix(pose))
+            data.clip_start, data.clip_end = cam_job["clip_m"]
+            self._pose_key = key
+        if render != getattr(self, "_lens", None):
+            apply_intrinsics(self.scene, data, render)
+            self._lens = render
+        if self.sensors or self._shutter or self.ir_light is not None:
+            self._apply_camera_sensor(name)
+
+    def render_image(self, frame: int, camera: str):
+        """Render one (frame, camera) and decode it.
+
+        Returns:
+            ``(rgb, ids, timing)``: (H, W, 3) float32 linear beauty and (H, W) uint16 ids of the
+            native render, and seconds: wall (``render_s``) and CPU time of the whole process,
+            all threads (``render_cpu_s``; robust on a shared machine).
+        """
+        self.set_frame(frame)
+        self.set_camera(camera, frame)
+        started, cpu_started = time.perf_counter(), time.process_time()
+        self.bpy.ops.render.render(write_still=True)
+        rendered, cpu_rendered = time.perf_counter(), time.process_time()
+        rgb, ids = read_exr(self.exr_path)
+        if self.world_at is not None:
+            rgb = self._display(rgb)
+        return rgb, ids, {"render_s": rendered - started, "render_cpu_s": cpu_rendered - cpu_started,
+                          "decode_s": time.perf_counter() - rendered}
+
+    def _display(self, rgb):
+        """The world's exposure and view transform: Standard is the sRGB curve of
+        :func:`linear_to_srgb8` after ``2^exposure_ev``; AgX and Filmic come from Blender's
+        colour management (the render result saved as an 8-bit PNG, read back).
+
+        Returns:
+            (H, W, 3) float32 linear (Standard) or uint8 sRGB (AgX, Filmic).
+        """
+        at = self.world_at
+        if at.view_transform == "standard":
+            return rgb * float(2.0 ** at.exposure_ev) if at.exposure_ev else rgb
+        import cv2
+
+        image = self.scene.render.image_settings
+        saved = (image.media_type, image.file_format, image.color_depth)
+        image.media_type, image.file_format, image.color_depth = "IMAGE", "PNG", "8"
+        try:
+            self.bpy.data.images["Render Result"].save_render(str(self.display_png), scene=self.scene)
+        finally:
+            image.media_type, image.file_format = saved[0], saved[1]
+            image.color_depth = saved[2]
+        display = cv2.imread(str(self.display_png), cv2.IMREAD_COLOR)
+        if display is None:
+            raise RuntimeError(f"{self.display_png}: the view-transformed image could not be read back")
+        return display[:, :, ::-1].copy()
+
+    def write_image(self, frame: int, camera: str, rgb, ids) -> dict:
+        """Remap / mask out, apply the camera's sensor, encode and write atomically (runs
+        beside the next render)."""
+        import numpy as np
+
+        started, cpu_started = time.perf_counter(), time.thread_time()
+        rgb, ids = self._finish(camera, rgb, ids)
+        image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
+        clean = None
+        if camera in self.sensors:
+            from usdscene.document.imaging import image_seed
+            from usdscene.render.sensor import apply_sensor, has_effect
+
+            sensor, seed = self.sensors[camera]
+            at = sensor.at_frame(frame)
+            if has_effect(at):
+                clean = image if self.job.get("keep_clean") else None
+                image = apply_sensor(image, at, np.random.default_rng(image_seed(seed, camera, frame)))
+            elif self.job.get("keep_clean"):
+                clean = image
+        write_display_outputs(Path(self.job["out_dir"]), camera, frame, image, ids, clean=clean)
+        return {"post_s": time.perf_counter() - started, "post_cpu_s": time.thread_time() - cpu_started}
+
+    def render_pair(self, frame: int, camera: str) -> dict:
+        """Render, decode and write one pair in sequence; returns its timings."""
+        rgb, ids, timing = self.render_image(frame, camera)
+        return {**timing, **self.write_image(frame, camera, rgb, ids)}
+
+    def _finish(self, camera: str, rgb, ids):
+        """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
+        import cv2
+        import numpy as np
+
+        from usdscene.labels.projection import pixel_rays, remap_grids
+        from usdscene.lens import lens_for
+        from usdscene.render.job import intrinsics_from_json
+
+        cam_job = self.job["cameras"][camera]
+        intr = intrinsics_from_json(cam_job["intrinsics"])
+        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
+            if camera not in self._remaps:
+                self._remaps[camera] = remap_grids(intr, render)
+            map_x, map_y = self._remaps[camera]
+            rgb = cv2.remap(rgb, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            ids = cv2.remap(ids, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        elif lens_for(intr).radial:  # a native fisheye: black beyond its image circle
+            if camera not in self._fov_masks:
+                vs, us = np.mgrid[0:intr.height_px, 0:intr.width_px]
+                _, valid = pixel_rays(intr, np.stack([us.ravel(), vs.ravel()], 1).astype(float))
+                self._fov_masks[camera] = ~valid.reshape(intr.height_px, intr.width_px)
+            outside = self._fov_masks[camera]
+            rgb = rgb.copy()
+            ids = ids.copy()
+            rgb[outside] = 0.0
+            ids[outside] = 0
+        return rgb, ids
+
+
+def member_hides(o: dict, members: list, poses: dict[str, list], frame: int) -> list[tuple]:
+    """``(Blender object, hide_render)`` for every member of job object ``o`` at ``frame``:
+    hidden when the object is absent; with pose children (``poses``: variant → its objects),
+    also the members of every pose but the one ``o["pose_frames"]`` shows at ``frame``."""
+    hide = frame not in o["_visible"]
+    if not poses:
+        return [(ob, hide) for ob in members]
+    shown = set() if hide else {ob.name for variant, obs in poses.items()
+                                if frame in o["pose_frames"].get(variant, ()) for ob in obs}
+    posed = {ob.name for obs in poses.values() for ob in obs}
+    return [(ob, hide or (ob.name in posed and ob.name not in shown)) for ob in members]
+
+
+def render_pairs(session: Session, pairs) -> bool:
+    """Render pairs in order; each image is written by a helper thread while Cycles renders
+    the next one, and reported ``done`` only once both of its files exist. False on error."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pending = None  # (frame, camera, timing, future) of the image being written
+
+    def settle(item) -> float:
+        frame, camera, timing, future = item
+        post = future.result()
+        emit({"event": "done", "frame": frame, "camera": camera, "rss_mb": rss_mb(), **timing, **post})
+        return post["post_cpu_s"]
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        for frame, camera in pairs:
+            try:
+                rgb, ids, timing = session.render_image(int(frame), camera)
+                if pending is not None:
+                    # The previous image was written during this render: its CPU time is not
+                    # path tracing.
+                    timing["render_cpu_s"] = max(0.0, timing["render_cpu_s"] - settle(pending))
+                    pending = None
+                pending = (frame, camera, timing, pool.submit(session.write_image, int(frame), camera, rgb, ids))
+            except Exception as exc:
+                emit({"event": "error", "frame": frame, "camera": camera,
+                      "message": f"{type(exc).__name__}: {exc}"})
+                return False
+        try:
+            if pending is not None:
+                settle(pending)
+        except Exception as exc:
+            emit({"event": "error", "frame": pending[0], "camera": pending[1],
+                  "message": f"{type(exc).__name__}: {exc}"})
+            return False
+    return True
