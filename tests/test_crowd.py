@@ -289,3 +289,27 @@ def test_an_entrance_beside_the_platform_keeps_people_on_the_floor(setup, obstac
     # directions drawn fairly: both doors are used as exits
     exits = [r[-1] for r in routes]
     assert exits.count("stairs_test") >= 5 and exits.count("entrance_test_east") >= 5
+
+
+def test_route_generator_refuses_an_entrance_beside_the_platform_past_the_floor(setup, obstacles):
+    """The platform case in the route generator: the stairs' box beside the platform's end,
+    past the deck's east edge (x = 17 m); its routes would start in the air, so the setup is
+    refused naming the entrance (and with the box on the deck, the routes stand on the floor)."""
+    from usdscene.generate.motion import TrackOptions, generate_tracks
+    from usdscene.generate.obstacles import floor_missing
+
+    scene, catalog = setup
+    platform = _place("9401", "platform_test", [8.5, 3.0, 0.0], (17.0, 4.0, 2.0))
+    west = _place("9402", "entrance_test_west", [-0.5, 3.0, 0.0], (1.0, 4.0, 2.0))
+    stairs = _place("9403", "stairs_test", [17.6, 5.4, 0.0], (1.2, 0.8, 2.0))
+    cut = dataclasses.replace(scene, places=(platform, west, stairs))
+    options = TrackOptions(frames=60, fps=5, people=4, seed=1, person_classes=("person",))
+    with pytest.raises(DocumentError, match=r"place 'stairs_test': walkers to and from this entrance would walk where "
+                                            r"there is no floor, at \(17\.\d\d, "):
+        generate_tracks(cut, catalog, options, obstacles=obstacles)
+    on_deck = dataclasses.replace(cut, places=(platform, west, _place("9403", "stairs_test", [16.4, 5.4, 0.0],
+                                                                      (1.2, 0.8, 2.0))))
+    generated = generate_tracks(on_deck, catalog, options, obstacles=obstacles)
+    for t in generated.tracks:
+        idx = np.flatnonzero(t.present)
+        assert not floor_missing(obstacles, t.position[idx, :2], t.position[idx, 2]).any()

@@ -29,7 +29,7 @@ import numpy as np
 
 from usdscene.document.model import SceneSpec
 from usdscene.errors import DocumentError
-from usdscene.generate.obstacles import STEP_HEIGHT_M, Obstacles
+from usdscene.generate.obstacles import STEP_HEIGHT_M, Obstacles, floor_missing
 from usdscene.generate.routes import ENTRANCE_WORDS, WALK_WORDS, Area, touch
 from usdscene.scene.catalog import Catalog, scene_catalog
 
@@ -56,9 +56,6 @@ SEAT_SPACING_M = 0.6
 """Distance between seated people on a bench."""
 PERSON_HEIGHT_M = 1.8
 """Geometry up to this height above a walk place (from :data:`STEP_HEIGHT_M`) is an obstacle."""
-FLOOR_BAND_M = (0.35, 0.1)
-"""A walk place has a floor under a point when a surface lies from this far below its support
-height to this far above it (metres); where none does, the point is no more walkable than an obstacle."""
 MIN_PIECE_M2 = 0.5
 """Pieces of walkable area smaller than this (between a pillar and a wall) are dropped."""
 
@@ -191,21 +188,6 @@ def _box(area: Area, grow: float = 0.0):
 
     signs = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]], dtype=np.float64)
     return shapely.Polygon(area.centre[:2] + (signs * (area.half + grow)) @ area.axes.T)
-
-
-def floor_missing(obstacles: Obstacles, xy: np.ndarray, z_m: float) -> np.ndarray:
-    """(N,) whether no surface of the environment lies within :data:`FLOOR_BAND_M` of the support
-    height ``z_m`` under each point (N, 2): a stairwell, the end of a slab, outside the model."""
-    cell = obstacles.cell_m
-    nx, ny, levels = obstacles.below.shape
-    idx = np.floor((np.asarray(xy, dtype=np.float64) - obstacles.origin[:2]) / cell).astype(np.int64)
-    inside = (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
-    column = np.where(inside, idx[:, 0] * ny + idx[:, 1], 0)
-    low, high = FLOOR_BAND_M
-    k0 = int(np.clip(np.floor((z_m - low - obstacles.origin[2]) / cell), 0, levels - 1))
-    k1 = int(np.clip(np.ceil((z_m + high - obstacles.origin[2]) / cell), 0, levels - 1))
-    flat = obstacles.below.reshape(-1)
-    return ~inside | (flat[column * levels + k1] - flat[column * levels + k0] == 0)
 
 
 def obstacle_footprints(obstacles: Obstacles | None, ground: Sequence[Area], height_m: float = PERSON_HEIGHT_M):
