@@ -26,7 +26,7 @@ equally likely; the same one when there is only one), then, with each stage plac
   and keep together by a rule on top of the engine (:func:`group_speed_factor`): each step, a
   member ``d`` metres ahead of the group's centre along its heading walks at ``1 - d / 2 m`` of
   the group's speed (the slowest member's), one behind at up to 1.3 times it; so the members
-  stay within :data:`GROUP_SPREAD_M` of their centre;
+  stay within :data:`GROUP_SPREAD_M` of their centre (most within 2.5 m);
 * **conversations**: ``conversations`` circles of 2-3 people stand on the walk places for the
   whole sequence, facing the circle's centre (agents of a waiting set that never releases them);
 * **seated** people sit on the benches (the seated class, e.g. the shipped ``passenger``, in its
@@ -80,14 +80,18 @@ GROUP_LEAD_M = 2.0
 """A group member this far ahead of the group's centre (along its heading) stops for the others."""
 GROUP_SLOWEST = 0.05
 GROUP_FAST = 1.3
-GROUP_SPREAD_M = 3.0
-"""A group's members stay within this distance of the group's centre (tested)."""
+GROUP_SPREAD_M = 5.0
+"""Every member of a group stays within this distance of the group's centre (tested on the car
+park's 2.4 m footpaths, where half of the groups keep within :data:`GROUP_TYPICAL_SPREAD_M`)."""
+GROUP_TYPICAL_SPREAD_M = 2.5
 MAX_DENSITY_P_M2 = 2.0
 """The most people per square metre of walkable area that a crowd is placed at."""
 MAX_FLOW_P_M_S = 1.3
 """The most people per metre of entrance width per second who can come in (a door's capacity)."""
 MIN_GAP_M = 0.1
 """Free space between two people where a person is placed or arrives."""
+ARRIVAL_ROUNDS = 1
+"""Batches of candidate spots an arrival tries at its door per engine step."""
 CONVERSATION_RADIUS_M = 0.55
 SEATED_POSE = "upright"
 STANDING_POSES = ("standing", "idle", "stand")
@@ -369,8 +373,9 @@ class _Engine:
     def _speed(self) -> float:
         return float(self.rng.uniform(*self.options.speed_range_m_s))
 
-    def _random_points(self, region, count: int) -> list[np.ndarray]:
-        """Up to ``count`` points of ``region`` a person's width from every agent and each other."""
+    def _random_points(self, region, count: int, rounds: int = 50) -> list[np.ndarray]:
+        """Up to ``count`` points of ``region`` a person's width from every agent and each other
+        (``rounds`` batches of candidates drawn)."""
         import shapely
 
         if region.is_empty or count <= 0:
@@ -378,7 +383,7 @@ class _Engine:
         x0, y0, x1, y1 = region.bounds
         out: list[np.ndarray] = []
         tries = 0
-        while len(out) < count and tries < 50:
+        while len(out) < count and tries < rounds:
             tries += 1
             cand = self.rng.uniform((x0, y0), (x1, y1), size=(max(64, 4 * (count - len(out))), 2))
             cand = cand[shapely.contains_xy(region, cand[:, 0], cand[:, 1])]
@@ -407,7 +412,8 @@ class _Engine:
         size = 1
         if rng.random() < _rate(stage, "group_share", o.group_share):
             size = int(rng.integers(2, 5))
-        points = self._random_points(self.spawn[entrance], size)
+        # A crowded door is tried with one batch of candidates per step (the arrival waits outside).
+        points = self._random_points(self.spawn[entrance], size, rounds=ARRIVAL_ROUNDS)
         if len(points) < size:
             return False
         stages, route, spot = self._plan(entrance)

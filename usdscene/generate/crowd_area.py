@@ -56,6 +56,8 @@ SEAT_SPACING_M = 0.6
 """Distance between seated people on a bench."""
 PERSON_HEIGHT_M = 1.8
 """Geometry up to this height above a walk place (from :data:`STEP_HEIGHT_M`) is an obstacle."""
+SIMPLIFY_M = 0.03
+"""Tolerance (m) of the walkable area's outline simplification."""
 MIN_PIECE_M2 = 0.5
 """Pieces of walkable area smaller than this (between a pillar and a wall) are dropped."""
 
@@ -248,7 +250,9 @@ def crowd_layout(setup: SceneSpec, catalog: Catalog, obstacles: Obstacles | None
     walkable = floor.difference(blocked.buffer(PERSON_RADIUS_M, join_style="mitre"))
     parts = [p for p in getattr(walkable, "geoms", [walkable]) if p.area >= MIN_PIECE_M2]
     walkable = shapely.MultiPolygon(parts) if len(parts) > 1 else (parts[0] if parts else shapely.Polygon())
-    walkable = shapely.set_precision(walkable, 1e-4)
+    # The cubes' staircase outlines simplified (a thousand edges slow every engine step
+    # several times); by at most SIMPLIFY_M, within the 5 cm a person's disc may graze.
+    walkable = shapely.set_precision(walkable.simplify(SIMPLIFY_M), 1e-4)
     stages = []
     for area, _ in found:
         if area.role == "walk" or (area.role == "entrance" and not any(area is g for g in ground)):
