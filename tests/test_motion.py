@@ -375,10 +375,11 @@ def test_movers_keep_out_of_the_pillars_and_walls(setup, obstacles):
 
 
 def test_a_route_only_through_an_obstacle_is_one_clear_error(setup):
-    """A ceiling 1 m above the whole deck: no walker can come through, and the error says why."""
+    """A ceiling 1 m above the whole deck (over its floor): no walker can come through, and the
+    error says why."""
     scene, catalog = setup
-    ceiling = np.array([[[-20.0, -15.0, 1.0], [20.0, -15.0, 1.0], [20.0, 15.0, 1.0]],
-                        [[-20.0, -15.0, 1.0], [20.0, 15.0, 1.0], [-20.0, 15.0, 1.0]]])
+    ceiling = np.array([[[-20.0, -15.0, z], [20.0, -15.0, z], [20.0, 15.0, z]] for z in (0.0, 1.0)]
+                       + [[[-20.0, -15.0, z], [20.0, 15.0, z], [-20.0, 15.0, z]] for z in (0.0, 1.0)])
     with pytest.raises(DocumentError, match=r"--people: only 0 of 1 walkers fit: every one of 200 routes .* "
                                             r"meets an obstacle of the environment"):
         generate_tracks(scene, catalog, TrackOptions(frames=100, fps=5, people=1, seed=5, person_classes=("person",)),

@@ -54,6 +54,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     moving.add_argument("--vehicle-classes", nargs="+", metavar="NAME", default=(),
                         help="classes of the vehicles (default: the catalog's vehicle classes); each drives "
                              "towards its -Y, the catalog's front (usdscene assets add --forward-axis)")
+    moving.add_argument("--motion", choices=("routes", "crowd"), default="routes",
+                        help="routes: each walker on a drawn route between entrances (default); crowd: people "
+                             "simulated by the pedestrian engine JuPedSim (pip install 'usdscene[crowd]')")
+    crowd = parser.add_argument_group("tracks --motion crowd (places may say their own values: docs/generating.md)")
+    crowd.add_argument("--density", type=_non_negative_float, default=0.0, metavar="P_PER_M2",
+                       help="people per m² of walkable area, inside at frame 0 and kept (instead of --people)")
+    crowd.add_argument("--arrivals", type=_non_negative_float, default=0.0, metavar="PER_MIN",
+                       help="arrivals per minute at every entrance (a Poisson process)")
+    crowd.add_argument("--queue-share", type=fraction, default=0.0, help="fraction of people who join a queue")
+    crowd.add_argument("--service", type=_non_negative_float, default=6.0, metavar="PER_MIN",
+                       help="people a queue releases per minute (default 6)")
+    crowd.add_argument("--wait-share", type=fraction, default=0.0,
+                       help="fraction of people who stand at a waiting place for a while")
+    crowd.add_argument("--wait", type=_non_negative_float, nargs=2, default=(10.0, 60.0), metavar=("LOW_S", "HIGH_S"),
+                       help="waiting time, drawn uniformly (default 10 60 s)")
+    crowd.add_argument("--via-share", type=fraction, default=0.0, help="fraction of people who pass each waypoint")
+    crowd.add_argument("--group-share", type=fraction, default=0.0,
+                       help="fraction of arrivals who come in groups of 2-4 that keep together")
+    crowd.add_argument("--conversations", type=non_negative_int, default=0,
+                       help="circles of 2-3 people standing in conversation for the whole sequence")
+    crowd.add_argument("--seated", type=non_negative_int, default=0, help="people sitting on the benches")
 
 
 def _fps(text: str) -> float:
@@ -66,16 +87,45 @@ def _fps(text: str) -> float:
     return value
 
 
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value >= 0.0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
 def _run_tracks(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from usdscene.generate.motion import TrackOptions, generate_tracks_document
     from usdscene.generate.sequences import report_path
 
-    options = TrackOptions(frames=args.frames or 100, fps=args.fps or 10.0, people=args.people,
-                           vehicles=args.vehicles, standing=args.standing, seed=args.seed,
-                           person_classes=tuple(args.person_classes), vehicle_classes=tuple(args.vehicle_classes))
-    report = generate_tracks_document(args.setup, args.output, options).report
+    if args.motion == "crowd":
+        import sys
+
+        if args.vehicles or args.standing:
+            flag = "--vehicles" if args.vehicles else "--standing"
+            print(f"usdscene generate: error: {flag} belongs to --motion routes (a crowd has --conversations)",
+                  file=sys.stderr)
+            return 2
+        from usdscene.generate.crowd import CrowdOptions, generate_crowd_document
+
+        options = CrowdOptions(frames=args.frames or 100, fps=args.fps or 10.0, seed=args.seed, people=args.people,
+                               density_p_m2=args.density, arrivals_per_min=args.arrivals,
+                               queue_share=args.queue_share, service_per_min=args.service,
+                               wait_share=args.wait_share, wait_s=tuple(args.wait), via_share=args.via_share,
+                               group_share=args.group_share, conversations=args.conversations, seated=args.seated,
+                               person_classes=tuple(args.person_classes))
+        report = generate_crowd_document(args.setup, args.output, options).report
+    else:
+        from usdscene.generate.motion import TrackOptions, generate_tracks_document
+
+        options = TrackOptions(frames=args.frames or 100, fps=args.fps or 10.0, people=args.people,
+                               vehicles=args.vehicles, standing=args.standing, seed=args.seed,
+                               person_classes=tuple(args.person_classes), vehicle_classes=tuple(args.vehicle_classes))
+        report = generate_tracks_document(args.setup, args.output, options).report
     console = Console(highlight=False, soft_wrap=True)
     console.print(f"wrote {args.output}: {report['frames']} frames at {report['fps']:g} fps "
                   f"({report['seconds']:g} s), {report['tracks']} tracks")
@@ -89,6 +139,14 @@ def _run_tracks(args: argparse.Namespace) -> int:
         seen = cam["frames_in_view"]
         span = f", {seen['min']:g}..{seen['max']:g} frames each" if seen["count"] else ""
         console.print(f"  camera {name}: {cam['tracks_in_view']} tracks in view{span}")
+    crowd = report.get("crowd")
+    if crowd:
+        queues = ", ".join(f"{name} up to {q['most_in_line']} in line, {q['released']} served"
+                           for name, q in crowd["queues"].items())
+        console.print(f"  crowd: {crowd['walkable_area_m2']:g} m² walkable, {crowd['people_at_frame_0']} people at "
+                      f"frame 0, {crowd['groups']} groups, {crowd['waits']['started']} waits, {crowd['standing']} standing, "
+                      f"{crowd['seated']} seated"
+                      + (f"; queues: {queues}" if queues else ""))
     console.print(f"  report: {report_path(args.output)}")
     return 0
 

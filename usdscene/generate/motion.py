@@ -241,7 +241,8 @@ def _scene(setup: SceneSpec, catalog: Catalog, tracks: Sequence[Track], options:
                                    "val": [float(v) for v in track.position[f]]}]}
             if cycle:
                 data["num"] = [{"name": "walk_phase", "val": float(phases[f])}]
-                data["text"] = [{"name": "walk_pose_variant", "val": cycle[int(shown[f])]}]
+                still = track.moving is not None and not track.moving[f] and track.still_pose is not None
+                data["text"] = [{"name": "walk_pose_variant", "val": track.still_pose if still else cycle[int(shown[f])]}]
             frame_extra.append((int(f), canonical_json({"object_data": data})))
         intervals = [{"frame_start": iv.frame_start, "frame_end": iv.frame_end} for iv in _runs(track.present)]
         pointers = {"ground_position_m": {"type": "vec", "frame_intervals": intervals}}

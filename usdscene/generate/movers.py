@@ -63,6 +63,8 @@ class Track:
         walked: (F,) distance walked along the route, metres (walkers; 0 otherwise).
         speed_m_s: cruise speed.
         route: places passed, in order.
+        moving: (F,) bool, the frames where a walker shows its walk cycle; at the others it shows
+            ``still_pose`` (a crowd's person standing in a queue); None: every frame walks.
     """
 
     kind: str
@@ -77,6 +79,8 @@ class Track:
     pose_variant: str | None = None
     stride_m: float = STRIDE_M
     footprint: tuple[np.ndarray, np.ndarray] = field(default=None)  # (offset (2,), half (2,))
+    moving: np.ndarray | None = None
+    still_pose: str | None = None
 
 
 def footprint_of(entry: AssetEntry, margin: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,6 +1,7 @@
 """Obstacles of an environment: its visible surfaces recorded as occupied cubes
 (:class:`Obstacles`, from :func:`environment_obstacles`), and whether a mover's footprint meets
-geometry between a step's height above its ground and its own height."""
+geometry between a step's height above its ground and its own height; whether a point has a
+floor under it (:func:`floor_missing`)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,9 @@ OBSTACLE_CELL_M = 0.1
 an obstacle is found to within about one of them."""
 STEP_HEIGHT_M = 0.3
 """Geometry up to this height above a mover's ground is stepped or driven over (kerbs, paint)."""
+FLOOR_BAND_M = (0.35, 0.1)
+"""A walk place has a floor under a point when a surface lies from this far below its support
+height to this far above it (metres); where none does, the point is no more walkable than an obstacle."""
 MAX_OBSTACLE_CELLS = 30_000_000
 """Most cubes of an obstacle grid; a larger environment gets coarser cubes."""
 
@@ -125,3 +129,23 @@ def environment_obstacles(setup: SceneSpec, catalog: Catalog) -> Obstacles:
         compose_stage(bare, catalog, folder)
         triangles = environment_triangles(Path(folder) / "scene.usda")
     return Obstacles.from_triangles(triangles)
+
+
+def floor_missing(obstacles: Obstacles, xy: np.ndarray, z_m) -> np.ndarray:
+    """(N,) whether no surface of the environment lies within :data:`FLOOR_BAND_M` of the support
+    height ``z_m`` (a float or (N,)) under each point (N, 2): a stairwell, the end of a slab,
+    outside the model. Obstacles without any geometry (an empty grid: nothing known about the
+    ground) miss no floor."""
+    if not obstacles.below[..., -1].any():
+        return np.zeros(len(xy), dtype=bool)
+    cell = obstacles.cell_m
+    nx, ny, levels = obstacles.below.shape
+    idx = np.floor((np.asarray(xy, dtype=np.float64) - obstacles.origin[:2]) / cell).astype(np.int64)
+    inside = (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
+    column = np.where(inside, idx[:, 0] * ny + idx[:, 1], 0)
+    low, high = FLOOR_BAND_M
+    z = np.broadcast_to(np.asarray(z_m, dtype=np.float64), (len(column),))
+    k0 = np.clip(np.floor((z - low - obstacles.origin[2]) / cell), 0, levels - 1).astype(np.int64)
+    k1 = np.clip(np.ceil((z + high - obstacles.origin[2]) / cell), 0, levels - 1).astype(np.int64)
+    flat = obstacles.below.reshape(-1)
+    return ~inside | (flat[column * levels + k1] - flat[column * levels + k0] == 0)

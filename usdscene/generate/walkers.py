@@ -13,6 +13,7 @@ import numpy as np
 from usdscene.scene.catalog import AssetEntry, Catalog
 from usdscene.generate.movers import (FRONT_YAW, STRIDE_M, Ground, Track, TrackOptions, draw_mover, footprint_of,
                                       full_fail, place, problem)
+from usdscene.generate.obstacles import floor_missing
 from usdscene.generate.routes import (Area, Polyline, has_word, offset_sideways, place_graph, rounded,
                                       route_points, shortest_path, speed_profile, timed_distances)
 
@@ -60,6 +61,32 @@ def _check_capacity(areas: Sequence[Area], routes_m: Sequence[float], options: T
                                   f"hold about {capacity}: ask for fewer people or a longer sequence")
 
 
+SUPPORT_STEP_M = 0.1
+"""Spacing of the points of a route's centre line checked for a floor under them."""
+
+
+def _off_floor(line: Polyline, obstacles) -> bool:
+    """Whether a point of ``line`` (every :data:`SUPPORT_STEP_M`) has no floor under it."""
+    pos, _ = line.at(np.arange(0.0, line.length + SUPPORT_STEP_M, SUPPORT_STEP_M))
+    return bool(floor_missing(obstacles, pos[:, :2], pos[:, 2]).any())
+
+
+def _check_support(areas: Sequence[Area], path: Sequence[int], obstacles) -> None:
+    """Refuse a route whose centre line leaves the floor (an entrance box beside a walk place,
+    past the slab's end: the walkers would hang in the air), naming its entrance and the spot."""
+    line = Polyline(route_points(areas, path))
+    s = np.arange(0.0, line.length + SUPPORT_STEP_M, SUPPORT_STEP_M)
+    pos, _ = line.at(s)
+    missing = floor_missing(obstacles, pos[:, :2], pos[:, 2])
+    if missing.any():
+        x, y, _ = pos[int(np.argmax(missing))]
+        first = float(s[int(np.argmax(missing))]) <= line.length / 2.0
+        entrance = areas[path[0] if first else path[-1]].place
+        raise problem(f"place {entrance!r}", f"walkers to and from this entrance would walk where there is no floor, "
+                                             f"at ({x:.2f}, {y:.2f}) m (a route is lined up with the place beyond "
+                                             "its entrance): put the entrance at the end of a walk place, on the floor")
+
+
 def walkers(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> list[Track]:
     """Walkers between entrances over the walk places, clear of ``accepted`` (see
     :mod:`usdscene.generate.motion`)."""
@@ -86,6 +113,9 @@ def walkers(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> li
                 routes.append(there + there[::-1][1:])
     if not routes:
         raise problem("setup places", "no route between two entrances over the walk places")
+    if obstacles is not None:
+        for path in routes:
+            _check_support(areas, path, obstacles)
     sizes = [np.prod(2.0 * footprint_of(catalog[c], PERSON_MARGIN_M)[1]) for c in classes]
     _check_capacity(areas, [Polyline(route_points(areas, r)).length for r in routes], options, float(np.mean(sizes)))
     out: list[Track] = []
@@ -101,6 +131,8 @@ def walkers(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> li
             room = max(0.0, width / 2.0 - float(across))
             side = float(rng.uniform(-room, room)) if room > 0 else 0.0
             line = Polyline(rounded(offset_sideways(route_points(areas, path), side), WALK_TURN_RADIUS_M))
+            if obstacles is not None and _off_floor(line, obstacles):
+                return None  # offset sideways past a slab's edge: drawn again
             speed = float(rng.uniform(low, high))
             duration_s = line.length / speed
             start_s = float(rng.uniform(-duration_s / 2.0, max(F / fps - duration_s / 2.0, 0.0)))
