@@ -30,8 +30,8 @@ import numpy as np
 from usdscene.document.model import SceneSpec
 from usdscene.errors import DocumentError
 from usdscene.generate.obstacles import STEP_HEIGHT_M, Obstacles, floor_missing
-from usdscene.generate.routes import ENTRANCE_WORDS, WALK_WORDS, Area, touch
-from usdscene.scene.catalog import Catalog, scene_catalog
+from usdscene.generate.routes import ENTRANCE_WORDS, WALK_WORDS, Area, place_areas, touch
+from usdscene.scene.catalog import Catalog
 
 QUEUE_WORDS = ("queue", "gate", "counter", "kiosk", "ticket")
 """A place whose name or kind says one of these is a queue: people line up along it and are
@@ -167,22 +167,7 @@ def place_numbers(setup: SceneSpec) -> dict[str, dict[str, float]]:
 
 def _areas(catalog: Catalog, setup: SceneSpec) -> list[tuple[Area, str]]:
     """Every place with a crowd role, as (ground box with the role, kind), in name order."""
-    if setup.environment is None or setup.environment not in catalog:
-        return []
-    places = scene_catalog(catalog, setup).places(setup.environment)
-    found = []
-    for name in sorted(places):
-        place = places[name]
-        role = crowd_role(name, place.kind)
-        if role is None or not place.regions:
-            continue
-        region = place.regions.get("is_on") or next(iter(place.regions.values()))
-        m = region.pose.as_array()
-        axes = m[:2, :2].copy()
-        axes /= np.linalg.norm(axes, axis=0, keepdims=True)
-        found.append((Area(name, role, m[:3, 3].copy(), axes, np.array(region.size_m[:2], dtype=np.float64) / 2.0),
-                      place.kind))
-    return found
+    return place_areas(catalog, setup, crowd_role)
 
 
 def _box(area: Area, grow: float = 0.0):

@@ -58,24 +58,32 @@ def _role(name: str, kind: str) -> str | None:
     return None
 
 
-def ground_areas(catalog: Catalog, scene: SceneSpec) -> list[Area]:
-    """The walk places, entrances, lanes and bays of the scene's environment (with the places
-    the scene declares), in place-name order; each from its ``is_on`` region (else its first)."""
+def place_areas(catalog: Catalog, scene: SceneSpec, role_of) -> list[tuple[Area, str]]:
+    """``(area, place kind)`` of every place of the scene's environment (with the places the
+    scene declares) to which ``role_of(name, kind)`` gives a role (None: left out), in
+    place-name order; each from its ``is_on`` region (else its first)."""
     if scene.environment is None or scene.environment not in catalog:
         return []
     places = scene_catalog(catalog, scene).places(scene.environment)
     found = []
     for name in sorted(places):
         place = places[name]
-        role = _role(name, place.kind)
+        role = role_of(name, place.kind)
         if role is None or not place.regions:
             continue
         region = place.regions.get("is_on") or next(iter(place.regions.values()))
         m = region.pose.as_array()
         axes = m[:2, :2].copy()
         axes /= np.linalg.norm(axes, axis=0, keepdims=True)
-        found.append(Area(name, role, m[:3, 3].copy(), axes,
-                          np.array(region.size_m[:2], dtype=np.float64) / 2.0))
+        found.append((Area(name, role, m[:3, 3].copy(), axes,
+                           np.array(region.size_m[:2], dtype=np.float64) / 2.0), place.kind))
+    return found
+
+
+def ground_areas(catalog: Catalog, scene: SceneSpec) -> list[Area]:
+    """The walk places, entrances, lanes and bays of the scene's environment (with the places
+    the scene declares), in place-name order; each from its ``is_on`` region (else its first)."""
+    found = [area for area, _ in place_areas(catalog, scene, _role)]
     # A walk place inside another adds nothing but narrower detours (a car park's walkway spots
     # inside its footpath); lanes and bays are kept, each is a destination.
     return [a for a in found if a.role != "walk"
