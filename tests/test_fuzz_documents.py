@@ -75,6 +75,8 @@ def _mutate(doc, path, operation: str, value, new_key: str) -> None:
         parent[key]  # noqa: B018  (still there?)
     except (KeyError, IndexError, TypeError):
         return
+    if not isinstance(parent, (dict, list)):  # an earlier mutation made it a string: 'ab'[1] reads
+        return
     if operation == "replace":
         parent[key] = value
     elif operation == "delete":
