@@ -63,7 +63,7 @@ from typing import Callable, Iterable, Iterator, Mapping, Sequence
 import numpy as np
 
 from usdscene.converters.exports.tracks import ID_RULE, require_tracks, track_ids
-from usdscene.document.model import Camera, LensModel, RenderSettings
+from usdscene.document.model import Camera, RenderSettings
 from usdscene.errors import DocumentError, OutputError, Problem
 
 log = logging.getLogger(__name__)
@@ -125,10 +125,11 @@ def _cameras(document: dict) -> list[Camera]:
 
 def pinhole_problem(camera: Camera) -> str | None:
     """Why AIC's calibration cannot express a camera's lens (None when it can)."""
+    from usdscene.lens import lens_for
+
     k = camera.intrinsics
-    if k.lens == LensModel.PERSPECTIVE:
-        return None
-    if k.lens == LensModel.OPENCV_PINHOLE and not any(float(d) for d in k.distortion):
+    export = lens_for(k).opencv_distortion(k)  # an ideal pinhole: OpenCV's pinhole model, no distortion
+    if export is not None and export[0] == "pinhole" and not np.any(export[1]):
         return None
     return (f"its {k.lens.value} lens cannot be written: the AI City Challenge calibration has no distortion "
             "model (an ideal pinhole K [R|t] only); leave the camera out with --cameras")
