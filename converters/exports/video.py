@@ -35,7 +35,7 @@ PRESET = "medium"
 CODEC = "libx264"
 
 
-def _rate(fps: float) -> Fraction:
+def frame_rate(fps: float) -> Fraction:
     """The frame rate as a fraction (29.97 → 30000/1001 style rates kept exactly to 1e-6)."""
     return Fraction(fps).limit_denominator(1001)
 
@@ -70,14 +70,14 @@ def export_video(document: dict, out_dir: str | os.PathLike, *, crf: int = DEFAU
         by_camera.setdefault(record["camera"], []).append(record)
     if not by_camera:
         raise OutputError("the document has no labelled images to make videos of", where=str(out))
-    rate = _rate(fps)
+    rate = frame_rate(fps)
     index = {"fps": fps, "codec": "h264", "encoder": CODEC, "crf": crf, "preset": PRESET,
              "pixel_format": "yuv420p", "cameras": {}}
     with staged_folder(out / "exports" / VIDEO_DIR, what="video export") as folder:
         for camera in sorted(by_camera):
             records = sorted(by_camera[camera], key=lambda r: r["frame"])
             path = folder / f"{camera}.mp4"
-            width, height = _encode(av, path, [out / r["uri"] for r in records], rate, crf)
+            width, height = encode_video(av, path, [out / r["uri"] for r in records], rate, crf)
             index["cameras"][camera] = {"file": path.name, "frames": [int(r["frame"]) for r in records],
                                         "width_px": width, "height_px": height,
                                         "image_width_px": int(records[0]["width_px"]),
@@ -86,7 +86,7 @@ def export_video(document: dict, out_dir: str | os.PathLike, *, crf: int = DEFAU
     return out / "exports" / VIDEO_DIR
 
 
-def _encode(av, path: Path, images: list[Path], rate: Fraction, crf: int) -> tuple[int, int]:
+def encode_video(av, path: Path, images: list[Path], rate: Fraction, crf: int) -> tuple[int, int]:
     """Encode PNG images into one MP4 → the video's (width, height) in pixels."""
     import cv2
     import numpy as np

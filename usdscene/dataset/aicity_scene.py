@@ -109,7 +109,7 @@ def render_map(source_path: Path, scratch: Path, target: Path, frame_map, *, sam
 def write_videos(folder: Path, images: Mapping[str, list[Path]], fps: float) -> None:
     """``<folder>/<name>.mp4`` of each camera's images (in frame order): the video export's own
     encoder (:mod:`usdscene.converters.exports.video`: H.264 yuv420p, crf 18, one thread)."""
-    from usdscene.converters.exports.video import DEFAULT_CRF, _encode, _rate
+    from usdscene.converters.exports.video import DEFAULT_CRF, encode_video, frame_rate
     from usdscene.errors import OutputError
 
     try:
@@ -120,7 +120,7 @@ def write_videos(folder: Path, images: Mapping[str, list[Path]], fps: float) -> 
     for name, paths in images.items():
         path = folder / f"{name}.mp4"
         path.parent.mkdir(parents=True, exist_ok=True)
-        _encode(av, path, list(paths), _rate(fps), DEFAULT_CRF)
+        encode_video(av, path, list(paths), frame_rate(fps), DEFAULT_CRF)
 
 
 def export_aicity_scene(out_dir, document: dict, catalog, options, *, render_the_map: bool = True,
