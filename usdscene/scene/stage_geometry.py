@@ -138,11 +138,7 @@ class StageGeometry:
         time = Usd.TimeCode(frame)
         xforms = UsdGeom.XformCache(time)
         result = {}
-        for uid, (prim, meshes) in self._objects.items():
-            if uids is not None and uid not in uids:
-                continue
-            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
-                continue
+        for uid, prim, meshes in self._visible_objects(time, uids):
             parts, key_parts, dynamic = [], [], False
             visible_meshes = []
             for info in meshes:
@@ -182,6 +178,15 @@ class StageGeometry:
         return result
 
 
+    def _visible_objects(self, time, uids: Collection[str] | None):
+        """``(uid, prim, meshes)`` of the objects (of ``uids``; None = all) visible at ``time``."""
+        for uid, (prim, meshes) in self._objects.items():
+            if uids is not None and uid not in uids:
+                continue
+            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
+                continue
+            yield uid, prim, meshes
+
     def transforms(self, frame: int, uids: Collection[str] | None = None) -> dict[str, np.ndarray]:
         """Local → world matrices of the objects' prims visible at ``frame`` (their pose; for
         the yaw of their 3D boxes, :mod:`usdscene.labels.cuboids`).
@@ -192,11 +197,7 @@ class StageGeometry:
         time = Usd.TimeCode(frame)
         xforms = UsdGeom.XformCache(time)
         result = {}
-        for uid, (prim, _) in self._objects.items():
-            if uids is not None and uid not in uids:
-                continue
-            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
-                continue
+        for uid, prim, _ in self._visible_objects(time, uids):
             result[uid] = np.asarray(xforms.GetLocalToWorldTransform(prim), dtype=np.float64)
         return result
 
@@ -210,11 +211,7 @@ class StageGeometry:
         time = Usd.TimeCode(frame)
         xforms = UsdGeom.XformCache(time)
         result = {}
-        for uid, (prim, _) in self._objects.items():
-            if uids is not None and uid not in uids:
-                continue
-            if UsdGeom.Imageable(prim).ComputeVisibility(time) == UsdGeom.Tokens.invisible:
-                continue
+        for uid, prim, _ in self._visible_objects(time, uids):
             attr = prim.GetAttribute(stage_schema.ATTR_KEYPOINTS)
             if not attr or not attr.HasValue():
                 # A pose changing per frame: the keypoints of the pose child shown at this frame.
