@@ -215,9 +215,7 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
         OutputError: the document states no frame rate (no tracks), has no labelled image, an
             unknown layout, or no exported class has a MOT number.
     """
-    if layout_name not in LAYOUTS:
-        raise OutputError([Problem("--mot-layout", f"unknown layout {layout_name!r}; expected one of "
-                                                   f"{', '.join(LAYOUTS)}")])
+    check_layout(layout_name)
     fps = require_tracks(document, "MOT")
     records = image_records(document)
     if not records:
@@ -306,8 +304,13 @@ def job_mot_classes(job) -> MotClasses:
 def check_mot(job) -> None:
     """The registry's check: the class mapping and the layout, before anything is written."""
     job_mot_classes(job)
-    if job.options.mot_layout not in LAYOUTS:
-        raise OutputError([Problem("--mot-layout", f"unknown layout {job.options.mot_layout!r}; expected one of "
+    check_layout(job.options.mot_layout)
+
+
+def check_layout(layout_name: str) -> None:
+    """Refuse a layout that is not one of :data:`LAYOUTS` (``OutputError`` naming ``--mot-layout``)."""
+    if layout_name not in LAYOUTS:
+        raise OutputError([Problem("--mot-layout", f"unknown layout {layout_name!r}; expected one of "
                                                    f"{', '.join(LAYOUTS)}")])
 
 
