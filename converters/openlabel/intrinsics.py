@@ -24,7 +24,8 @@ from typing import Any, Mapping
 
 from usdscene.errors import ProblemCollector
 from usdscene.document.model import FISHEYE_LENSES, Intrinsics, LensModel, RenderSettings
-from usdscene.lens.fisheye import EQUISOLID_KB_COEFFS
+from usdscene.lens import lens_for
+from usdscene.lens.fisheye import EQUISOLID_KB_COEFFS  # noqa: F401  (the package exports it)
 
 from usdscene.converters.openlabel.values import (
     IMAGE_SIDE_LIMIT,
@@ -116,40 +117,20 @@ def read_intrinsics(props: Mapping, friendly: Mapping, where: str, render: Rende
         fov = read_number(friendly["fov_deg"], f"{where_f}.fov_deg", problems, positive=True)
         if fov is None:
             return INVALID
-    if kind == "intrinsics_pinhole":
-        result = _pinhole(block, here, problems)
-        allowed = (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE)
-    elif kind == "intrinsics_fisheye":
-        result = _fisheye(block, here, problems)
-        # the two Blender fisheyes are written as opencv_fisheye; VCD's polynomials name themselves
-        allowed = ((LensModel.OPENCV_FISHEYE, LensModel.FISHEYE_EQUIDISTANT, LensModel.FISHEYE_EQUISOLID)
-                   if result is None or result[0] is LensModel.OPENCV_FISHEYE else (result[0],))
-    else:
-        result = _orthographic(block, here, problems)
-        allowed = (LensModel.ORTHOGRAPHIC,)
+    result = {"intrinsics_pinhole": _pinhole, "intrinsics_fisheye": _fisheye,
+              "intrinsics_custom": _orthographic}[kind](block, here, problems)
     if result is None:
         return INVALID
     lens, w, h, fx, fy, cx, cy, dist = result
     if model is not None:
+        allowed = calibration_family(lens)
         if model not in allowed:
             problems.add(f"{where_f}.model", f"lens model {model.value!r} does not match {kind} "
                                              f"(expected {' or '.join(m.value for m in allowed)})")
             return INVALID
-        if model is LensModel.PERSPECTIVE and dist:
-            problems.add(f"{here}", "lens model 'perspective' has no distortion; use 'opencv_pinhole' or "
-                                    f"zero coefficients (got {list(dist)})")
+        dist = lens_for(model).from_calibration(dist, here, problems)
+        if dist is None:
             return INVALID
-        if model is LensModel.FISHEYE_EQUIDISTANT:
-            if any(dist):
-                problems.add(here, f"lens model 'fisheye_equidistant' needs zero lens coefficients, got {list(dist)}")
-                return INVALID
-            dist = ()
-        elif model is LensModel.FISHEYE_EQUISOLID:
-            if len(dist) != 4 or any(abs(a - b) > 1e-12 + 1e-9 * abs(b) for a, b in zip(dist, EQUISOLID_KB_COEFFS)):
-                problems.add(here, "lens model 'fisheye_equisolid' is written as opencv_fisheye with the "
-                                   f"coefficients {list(EQUISOLID_KB_COEFFS)}, got {list(dist)}")
-                return INVALID
-            dist = ()
         lens = model
     if fov is not None and lens not in FISHEYE_LENSES:
         problems.add(f"{where_f}.fov_deg", f"with {kind}, fov_deg is the image circle of a fisheye lens; "
@@ -158,6 +139,14 @@ def read_intrinsics(props: Mapping, friendly: Mapping, where: str, render: Rende
     return Intrinsics(lens=lens, width_px=w, height_px=h, fx_px=fx, fy_px=fy, cx_px=cx, cy_px=cy,
                       distortion=dist, fov_deg=fov,
                       sensor_width_mm=sensor_w if sensor_w is not None else DEFAULT_SENSOR_WIDTH_MM)
+
+
+def calibration_family(lens: LensModel) -> list[LensModel]:
+    """The models that may name a calibration read as ``lens`` (:attr:`usdscene.lens.Lens.calibration_family`):
+    the family's own model first, then the others in :class:`LensModel` order. The two Blender
+    fisheyes are written as opencv_fisheye; VCD's polynomials name themselves."""
+    family = lens_for(lens).calibration_family
+    return sorted((m for m in LensModel if lens_for(m).calibration_family == family), key=lambda m: m.value != family)
 
 
 def _size(block: Mapping, where: str, problems: ProblemCollector) -> tuple[int, int] | None:
@@ -325,6 +314,7 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
     else:
         resolution = render.resolution_px
     w, h = resolution
+    spec = lens_for(model)
     focal = fov = None
     if "focal_length_mm" in friendly:
         focal = read_number(friendly["focal_length_mm"], f"{where}.focal_length_mm", P, positive=True)
@@ -334,20 +324,17 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
         fov = read_number(friendly["fov_deg"], f"{where}.fov_deg", P, positive=True)
         if fov is None:
             return INVALID
-        limit = 180.0 if model in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE) else 360.0
+        limit = 180.0 if spec.pinhole else 360.0
         if fov >= limit:
             problems.add(f"{where}.fov_deg", f"a {model.value} lens needs fov_deg < {limit:g}, got {fov:g}")
             return INVALID
     dist: tuple[float, ...] = ()
     if "distortion" in friendly:
-        if model is LensModel.OPENCV_PINHOLE:
+        if spec.brown_conrady:
             dist = opencv_distortion(friendly["distortion"], f"{where}.distortion", P)
-        elif model in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
-            dist = read_numbers(friendly["distortion"], f"{where}.distortion", P, lengths=(4,),
-                                what="Kannala-Brandt coefficients k1..k4")
-        elif model is LensModel.RADIAL_POLY:
-            dist = read_numbers(friendly["distortion"], f"{where}.distortion", P, lengths=(3, 4),
-                                what="radial_poly coefficients d1..d3 [d4] of θ(1 + d1θ + d2θ² + ...)")
+        elif spec.distortion_lengths:
+            dist = read_numbers(friendly["distortion"], f"{where}.distortion", P, lengths=spec.distortion_lengths,
+                                what=spec.distortion_what)
         else:
             problems.add(f"{where}.distortion", f"lens model {model.value!r} has no distortion coefficients; "
                                                 f"use 'opencv_pinhole', 'opencv_fisheye', 'kannala' or "
@@ -355,16 +342,14 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
             return INVALID
         if dist is None:
             return INVALID
-    elif model in (LensModel.OPENCV_FISHEYE, LensModel.KANNALA):
-        dist = (0.0, 0.0, 0.0, 0.0)
-    elif model is LensModel.RADIAL_POLY:
-        dist = (0.0, 0.0, 0.0)
-    if "ortho_width_m" in friendly and model is not LensModel.ORTHOGRAPHIC:
+    else:
+        dist = spec.default_distortion
+    if "ortho_width_m" in friendly and not spec.orthographic:
         problems.add(f"{where}.ortho_width_m", f"ortho_width_m is for the orthographic model, not {model.value!r}")
         return INVALID
     sensor = sensor_w if sensor_w is not None else DEFAULT_SENSOR_WIDTH_MM
     circle = None
-    if model is LensModel.ORTHOGRAPHIC:
+    if spec.orthographic:
         if "ortho_width_m" not in friendly:
             problems.add(f"{where}.ortho_width_m", "the orthographic model needs ortho_width_m (view width in metres)")
             return INVALID
@@ -376,12 +361,12 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
                 problems.add(f"{where}.{key}", f"{key} has no meaning for an orthographic camera")
                 return INVALID
         fx = w / width_m
-    elif model in (LensModel.PERSPECTIVE, LensModel.OPENCV_PINHOLE):
+    elif spec.pinhole:
         fx_or_none = _pinhole_focal(where, focal, fov, sensor_w, w, P)
         if fx_or_none is None:
             return INVALID
         fx, sensor = fx_or_none
-    elif model is LensModel.FISHEYE_EQUIDISTANT:
+    elif spec.fov_spans_width:
         # Blender maps fisheye_fov across the full sensor width: r_px = θ · w / fov_rad.
         if fov is None and focal is None:
             problems.add(f"{where}.fov_deg", "a fisheye_equidistant lens needs fov_deg (or focal_length_mm)")
@@ -401,7 +386,7 @@ def _friendly_intrinsics(friendly: Mapping, where: str, model: LensModel | None,
             fx = focal * w / sensor
             fov = math.degrees(w / fx)
         circle = fov
-    else:  # FISHEYE_EQUISOLID and the radial polynomials: r = f·g(θ) on the sensor; fov crops the circle
+    else:  # the equisolid fisheye and the radial polynomials: r = f·g(θ) on the sensor; fov crops the circle
         if focal is None:
             problems.add(f"{where}.focal_length_mm", f"a {model.value} lens needs focal_length_mm "
                                                      f"(and sensor_size_mm, default {DEFAULT_SENSOR_WIDTH_MM:g} mm wide)")

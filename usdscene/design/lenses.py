@@ -12,6 +12,7 @@ from pathlib import Path
 
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import Intrinsics, LensModel
+from usdscene.lens import lens_for
 from usdscene.shipped import shipped_data_file
 
 from usdscene.labels.pixel_density import read_json_object
@@ -85,7 +86,7 @@ def _read_lenses(path: Path, problems: ProblemCollector) -> dict[str, Lens]:
             problems.add(f"{where}.model", f"unknown lens model {raw.get('model')!r}; expected one of "
                                            f"{', '.join(m.value for m in LensModel)}")
             continue
-        if model in (LensModel.ORTHOGRAPHIC, LensModel.OPENCV_PINHOLE, LensModel.OPENCV_FISHEYE):
+        if not lens_for(model).catalog:
             problems.add(f"{where}.model", f"lens model {model.value!r} is not a catalog lens; use perspective, "
                                            "fisheye_equidistant or fisheye_equisolid")
             continue
@@ -97,7 +98,8 @@ def _read_lenses(path: Path, problems: ProblemCollector) -> dict[str, Lens]:
             else:
                 numbers[key] = float(value)
         fov = raw.get("fov_deg")
-        if model is not LensModel.PERSPECTIVE and (not isinstance(fov, (int, float)) or not 0 < fov < 360):
+        radial = lens_for(model).radial  # a fisheye: its image circle
+        if radial and (not isinstance(fov, (int, float)) or not 0 < fov < 360):
             problems.add(f"{where}.fov_deg", f"a fisheye lens needs fov_deg in (0, 360), got {fov!r}")
             continue
         res = raw.get("resolution_px")
@@ -109,7 +111,7 @@ def _read_lenses(path: Path, problems: ProblemCollector) -> dict[str, Lens]:
             continue
         lenses[name] = Lens(name=name, model=model, focal_length_mm=numbers["focal_length_mm"],
                             sensor_width_mm=numbers["sensor_width_mm"], resolution_px=(res[0], res[1]),
-                            fov_deg=None if model is LensModel.PERSPECTIVE else float(fov),
+                            fov_deg=float(fov) if radial else None,
                             description=str(raw.get("description", "")))
     return lenses
 

@@ -26,6 +26,18 @@ class Lens:
         polynomial: a radial lens whose ``θd(θ)`` is a polynomial (rendered through a native
             fisheye, or a perspective view when it is narrow).
         default_half_fov_rad: the widest angle off the axis without a ``fov_deg``.
+        calibration_family: the model an OpenLABEL calibration of this lens reads back as
+            when no model is named (``perspective`` for both pinholes, ``opencv_fisheye`` for
+            the Blender fisheyes, written as that); models of one family may name each other's
+            calibration.
+        brown_conrady: its coefficients are OpenCV's ``k1 k2 p1 p2 [k3 [k4 k5 k6]]``.
+        distortion_lengths: how many coefficients its friendly ``distortion`` may hold
+            (empty: the model has none); ``distortion_what`` says what they are.
+        default_distortion: its coefficients when the friendly form gives none.
+        fov_spans_width: the friendly ``fov_deg`` spans the sensor width (``r = f·θ`` as
+            Blender's equidistant fisheye maps it), so it sets the focal length.
+        catalog: a planner catalog lens may have this model (focal length, sensor width and
+            image circle say all of it).
     """
 
     name = ""
@@ -37,6 +49,19 @@ class Lens:
     centred = False
     polynomial = False
     default_half_fov_rad = math.pi
+    calibration_family = ""
+    brown_conrady = False
+    distortion_lengths: tuple[int, ...] = ()
+    distortion_what = "numbers"
+    default_distortion: tuple[float, ...] = ()
+    fov_spans_width = False
+    catalog = True
+
+    def from_calibration(self, coefficients: tuple[float, ...], where: str, problems) -> tuple[float, ...] | None:
+        """This lens's coefficients from those of the calibration of its family that a document
+        gives with this model named; None (the problem added to ``problems`` at ``where``) when
+        they do not describe this model."""
+        return coefficients
 
     def project(self, intrinsics, x: np.ndarray, y: np.ndarray, z: np.ndarray):
         """Camera-frame coordinates (N,) each (OpenCV axes, metres) → ``(xn, yn, valid, theta)``:

@@ -75,6 +75,14 @@ class EquidistantFisheye(RadialLens):
     name = "fisheye_equidistant"
     native = True
     centred = True
+    calibration_family = "opencv_fisheye"
+    fov_spans_width = True
+
+    def from_calibration(self, coefficients, where, problems):
+        if any(coefficients):
+            problems.add(where, f"lens model 'fisheye_equidistant' needs zero lens coefficients, got {list(coefficients)}")
+            return None
+        return ()
 
     def radius(self, theta, coeffs):
         return theta, np.ones_like(theta, dtype=bool)
@@ -108,6 +116,15 @@ class EquisolidFisheye(RadialLens):
     name = "fisheye_equisolid"
     native = True
     centred = True
+    calibration_family = "opencv_fisheye"
+
+    def from_calibration(self, coefficients, where, problems):
+        if len(coefficients) != 4 or any(abs(a - b) > 1e-12 + 1e-9 * abs(b)
+                                         for a, b in zip(coefficients, EQUISOLID_KB_COEFFS)):
+            problems.add(where, "lens model 'fisheye_equisolid' is written as opencv_fisheye with the "
+                                f"coefficients {list(EQUISOLID_KB_COEFFS)}, got {list(coefficients)}")
+            return None
+        return ()
 
     def opencv_distortion(self, intrinsics):
         # OpenCV has no equisolid model: its fisheye model with the Taylor fit above
@@ -175,6 +192,11 @@ class OpenCVFisheye(PolynomialLens):
 
     name = "opencv_fisheye"
     default_half_fov_rad = math.pi / 2.0
+    calibration_family = "opencv_fisheye"
+    distortion_lengths = (4,)
+    distortion_what = "Kannala-Brandt coefficients k1..k4"
+    default_distortion = (0.0, 0.0, 0.0, 0.0)
+    catalog = False
 
     def theta_d(self, theta, coeffs):
         k1, k2, k3, k4 = distortion_coefficients(coeffs, 4)
@@ -200,6 +222,8 @@ class KannalaFisheye(OpenCVFisheye):
 
     name = "kannala"
     default_half_fov_rad = math.pi
+    calibration_family = "kannala"
+    catalog = True
 
     def openlabel_coeffs(self, intrinsics, where, problems):
         # VCD's own form r = f (k1θ + k2θ³ + ...) with k1 = 1 is the normalised lens as it is
@@ -211,6 +235,10 @@ class RadialPolynomial(PolynomialLens):
     """``radial_poly``: ``θd = θ(1 + d1θ + d2θ² + d3θ³ [+ d4θ⁴])``, any powers of ``θ``."""
 
     name = "radial_poly"
+    calibration_family = "radial_poly"
+    distortion_lengths = (3, 4)
+    distortion_what = "radial_poly coefficients d1..d3 [d4] of θ(1 + d1θ + d2θ² + ...)"
+    default_distortion = (0.0, 0.0, 0.0)
 
     def openlabel_coeffs(self, intrinsics, where, problems):
         coeffs = [float(v) for v in intrinsics.distortion]

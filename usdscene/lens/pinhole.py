@@ -57,6 +57,14 @@ class Perspective(Lens):
     pinhole = True
     straight = True
     native = True
+    calibration_family = "perspective"
+
+    def from_calibration(self, coefficients, where, problems):
+        if coefficients:
+            problems.add(f"{where}", "lens model 'perspective' has no distortion; use 'opencv_pinhole' or "
+                                     f"zero coefficients (got {list(coefficients)})")
+            return None
+        return coefficients
 
     def _distort(self, xn, yn, intrinsics):
         return xn, yn, None
@@ -107,6 +115,10 @@ class OpenCVPinhole(Perspective):
     name = "opencv_pinhole"
     straight = False
     native = False
+    brown_conrady = True
+    distortion_lengths = (0, 4, 5, 8, 12, 14)
+    catalog = False
+    from_calibration = Lens.from_calibration
 
     def _distort(self, xn, yn, intrinsics):
         return brown_conrady(xn, yn, intrinsics.distortion)
@@ -135,6 +147,8 @@ class Orthographic(Lens):
     orthographic = True
     straight = True
     native = True
+    calibration_family = "orthographic"
+    catalog = False
 
     def project(self, intrinsics, x, y, z):
         return x, y, z > 0, None
