@@ -355,10 +355,9 @@ class Session:
     def _finish(self, camera: str, rgb, ids):
         """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
         import cv2
-        import numpy as np
 
-        from usdscene.labels.projection import pixel_rays, remap_grids
-        from usdscene.lens import lens_for
+        from usdscene.labels.projection import remap_grids
+        from usdscene.lens import lens_for, valid_pixels
         from usdscene.render.job import intrinsics_from_json
 
         cam_job = self.job["cameras"][camera]
@@ -372,9 +371,7 @@ class Session:
             ids = cv2.remap(ids, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         elif lens_for(intr).radial:  # a native fisheye: black beyond its image circle
             if camera not in self._fov_masks:
-                vs, us = np.mgrid[0:intr.height_px, 0:intr.width_px]
-                _, valid = pixel_rays(intr, np.stack([us.ravel(), vs.ravel()], 1).astype(float))
-                self._fov_masks[camera] = ~valid.reshape(intr.height_px, intr.width_px)
+                self._fov_masks[camera] = ~valid_pixels(intr)
             outside = self._fov_masks[camera]
             rgb = rgb.copy()
             ids = ids.copy()
