@@ -23,7 +23,7 @@ gives the mean over the images of each statistic:
   mean_yb²)`` with ``rg = R - G`` and ``yb = (R + G) / 2 - B``.
 
 Brightness, clipped %, crushed % and noise are taken over the pixels the lens images: in a run's
-output folder (``OUT``, or its ``images`` / ``images_clean``) each camera's lens is read from
+output folder (``OUT``, its ``images`` / ``images_clean`` or a camera's folder in them) each camera's lens is read from
 the run's stage, and a fisheye's images count only the pixels inside its image circle
 (:func:`usdscene.lens.valid_pixels`; the renderer blacks out the rest, which would otherwise
 read as crushed). Folders of other images count every pixel.
@@ -119,8 +119,9 @@ def image_files(folder: Path) -> list[Path]:
 
 def run_lenses(folder: Path) -> dict:
     """Camera name → :class:`~usdscene.document.model.Intrinsics` of the run whose output folder
-    is ``folder`` or its parent (read from ``OUT/stage/scene.usda``); empty for other folders."""
-    for root in (folder, folder.parent):
+    is ``folder`` or holds it (``OUT/images``, ``OUT/images/<camera>``; read from
+    ``OUT/stage/scene.usda``); empty for other folders."""
+    for root in (folder, folder.parent, folder.parent.parent):
         stage = root / "stage" / "scene.usda"
         if stage.is_file():
             from usdscene.render.stage_reader import read_stage_plan
