@@ -21,6 +21,12 @@ gives the mean over the images of each statistic:
 * sharpness: variance of the Laplacian (3x3 aperture) of the luma;
 * colourfulness: Hasler and Süsstrunk (2003), ``sqrt(sd_rg² + sd_yb²) + 0.3 sqrt(mean_rg² +
   mean_yb²)`` with ``rg = R - G`` and ``yb = (R + G) / 2 - B``.
+
+Brightness, clipped %, crushed % and noise are taken over the pixels the lens images: in a run's
+output folder (``OUT``, its ``images`` / ``images_clean`` or a camera's folder in them) each camera's lens is read from
+the run's stage, and a fisheye's images count only the pixels inside its image circle
+(:func:`usdscene.lens.valid_pixels`; the renderer blacks out the rest, which would otherwise
+read as crushed). Folders of other images count every pixel.
 """
 
 from __future__ import annotations
@@ -76,12 +82,17 @@ def noise_sigma(luma: np.ndarray, usable: np.ndarray | None = None) -> float:
     return float(sigma / BOX_RESIDUAL_GAIN)
 
 
-def look_statistics(image_rgb_u8: np.ndarray) -> dict:
+def look_statistics(image_rgb_u8: np.ndarray, valid: np.ndarray | None = None) -> dict:
     """The look statistics of one (H, W, 3) uint8 RGB image (module docstring); keys
-    :data:`STATISTICS`, floats."""
+    :data:`STATISTICS`, floats. ``valid``: (H, W) bool, the pixels the lens images (None: all);
+    brightness, clipped %, crushed % and noise are taken over them only."""
     image = np.asarray(image_rgb_u8)
     if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
         raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {image.shape} {image.dtype}")
+    if valid is None:
+        valid = np.ones(image.shape[:2], dtype=bool)
+    elif valid.shape != image.shape[:2] or not valid.any():
+        raise ValueError(f"valid pixels {valid.shape} do not fit an image of {image.shape[:2]} (or are none)")
     luma = luma_of(image)
     clipped = (image >= 250).any(axis=2)
     crushed = luma <= 5.0
@@ -90,10 +101,10 @@ def look_statistics(image_rgb_u8: np.ndarray) -> dict:
     yb = 0.5 * (rgb[..., 0] + rgb[..., 1]) - rgb[..., 2]
     colourfulness = np.hypot(rg.std(), yb.std()) + 0.3 * np.hypot(rg.mean(), yb.mean())
     return {
-        "brightness": float(luma.mean()),
-        "clipped_pct": float(100.0 * clipped.mean()),
-        "crushed_pct": float(100.0 * crushed.mean()),
-        "noise_sigma": noise_sigma(luma, ~(clipped | crushed)),
+        "brightness": float(luma[valid].mean()),
+        "clipped_pct": float(100.0 * clipped[valid].mean()),
+        "crushed_pct": float(100.0 * crushed[valid].mean()),
+        "noise_sigma": noise_sigma(luma, valid & ~(clipped | crushed)),
         "sharpness": float(cv2.Laplacian(luma, cv2.CV_32F, ksize=1).astype(np.float64).var()),
         "colourfulness": float(colourfulness),
     }
@@ -106,17 +117,44 @@ def image_files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.rglob("*") if p.suffix.lower() in SUFFIXES and p.is_file())
 
 
+def run_lenses(folder: Path) -> dict:
+    """Camera name → :class:`~usdscene.document.model.Intrinsics` of the run whose output folder
+    is ``folder`` or holds it (``OUT/images``, ``OUT/images/<camera>``; read from
+    ``OUT/stage/scene.usda``); empty for other folders."""
+    for root in (folder, folder.parent, folder.parent.parent):
+        stage = root / "stage" / "scene.usda"
+        if stage.is_file():
+            from usdscene.render.stage_reader import read_stage_plan
+
+            return {camera.name: camera.intrinsics for camera in read_stage_plan(stage).cameras}
+    return {}
+
+
+def image_valid_pixels(path: Path, shape: tuple[int, int], lenses: dict) -> np.ndarray | None:
+    """The pixels that the lens of the camera of image ``path`` (``<camera>/<frame>.png``)
+    images, at the image's size; None when the camera is not known."""
+    intrinsics = lenses.get(path.parent.name)
+    if intrinsics is None:
+        return None
+    from usdscene.lens import valid_pixels
+
+    if (intrinsics.height_px, intrinsics.width_px) != shape:
+        intrinsics = intrinsics.resized(shape[1], shape[0])
+    return valid_pixels(intrinsics)
+
+
 def folder_statistics(folder: Path) -> dict:
     """Mean of each statistic over the images of ``folder``, plus ``images`` (their count)."""
     files = image_files(folder)
     if not files:
         raise FileNotFoundError(f"{folder}: no PNG or JPEG images")
+    lenses = run_lenses(folder)
     rows = []
     for path in files:
         bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if bgr is None:
             raise ValueError(f"{path}: not a readable image")
-        rows.append(look_statistics(bgr[..., ::-1]))
+        rows.append(look_statistics(bgr[..., ::-1], image_valid_pixels(path, bgr.shape[:2], lenses)))
     out = {name: float(np.nanmean([row[name] for row in rows])) for name in STATISTICS}
     out["images"] = len(rows)
     return out

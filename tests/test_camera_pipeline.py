@@ -78,6 +78,63 @@ def test_exposure_limits_and_metering_modes():
     assert exposure.adapted_evs([0.0, 2.0], 1.0) == [0.0, 2.0]
 
 
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_compiled_pass_is_the_tone_curve_and_the_noise_table(channels):
+    """kernels.encode_with_noise (one pass) gives the levels of tone.encode, then the noise
+    table at the same draws, up to a level on a few float32 rounding boundaries."""
+    from usdscene.sensor import kernels
+    from usdscene.sensor.pipeline import _add_noise, _noise_table, vignetting_map
+
+    gen = np.random.default_rng(2)
+    shape = (48, 64) if channels == 1 else (48, 64, 3)
+    x = (gen.random(shape, dtype=np.float32) ** 3 * 6.0).astype(np.float32)
+    x[0, :3] = [np.nan, -1.0, np.inf] if channels == 1 else [[np.nan] * 3, [-1.0] * 3, [np.inf] * 3]
+    falloff = vignetting_map(48, 64, 0.4, 1.0)
+    shade = falloff if channels == 1 else np.dstack([falloff] * 3)
+    table = _noise_table(800.0, 8000.0, 3.0, 2.0)
+    for stops in (0.0, 2.0):
+        plain = tone.encode(np.nan_to_num(x, posinf=1e9), stops, 1.5, shade)
+        fused = kernels.encode_with_noise(x, stops, 1.5, falloff, None, None)
+        assert fused.shape == x.shape and np.mean(fused != plain) < 2e-3
+        assert np.abs(fused.astype(int) - plain).max() <= 1
+        noisy = kernels.encode_with_noise(x, stops, 1.5, falloff, table, rng())
+        assert np.array_equal(noisy, _add_noise(fused, table, rng()))
+
+
+def test_adapting_exposure_follows_a_step_of_light_within_its_speed_and_window():
+    """A light that steps up 8 times at frame 10: the exposure falls by 3 stops, moving a share
+    ``speed`` of the error per frame, and each frame's value depends only on the readings of its
+    window (so any worker that renders the window's pre-passes computes it)."""
+    speed = 0.5
+    warmup = exposure.warmup_frames(speed)
+    assert warmup == 7 and (1 - speed) ** warmup <= 0.01 < (1 - speed) ** (warmup - 1)
+    assert exposure.warmup_frames(1.0) == 0 and exposure.warmup_frames(0.1) == 44
+    assert exposure.warmup_frames(0.001) == exposure.MAX_WARMUP_FRAMES
+    assert list(exposure.meter_window(3, 7, 0)) == [0, 1, 2, 3]
+    assert list(exposure.meter_window(20, 7, 0)) == list(range(13, 21))
+    readings = [0.05] * 10 + [0.4] * 20  # linear luminance: 8 times brighter from frame 10
+    evs, targets = [], []
+    for frame in range(len(readings)):
+        window = exposure.meter_window(frame, warmup, 0)
+        ev, target = exposure.sequence_ev([readings[g] for g in window], 0.2, -10.0, 10.0, speed)
+        evs.append(ev)
+        targets.append(target)
+    assert evs[:10] == [2.0] * 10 and targets[10:] == [-1.0] * 20
+    for frame in range(10, 30):  # the remaining error shrinks by (1 - speed) per frame
+        assert evs[frame] - targets[frame] == pytest.approx(3.0 * (1 - speed) ** (frame - 9), abs=2e-4 + 0.031)
+    assert evs[10] == pytest.approx(0.5) and evs[12] == pytest.approx(-0.625)
+    assert abs(evs[10 + warmup] - (-1.0)) <= 0.03 and evs[-1] == -1.0
+    # the window reaches back warmup frames: a frame after the window's end ignores the old light
+    assert exposure.sequence_ev([0.4] * (warmup + 1), 0.2, -10.0, 10.0, speed)[0] == -1.0
+    # applied in place of the image's own meter: the image is exposed by what the sequence chose
+    sensor = Sensor(auto_exposure=True, exposure_speed=speed, exposure_bias_ev=0.25)
+    image, record = process_image(room(), sensor, rng(), adapted=(0.5, -1.0, 0.4))
+    assert record == {"exposure_ev": 0.75, "target_ev": -1.0, "metered_luminance": 0.4}
+    instant, instant_record = process_image(room(), sensor, rng())
+    assert set(instant_record) == {"exposure_ev", "metered_luminance"}
+    assert srgb_to_linear(image).mean() != pytest.approx(srgb_to_linear(instant).mean(), rel=0.05)
+
+
 def doorway() -> np.ndarray:
     """A dark interior (left two thirds, light 0.05) and a sunlit doorway (right third, light
     5: 100 times brighter), both with the same texture of albedos 0.2-0.6."""

@@ -77,3 +77,24 @@ def test_cli_prints_a_row_per_folder_and_refuses_a_missing_one(tmp_path, capsys)
     assert "| mine | 1 | 100.00 |" in out
     assert look.main([str(tmp_path / "absent")]) == 1
     assert "absent: not a folder" in capsys.readouterr().err
+
+
+def test_a_fisheye_counts_only_its_image_circle():
+    """The black outside a fisheye's image circle is not crushed: the lens's valid pixels."""
+    from usdscene.document.model import Intrinsics, LensModel
+    from usdscene.lens import valid_pixels
+
+    fisheye = Intrinsics(LensModel.FISHEYE_EQUIDISTANT, 160, 120, 40.0, 40.0, 79.5, 59.5, fov_deg=180.0)
+    inside = valid_pixels(fisheye)
+    # the image circle: radius fx · π/2 ≈ 62.8 px, wider than the image's 60 px half height
+    ys, xs = np.mgrid[0:120, 0:160]
+    expected = np.hypot(xs - 79.5, ys - 59.5) <= 40.0 * np.pi / 2
+    assert np.mean(inside != expected) < 0.005 and 0.5 < inside.mean() < 0.95
+    assert valid_pixels(Intrinsics(LensModel.PERSPECTIVE, 160, 120, 100.0, 100.0, 79.5, 59.5)).all()
+    image = np.full((120, 160, 3), 120, dtype=np.uint8)
+    image[~inside] = 0
+    image[:10, 70:90] = 2  # a dark patch inside the circle: 200 pixels
+    whole, circle = look.look_statistics(image), look.look_statistics(image, inside)
+    assert whole["crushed_pct"] > 100.0 * (1.0 - inside.mean())
+    assert circle["crushed_pct"] == pytest.approx(100.0 * 200 / inside.sum())
+    assert circle["brightness"] > whole["brightness"]

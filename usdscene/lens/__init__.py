@@ -13,7 +13,7 @@ adds a toy lens that way).
 
 from __future__ import annotations
 
-from usdscene.lens.base import LENSES, Lens, lens_for, register
+from usdscene.lens.base import LENSES, Lens, lens_for, register, valid_pixels
 from usdscene.lens.fisheye import EquidistantFisheye, EquisolidFisheye, KannalaFisheye, OpenCVFisheye, RadialPolynomial
 from usdscene.lens.pinhole import OpenCVPinhole, Orthographic, Perspective
 
@@ -21,4 +21,4 @@ for _lens in (Perspective(), Orthographic(), EquidistantFisheye(), EquisolidFish
               OpenCVFisheye(), KannalaFisheye(), RadialPolynomial()):
     register(_lens)
 
-__all__ = ["LENSES", "Lens", "lens_for", "register"]
+__all__ = ["LENSES", "Lens", "lens_for", "register", "valid_pixels"]

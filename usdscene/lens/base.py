@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -132,3 +133,19 @@ def lens_for(model) -> Lens:
     """
     name = getattr(model, "lens", model)
     return LENSES[getattr(name, "value", name)]
+
+
+@functools.lru_cache(maxsize=32)
+def valid_pixels(intrinsics) -> np.ndarray:
+    """(H, W) bool, read-only: the pixels of an image of ``intrinsics`` (an
+    :class:`~usdscene.document.model.Intrinsics`) that the lens images, i.e. that have a viewing
+    ray: all of them for a pinhole, those inside the image circle for a fisheye. The renderer
+    blacks out the rest and image statistics leave them out. Cached per lens (it is the same for
+    every image of a camera)."""
+    vs, us = np.mgrid[0:intrinsics.height_px, 0:intrinsics.width_px]
+    xd = (us.ravel().astype(np.float64) - intrinsics.cx_px) / intrinsics.fx_px
+    yd = (vs.ravel().astype(np.float64) - intrinsics.cy_px) / intrinsics.fy_px
+    _, valid = lens_for(intrinsics).unproject(intrinsics, xd, yd, 40)
+    out = np.asarray(valid, dtype=bool).reshape(intrinsics.height_px, intrinsics.width_px)
+    out.setflags(write=False)
+    return out

@@ -328,10 +328,12 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
     """Per camera: its intrinsics, the native lens to render (a wider undistorted view for
     OpenCV models), its base pose and per-frame poses (OpenCV axes, 16 row-major numbers)."""
     by_name = {c.name: c for c in plan.cameras}
-    wanted = set(frames)
     out = {}
     for name in camera_names:
         cam = by_name[name]
+        warmup = sequence_warmup(plan, name)
+        # an adapting camera's shards also pre-pass the frames before theirs (its exposure window)
+        wanted = set(frames) if not warmup else {f for f in plan.frames if f >= min(frames) - warmup}
         intr = scale_intrinsics(cam.intrinsics, scale)
         try:
             render_intr = undistorted_render_intrinsics(intr)
@@ -348,7 +350,22 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
         # stays what it was before sensors existed.
         if name in getattr(plan, "sensors", {}):
             out[name]["sensor"] = plan.sensors[name]
+        if warmup:  # exposure adapting over frames: the window (usdscene.sensor.exposure.meter_window)
+            out[name]["sensor"] = {**plan.sensors[name], "warmup_frames": warmup, "first_frame": plan.frames.start}
     return out
+
+
+def sequence_warmup(plan, camera: str) -> int:
+    """Frames before each frame whose pre-pass meter readings decide camera ``camera``'s
+    exposure (:func:`usdscene.sensor.exposure.warmup_frames`; 0: no sensor, or an instant one)."""
+    sensor = getattr(plan, "sensors", {}).get(camera)
+    if sensor is None:
+        return 0
+    from usdscene.document.imaging import Sensor, spec_from_json
+    from usdscene.sensor.exposure import warmup_frames
+
+    spec = spec_from_json(Sensor, sensor["sensor"])
+    return warmup_frames(float(spec.exposure_speed)) if spec.auto_exposure else 0
 
 
 def run_job(job: dict, what: str) -> list[dict]:

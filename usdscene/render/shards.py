@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from usdscene.render.manifest import Manifest
+from usdscene.sensor.exposure import meter_window
 from usdscene.render.worker_process import ShardExit
 
 log = logging.getLogger(__name__)
@@ -35,6 +36,9 @@ def shard_job(plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], t
     objects present in its frames and the prims to import, without machine-specific paths;
     ``keep_clean`` asks sensor cameras' workers for the image before the sensor too."""
     frame_set = {f for f, _ in pairs}
+    # an adapting camera's pre-passes: the frames of its exposure window (driver.sequence_warmup)
+    frame_set |= {g for f, c in pairs if "warmup_frames" in cam_json[c].get("sensor", {})
+                  for g in meter_window(f, cam_json[c]["sensor"]["warmup_frames"], cam_json[c]["sensor"]["first_frame"])}
     objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
                 "visible_frames": [f for f in o.visible_frames if f in frame_set],
                 # only objects whose pose changes per frame add the key: other jobs stay as they were

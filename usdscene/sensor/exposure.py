@@ -20,6 +20,19 @@ WDR curve keeps the window's highlights (:mod:`usdscene.sensor.tone`).
 
 The exposure in stops is ``log2(target_grey / metered)`` clipped to the limits; over frames it
 follows :func:`adapt_ev`.
+
+**Adapting over frames, deterministically.** With ``exposure_speed`` s < 1 the exposure of frame
+t is the adaptation (:func:`adapt_ev`) run over the meter readings of frames ``t - W .. t`` of
+that camera, instant at the window's first frame (or at the sequence's first frame when the
+window reaches before it): W = :func:`warmup_frames` (s) is the number of frames after which
+less than 1 % of an exposure step is left to correct, ``ceil(ln 0.01 / ln(1 - s))`` (7 frames
+for s = 0.5, 44 for 0.1), at most :data:`MAX_WARMUP_FRAMES`. So the exposure of a frame is a
+function of the readings of that frame and the W before it, and nothing else: whichever worker,
+shard or executor renders it, and in whatever order, computes the same value. The reading of
+each frame comes from a pre-pass render that depends only on the frame (the worker's
+``meter_prepass``: a quarter-resolution render at :data:`PREPASS_SAMPLES` samples without
+denoising), never from the full image, so a shard that starts at frame t renders the W frames
+before it as pre-passes only.
 """
 
 from __future__ import annotations
@@ -35,6 +48,13 @@ CENTRE_SIGMA = 0.35
 # Exposures are rounded to this many decimals of a stop: what the annotations record is what
 # was applied.
 EV_DECIMALS = 4
+# The adaptation window: frames after which less than this share of a step is left.
+WARMUP_RESIDUAL = 0.01
+MAX_WARMUP_FRAMES = 100
+# The pre-pass that meters each frame of an adapting camera: a quarter of the resolution (the
+# meter reads a quarter-resolution copy anyway) at this many samples, without denoising.
+PREPASS_SCALE_PERCENT = 25
+PREPASS_SAMPLES = 8
 
 
 @functools.lru_cache(maxsize=32)
@@ -120,3 +140,26 @@ def adapted_evs(target_evs: list[float], speed: float) -> list[float]:
         previous = adapt_ev(previous, target, speed)
         out.append(previous)
     return out
+
+
+def warmup_frames(speed: float) -> int:
+    """Frames of the adaptation window before a frame (0 for an instant exposure): the fewest
+    after which less than :data:`WARMUP_RESIDUAL` of an exposure step is left, ``(1 - speed)^W
+    <= 0.01``, at most :data:`MAX_WARMUP_FRAMES`."""
+    if speed >= 1.0:
+        return 0
+    return min(MAX_WARMUP_FRAMES, math.ceil(math.log(WARMUP_RESIDUAL) / math.log(1.0 - speed) - 1e-9))
+
+
+def meter_window(frame: int, warmup: int, first_frame: int) -> range:
+    """The frames whose meter readings decide ``frame``'s exposure: the ``warmup`` frames
+    before it (not before the sequence's ``first_frame``) and itself, ascending."""
+    return range(max(int(first_frame), int(frame) - int(warmup)), int(frame) + 1)
+
+
+def sequence_ev(metered: list[float], target_grey: float, min_ev: float, max_ev: float, speed: float) -> tuple[float, float]:
+    """``(exposure_ev, target_ev)`` of the last frame of a window of meter readings (linear
+    luminances, :func:`meter_window`'s frames in order): the adaptation from an instant
+    exposure at the window's first frame, and the last frame's own instant exposure."""
+    targets = [exposure_ev(m, target_grey, min_ev, max_ev) for m in metered]
+    return adapted_evs(targets, speed)[-1], targets[-1]

@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 
 from usdscene.document.imaging import IR_RGB_WEIGHTS, Sensor
-from usdscene.sensor import exposure, optics, tone
+from usdscene.sensor import exposure, kernels, optics, tone
 
 # Linear values are encoded through a table of this many steps: the darkest step (1/16383 linear)
 # is 0.2 of an sRGB level, so rounding matches the exact curve to within one level.
@@ -205,16 +205,27 @@ def meter(linear: np.ndarray, sensor: Sensor, falloff: np.ndarray | None = None)
                                       log_average=sensor.wdr_stops > 0.0, falloff=falloff)
 
 
-@functools.lru_cache(maxsize=16)
-def _linear_falloff(height_px: int, width_px: int, vignetting: float, channels: int) -> np.ndarray:
-    one = vignetting_map(height_px, width_px, vignetting, 1.0)
-    out = one if channels == 1 else cv2.merge([one] * channels)
-    out.setflags(write=False)
-    return out
+def meter_prepass(linear: np.ndarray, sensor: Sensor) -> float:
+    """The meter reading of a frame of an adapting camera (``exposure_speed`` < 1) from its
+    pre-pass render (:data:`usdscene.sensor.exposure.PREPASS_SCALE_PERCENT`): the IR response and
+    the vignetting as :func:`process_image` applies them, then :func:`meter`; rounded to 6
+    significant digits (what the annotations record is what decided the exposure).
+
+    Args:
+        linear: (h, w, 3) float32 linear RGB of the pre-pass, after the world's exposure.
+        sensor: the camera's sensor at that frame.
+    """
+    x = linear
+    if sensor.ir_night:
+        x = cv2.transform(x, np.asarray([IR_RGB_WEIGHTS], dtype=np.float32))
+    falloff = None
+    if sensor.vignetting > 0.0:
+        falloff = vignetting_map(x.shape[0], x.shape[1], float(sensor.vignetting), 1.0)
+    return float(f"{meter(x, sensor, falloff):.6g}")
 
 
 def process_image(linear: np.ndarray, sensor: Sensor, rng: np.random.Generator,
-                  previous_ev: float | None = None) -> tuple[np.ndarray, dict]:
+                  adapted: tuple[float, float, float] | None = None) -> tuple[np.ndarray, dict]:
     """The whole camera on a linear render, in its order: IR response, lens blur, vignetting
     (the optics), metering and exposure (auto + bias), the tone curve to 8 bits, noise (added in
     electrons before the curve, carried through its slope), unsharp mask, 4:2:0 chroma,
@@ -226,13 +237,16 @@ def process_image(linear: np.ndarray, sensor: Sensor, rng: np.random.Generator,
         sensor: the camera's sensor at this frame (``Sensor.at_frame``).
         rng: the image's generator (:func:`usdscene.document.imaging.image_seed`); only the
             noise draws from it.
-        previous_ev: the exposure of the camera's previous frame, for ``exposure_speed`` < 1
-            (None: instant).
+        adapted: for ``exposure_speed`` < 1, ``(exposure_ev, target_ev, metered)`` of this
+            frame from the camera's sequence (:func:`usdscene.sensor.exposure.sequence_ev` over
+            the :func:`meter_prepass` readings): the auto exposure applied instead of this
+            image's own instant one (None: instant, metered on this image).
 
     Returns:
         ``(image, record)``: (H, W, 3) uint8 sRGB RGB (equal channels in IR mode) and what the
         exposure did, ``{"exposure_ev", "metered_luminance"}`` (stops applied, auto exposure and
-        bias together; the meter's reading, linear), for the annotations.
+        bias together; the meter's reading, linear), for the annotations; an adapted exposure
+        adds ``target_ev``, the instant exposure of this frame that it is moving towards.
     """
     height, width = linear.shape[:2]
     x = linear
@@ -244,26 +258,28 @@ def process_image(linear: np.ndarray, sensor: Sensor, rng: np.random.Generator,
     falloff = None
     if sensor.vignetting > 0.0:
         falloff = vignetting_map(height, width, float(sensor.vignetting), 1.0)
-    metered = meter(x, sensor, falloff)
+    record = {}
     ev = 0.0
-    if sensor.auto_exposure:
-        target = exposure.exposure_ev(metered, float(sensor.target_grey), float(sensor.exposure_min_ev),
+    if adapted is not None:
+        ev, record["target_ev"], metered = adapted
+    else:
+        metered = meter(x, sensor, falloff)
+        if sensor.auto_exposure:
+            ev = exposure.exposure_ev(metered, float(sensor.target_grey), float(sensor.exposure_min_ev),
                                       float(sensor.exposure_max_ev))
-        ev = exposure.adapt_ev(previous_ev, target, float(sensor.exposure_speed))
     ev = round(ev + float(sensor.exposure_bias_ev), exposure.EV_DECIMALS)
-    if falloff is not None and x.ndim == 3:
-        falloff = _linear_falloff(height, width, float(sensor.vignetting), x.shape[2])
-    out = tone.encode(x, float(sensor.wdr_stops), 2.0 ** ev, falloff)
+    table = None
     if sensor.iso is not None:
         table = _noise_table(float(sensor.iso), float(sensor.full_well_e), float(sensor.read_noise_e),
                              float(sensor.wdr_stops))
-        out = _add_noise(out, table, rng)
+    # exposure, vignetting, tone curve and noise in one compiled pass (tone.encode + _add_noise)
+    out = kernels.encode_with_noise(x, float(sensor.wdr_stops), 2.0 ** ev, falloff, table, rng)
     if sensor.sharpen > 0.0:
         out = optics.unsharp(out, float(sensor.sharpen), float(sensor.sharpen_radius_px))
     if sensor.chroma_420 and out.ndim == 3 and not sensor.compression:
         # JPEG (OpenCV's default sampling) and H.264-like already subsample the chroma 4:2:0
         out = optics.chroma_420(out)
-    record = {"exposure_ev": ev, "metered_luminance": round(metered, 6)}
+    record.update(exposure_ev=ev, metered_luminance=round(metered, 6))
     return _encode(out, sensor), record
 
 

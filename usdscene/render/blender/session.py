@@ -31,6 +31,9 @@ class Session:
         self.depth_format = job["settings"].get("depth")
         self._depths: dict[tuple, object] = {}
         self._ray_cosines: dict[str, object] = {}
+        # adapting cameras: (frame, camera) → pre-pass meter reading; → the exposure to apply
+        self._meters: dict[tuple, float] = {}
+        self._adapted: dict[tuple, tuple[float, float, float]] = {}
         self._setup_scene()
         # Before the import: a missing GPU is reported in a second, not after the stage loads.
         self.rendering = job.get("mode", "render") == "render"
@@ -245,9 +248,11 @@ class Session:
             native render, and seconds: wall (``render_s``) and CPU time of the whole process,
             all threads (``render_cpu_s``; robust on a shared machine).
         """
+        started, cpu_started = time.perf_counter(), time.process_time()
+        if "warmup_frames" in self.job["cameras"][camera].get("sensor", {}):
+            self._adapted[(frame, camera)] = self._sequence_exposure(frame, camera)
         self.set_frame(frame)
         self.set_camera(camera, frame)
-        started, cpu_started = time.perf_counter(), time.process_time()
         self.bpy.ops.render.render(write_still=True)
         rendered, cpu_rendered = time.perf_counter(), time.process_time()
         rgb, ids, z_pass = read_exr(self.exr_path, depth=self.depth_format is not None)
@@ -257,6 +262,46 @@ class Session:
             rgb = self._display(rgb)
         return rgb, ids, {"render_s": rendered - started, "render_cpu_s": cpu_rendered - cpu_started,
                           "decode_s": time.perf_counter() - rendered}
+
+    def _sequence_exposure(self, frame: int, camera: str) -> tuple[float, float, float]:
+        """``(exposure_ev, target_ev, metered)`` of an adapting camera at ``frame``
+        (:func:`usdscene.sensor.exposure.sequence_ev`) from the pre-pass readings of its window,
+        rendering the readings this session does not have yet (the frames before its first
+        pair only as pre-passes). Counted in the pair's render time."""
+        from usdscene.sensor import exposure
+
+        window = self.job["cameras"][camera]["sensor"]
+        sensor = self.sensors[camera][0]
+        readings = []
+        for g in exposure.meter_window(frame, window["warmup_frames"], window["first_frame"]):
+            if (g, camera) not in self._meters:
+                self._meters[(g, camera)] = self._meter_prepass(g, camera)
+            readings.append(self._meters[(g, camera)])
+        ev, target = exposure.sequence_ev(readings, float(sensor.target_grey), float(sensor.exposure_min_ev),
+                                          float(sensor.exposure_max_ev), float(sensor.exposure_speed))
+        return ev, target, readings[-1]
+
+    def _meter_prepass(self, frame: int, camera: str) -> float:
+        """The meter reading of (frame, camera) from a small render that depends on nothing
+        but the frame: :data:`usdscene.sensor.exposure.PREPASS_SCALE_PERCENT` of the resolution,
+        :data:`~usdscene.sensor.exposure.PREPASS_SAMPLES` samples, no denoising
+        (:func:`usdscene.sensor.pipeline.meter_prepass`)."""
+        from usdscene.sensor.exposure import PREPASS_SAMPLES, PREPASS_SCALE_PERCENT
+        from usdscene.sensor.pipeline import meter_prepass
+
+        self.set_frame(frame)
+        self.set_camera(camera, frame)
+        render, cycles = self.scene.render, self.scene.cycles
+        saved = (render.resolution_percentage, cycles.samples, cycles.use_denoising)
+        render.resolution_percentage, cycles.samples, cycles.use_denoising = PREPASS_SCALE_PERCENT, PREPASS_SAMPLES, False
+        try:
+            self.bpy.ops.render.render(write_still=True)
+        finally:
+            render.resolution_percentage, cycles.samples, cycles.use_denoising = saved
+        rgb = read_exr(self.exr_path, depth=False)[0]
+        if self.world_at is not None and self.world_at.exposure_ev:
+            rgb = rgb * float(2.0 ** self.world_at.exposure_ev)  # the world's exposure, linear
+        return meter_prepass(rgb, self.sensors[camera][0].at_frame(frame))
 
     def _display(self, rgb):
         """The world's exposure and view transform: Standard is the sRGB curve of
@@ -316,7 +361,7 @@ class Session:
 
             if self.job.get("keep_clean"):
                 clean = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
-            image, record = process_image(as_linear(rgb), at, rng)
+            image, record = process_image(as_linear(rgb), at, rng, self._adapted.pop((frame, camera), None))
             write_bytes_atomic(layout.exposure_path(self.job["out_dir"], camera, frame),
                                json.dumps(record, sort_keys=True).encode("utf-8"))
         else:
@@ -355,10 +400,9 @@ class Session:
     def _finish(self, camera: str, rgb, ids):
         """Remap OpenCV lenses, black out what lies outside a fisheye's field of view."""
         import cv2
-        import numpy as np
 
-        from usdscene.labels.projection import pixel_rays, remap_grids
-        from usdscene.lens import lens_for
+        from usdscene.labels.projection import remap_grids
+        from usdscene.lens import lens_for, valid_pixels
         from usdscene.render.job import intrinsics_from_json
 
         cam_job = self.job["cameras"][camera]
@@ -372,9 +416,7 @@ class Session:
             ids = cv2.remap(ids, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         elif lens_for(intr).radial:  # a native fisheye: black beyond its image circle
             if camera not in self._fov_masks:
-                vs, us = np.mgrid[0:intr.height_px, 0:intr.width_px]
-                _, valid = pixel_rays(intr, np.stack([us.ravel(), vs.ravel()], 1).astype(float))
-                self._fov_masks[camera] = ~valid.reshape(intr.height_px, intr.width_px)
+                self._fov_masks[camera] = ~valid_pixels(intr)
             outside = self._fov_masks[camera]
             rgb = rgb.copy()
             ids = ids.copy()
