@@ -176,6 +176,37 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     return target
 
 
+@contextlib.contextmanager
+def atomic_text_file(path: str | os.PathLike) -> Iterator:
+    """A UTF-8 text handle whose content replaces ``path`` atomically when the block ends
+    without an exception (temp file + fsync + rename, as :func:`write_bytes_atomic`), for a
+    file written piece by piece (a streamed document); on an exception nothing is left.
+
+    Raises:
+        OutputError: as :func:`write_bytes_atomic`.
+    """
+    target = prepare_output_file(path)
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        os.fchmod(fd, _FILE_MODE)
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, target)
+    except BaseException as exc:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+        if isinstance(exc, OSError):
+            problem = os_problem(exc, what="file")
+            raise OutputError([Problem(str(target), problem.message)]) from None
+        raise
+
+
 def write_png_atomic(path: str | os.PathLike, image) -> Path:
     """Encode an (H, W[, C]) uint8/uint16 image (BGR channel order) as PNG and write it atomically.
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import time
-from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
@@ -290,8 +289,7 @@ class _Run:
                                 coverage_map=plan_picture_for(self.document)).index
 
     def summary(self, report, annotations, labelling, exports, page) -> RunSummary:
-        per_class = Counter(obj.class_name for image in annotations for obj in image.objects if obj.visible)
-        hidden = sum(1 for image in annotations for obj in image.objects if not obj.visible)
+        per_class, hidden = annotations.visible_per_class, annotations.hidden
         seconds = self.seconds
         return RunSummary(
             out_dir=self.out, document=self.document,
@@ -320,7 +318,9 @@ def summary_text(summary: RunSummary) -> str:
            if summary.images_labelled_while_rendering else ""),
         f"  outputs: {out / layout.IMAGES_DIR}/, {out / layout.MASKS_DIR}/, "
         + (f"{out / layout.DEPTH_DIR}/, " if (out / layout.DEPTH_DIR).is_dir() else "")
-        + f"{out / layout.ANNOTATIONS_FILE}, {out / layout.STAGE_DIR}/",
+        + f"{out / layout.ANNOTATION_STORE_DIR}/"
+        + (f", {out / layout.ANNOTATIONS_FILE}" if (out / layout.ANNOTATIONS_FILE).is_file() else "")
+        + f", {out / layout.STAGE_DIR}/",
     ]
     report = summary.render
     if report is not None and (report.executor != "local" or report.retries or len(report.nodes) > 1):

@@ -1,5 +1,6 @@
-"""``usdscene annotate OUT``: instance masks of a rendered output → ``OUT/annotations.openlabel.json``
-(the labelling itself is :mod:`usdscene.dataset.annotation`)."""
+"""``usdscene annotate OUT``: instance masks of a rendered output → the annotation store
+``OUT/annotations/`` and, for small runs, ``OUT/annotations.openlabel.json`` (the labelling
+itself is :mod:`usdscene.dataset.annotation`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import sys
 
 NAME = "annotate"
 HELP = ("labels from the rendered instance masks (boxes, polygons, amodal boxes, visibility) "
-        "written into OUT/annotations.openlabel.json")
+        "written into the store OUT/annotations/ (and OUT/annotations.openlabel.json for small runs)")
 ORDER = 40
 
 
@@ -24,6 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-amodal", action="store_true",
                         help="skip amodal boxes and visible fractions (no stage geometry needed)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--frames-per-shard", type=int, default=None, metavar="N",
+                        help="frames per file of the annotation store OUT/annotations/frames/ (default 100)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -41,12 +44,16 @@ def run(args: argparse.Namespace) -> int:
         raise OutputError(f"--min-visibility {args.min_visibility} is outside [0, 1]", where="--min-visibility")
     if args.epsilon is not None and args.epsilon < 0:
         raise OutputError(f"--epsilon {args.epsilon} is negative", where="--epsilon")
-    target, annotations = write_annotations(
+    if args.frames_per_shard is not None and args.frames_per_shard < 1:
+        raise OutputError(f"--frames-per-shard {args.frames_per_shard} is below 1", where="--frames-per-shard")
+    _, summary = write_annotations(
         out, document_path=args.document, epsilon_px=args.epsilon,
         min_visible_fraction=args.min_visibility, amodal=not args.no_amodal,
-        progress=not args.no_progress and sys.stderr.isatty())
-    labels = sum(1 for image in annotations for obj in image.objects if obj.visible)
-    hidden = sum(1 for image in annotations for obj in image.objects if not obj.visible)
-    print(f"{target}: {len(annotations.images)} images, {labels} visible labels, "
-          f"{hidden} fully occluded (amodal only)")
+        progress=not args.no_progress and sys.stderr.isatty(), frames_per_shard=args.frames_per_shard)
+    print(f"{summary.store}/: {len(summary.pairs)} images, {sum(summary.visible_per_class.values())} visible "
+          f"labels, {summary.hidden} fully occluded (amodal only)")
+    if summary.single_document is not None:
+        print(f"{summary.single_document}: the same labels in one OpenLABEL document")
+    else:
+        print(f"one OpenLABEL document: usdscene export-openlabel {out} -o FILE")
     return 0

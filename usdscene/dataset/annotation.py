@@ -11,44 +11,247 @@ the stage when it still exists unchanged (same sha256); or the scene read back f
 
 from __future__ import annotations
 
+import contextlib
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
 from usdscene.validation import DEFAULT_SCHEMA
 
 
+SINGLE_DOCUMENT_MAX_BYTES = 256 * 1024 * 1024
+"""``write_annotations`` also writes ``OUT/annotations.openlabel.json`` when the store's frames
+are at most this many bytes (compact JSON; the indented document is about 1.6 times that);
+larger runs get it from ``usdscene export-openlabel OUT -o FILE``."""
+
+
+@dataclass(frozen=True)
+class AnnotationSummary:
+    """What :func:`write_annotations` labelled, without holding the labels: iterating it
+    reads each image's labels back from ``OUT/labels/`` one at a time.
+
+    Attributes:
+        out_dir: the output folder.
+        pairs: the labelled ``(frame, camera)`` images, sorted.
+        visible_per_class: class → visible labels (at least one pixel).
+        hidden: fully occluded labels (amodal only).
+        store: the store folder (``OUT/annotations``).
+        single_document: ``OUT/annotations.openlabel.json`` when it was written, else None.
+    """
+
+    out_dir: Path
+    pairs: tuple[tuple[int, str], ...]
+    visible_per_class: dict
+    hidden: int
+    store: Path
+    single_document: Path | None
+
+    @property
+    def images(self) -> tuple[tuple[int, str], ...]:
+        """The labelled images (as ``pairs``)."""
+        return self.pairs
+
+    def __len__(self) -> int:
+        return len(self.pairs)
+
+    def __iter__(self):
+        """Each image's :class:`usdscene.labels.image_labels.ImageLabels`, by (frame, camera)."""
+        import json
+
+        from usdscene.document import output_layout as layout
+        from usdscene.labels.image_labels import image_labels_from_json
+
+        for frame, camera in self.pairs:
+            kept = json.loads(layout.labels_path(self.out_dir, camera, frame).read_text(encoding="utf-8"))
+            yield image_labels_from_json(kept["labels"])
+
+
 def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.PathLike | None = None,
                       epsilon_px: float | None = None, min_visible_fraction: float = 0.0,
                       amodal: bool = True, progress: bool = False,
                       schema: str | os.PathLike | None | Literal["default"] = DEFAULT_SCHEMA,
-                      labeller: ImageLabeller | None = None):
-    """Label every mask of a rendered output folder and write ``OUT/annotations.openlabel.json``
-    atomically, never a document that the official schema rejects.
+                      labeller: ImageLabeller | None = None, frames_per_shard: int | None = None,
+                      single_document_max_bytes: int = SINGLE_DOCUMENT_MAX_BYTES):
+    """Label every mask of a rendered output folder into the annotation store
+    ``OUT/annotations/`` (:mod:`usdscene.converters.openlabel.store`), one frame range at a time,
+    never a shard that the official schema rejects; for small runs also the single document
+    ``OUT/annotations.openlabel.json``, streamed from the store.
+
+    Each range's labels are added to the range's part of the document alone
+    (:func:`usdscene.converters.openlabel.annotations.add_annotations`) and written as one
+    shard; only the objects' data pointers and frame intervals are merged across ranges, so
+    memory holds one range's labels, and the store reads as the document that labelling the
+    whole run at once gives. A killed run rewrites the same bytes (each image's labels are
+    kept in ``OUT/labels/``; see :class:`ImageLabeller`).
 
     Args:
         out_dir: output folder of a render.
         document_path, epsilon_px, min_visible_fraction, amodal, progress, labeller: as in
             :func:`annotate_output`.
-        schema: official schema the written document must pass (see
+        schema: official schema every written part must pass (see
             :func:`usdscene.validation.validate_document`); None: no schema check.
+        frames_per_shard: frames per shard (None: the store's
+            :data:`usdscene.converters.openlabel.store.FRAMES_PER_SHARD`).
+        single_document_max_bytes: write ``OUT/annotations.openlabel.json`` when the shards
+            hold at most this many bytes (0: never); a larger run's stale copy is removed.
 
     Returns:
-        ``(path written, usdscene.labels.image_labels.Annotations)``.
+        ``(path, summary)``: the single document written, else the store folder, and an
+        :class:`AnnotationSummary`.
 
     Raises:
-        OutputError: no masks, unreadable masks, or a document the schema rejects (nothing
-            is written then). DocumentError: the document does not match the render.
+        OutputError: no masks, unreadable masks, or a part the schema rejects (that part is
+            not written). DocumentError: the document does not match the render.
     """
+    from usdscene.converters.openlabel import store as stores
+    from usdscene.converters.openlabel.annotations import add_annotations
     from usdscene.document import output_layout as layout
-    from usdscene.converters.openlabel import write_document
+    from usdscene.labels.image_labels import label_images
     from usdscene.validation import resolve_schema
 
-    document, annotations = annotate_output(out_dir, document_path=document_path, epsilon_px=epsilon_px,
-                                            min_visible_fraction=min_visible_fraction, amodal=amodal,
-                                            progress=progress, labeller=labeller)
-    path = write_document(Path(out_dir) / layout.ANNOTATIONS_FILE, document, schema=resolve_schema(schema))
-    return path, annotations
+    out, pairs, labeller, document, scene = _prepare(out_dir, document_path, epsilon_px, min_visible_fraction,
+                                                     amodal, labeller)
+    per_shard = stores.FRAMES_PER_SHARD if frames_per_shard is None else int(frames_per_shard)
+    writer = stores.StoreWriter(stores.store_folder(out), per_shard, schema=resolve_schema(schema))
+    root = document["openlabel"]
+    input_frames = root.get("frames") or {}
+    input_pointers = {uid: list((element or {}).get("object_data_pointers") or ())
+                      for uid, element in (root.get("objects") or {}).items() if isinstance(element, dict)}
+    by_range: dict[tuple[int, int], list] = {}
+    for frame, camera in pairs:
+        by_range.setdefault(stores.shard_range(frame, per_shard), []).append((frame, camera))
+    planned = set(by_range) | {stores.shard_range(int(k), per_shard) for k in input_frames}
+    done: set = set()
+    merged = None
+    per_class: dict[str, int] = {}
+    hidden = 0
+    with _progress_bar(progress, len(pairs)) as advance:
+        while planned - done:
+            first, last = span = min(planned - done)
+            done.add(span)
+            images = []
+            for frame, camera in by_range.get(span, ()):
+                image = labeller.labels(frame, camera)
+                images.append(image)
+                for label in image.objects:
+                    if label.visible:
+                        per_class[label.class_name] = per_class.get(label.class_name, 0) + 1
+                    else:
+                        hidden += 1
+                advance()
+            annotations = label_images(images, epsilon_px=labeller.epsilon_px,
+                                       min_visible_fraction=labeller.min_visible_fraction)
+            densities, cuboids = _geometry_labels(annotations, labeller)
+            part = {key: ({k: f for k, f in input_frames.items() if first <= int(k) <= last}
+                          if key == "frames" else value) for key, value in root.items()}
+            result = add_annotations({"openlabel": part}, scene, annotations, out, densities=densities,
+                                     cuboids=cuboids)["openlabel"]
+            frames = result.get("frames") or {}
+            # Frames the document gains outside this range (a moving camera's per-frame
+            # poses, the same in every range) are written by their own range.
+            planned |= {stores.shard_range(int(k), per_shard) for k in frames}
+            writer.write_shard(first, last, {k: f for k, f in frames.items() if first <= int(k) <= last})
+            result["frames"] = {}
+            merged = result if merged is None else _merge_static(merged, result)
+    if merged is None:  # no frame at all: the document as add_annotations makes it
+        merged = add_annotations(document, scene, label_images([]), out)["openlabel"]
+    _order_pointers(merged, input_pointers)
+    static = {"openlabel": merged}
+    index = writer.finish(static)
+    single = out / layout.ANNOTATIONS_FILE
+    written = None
+    if single_document_max_bytes and sum(e["bytes"] for e in writer.entries) <= single_document_max_bytes:
+        record = stores.AnnotationStore(writer.folder).write_document(single)
+        stores.record_single_document(writer.folder, record)
+        written = single
+    else:
+        import logging
+
+        single.unlink(missing_ok=True)  # a copy of an earlier, smaller labelling would mislead
+        logging.getLogger(__name__).info("labels in %s; one document: usdscene export-openlabel %s -o FILE",
+                                         index.parent, out)
+    summary = AnnotationSummary(out_dir=out, pairs=tuple(pairs), visible_per_class=dict(sorted(per_class.items())),
+                                hidden=hidden, store=writer.folder, single_document=written)
+    return (written or writer.folder), summary
+
+
+def _merge_static(merged: dict, part: dict) -> dict:
+    """The document root without frames after two ranges: ``merged`` (earlier ranges) with the
+    objects' data pointers, their frame intervals and the root frame intervals of ``part``
+    joined in (everything else is the same in every range's result)."""
+    from usdscene.converters.openlabel.annotations import ANNOTATION_METADATA_KEY
+    from usdscene.document.model import FrameInterval, union_intervals
+
+    def union(*lists) -> list[dict]:
+        return [{"frame_start": iv.frame_start, "frame_end": iv.frame_end}
+                for iv in union_intervals(FrameInterval(int(i["frame_start"]), int(i["frame_end"]))
+                                          for raw in lists for i in (raw or ()))]
+
+    objects = merged.get("objects") or {}
+    for uid, element in (part.get("objects") or {}).items():
+        pointers = (element or {}).get("object_data_pointers")
+        mine = objects.get(uid)
+        if not pointers or mine is None or mine == element:
+            continue
+        if not mine.get("object_data_pointers"):
+            objects[uid] = element  # first labelled in this range
+            continue
+        into = mine["object_data_pointers"]
+        for name, pointer in pointers.items():
+            if name not in into:
+                into[name] = pointer
+            elif into[name] != pointer:
+                into[name]["frame_intervals"] = union(into[name].get("frame_intervals"), pointer.get("frame_intervals"))
+        if mine.get("frame_intervals") != element.get("frame_intervals"):
+            mine["frame_intervals"] = union(mine.get("frame_intervals"), element.get("frame_intervals"))
+    if merged.get("frame_intervals") != part.get("frame_intervals"):
+        merged["frame_intervals"] = union(merged.get("frame_intervals"), part.get("frame_intervals"))
+    cuboid = (((part.get("metadata") or {}).get(ANNOTATION_METADATA_KEY)) or {}).get("cuboid")
+    if cuboid is not None:
+        merged["metadata"][ANNOTATION_METADATA_KEY]["cuboid"] = cuboid
+    return merged
+
+
+def _order_pointers(root: dict, input_pointers: dict) -> None:
+    """Data pointers in the order one labelling of the whole run writes them: the input
+    document's own first, then the new names sorted."""
+    for uid, element in (root.get("objects") or {}).items():
+        pointers = (element or {}).get("object_data_pointers") if isinstance(element, dict) else None
+        if not pointers:
+            continue
+        given = [n for n in input_pointers.get(uid, ()) if n in pointers]
+        element["object_data_pointers"] = {n: pointers[n] for n in
+                                           [*given, *sorted(n for n in pointers if n not in set(given))]}
+
+
+def _geometry_labels(annotations, labeller):
+    """``(densities, cuboids)`` of some frames' labels (None, None without stage geometry)."""
+    if labeller.geometry is None:
+        return None, None
+    from usdscene.labels.cross_camera import object_densities
+    from usdscene.labels.cuboids import labelled_cuboids
+
+    densities = object_densities(annotations, labeller.cameras, labeller.geometry)
+    cuboids = labelled_cuboids(annotations.frames(), labeller.geometry, labeller.uids)
+    return densities, cuboids
+
+
+@contextlib.contextmanager
+def _progress_bar(shown: bool, total: int):
+    """A function advancing a ``rich`` progress bar on stderr by one (a no-op when not shown)."""
+    if not shown:
+        yield lambda: None
+        return
+    from rich.progress import Progress
+
+    bar = Progress(transient=True)
+    bar.start()
+    task = bar.add_task("annotating", total=total)
+    try:
+        yield lambda: bar.advance(task)
+    finally:
+        bar.stop()
 
 
 def _source_document(stage_path):
@@ -286,11 +489,30 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         OutputError: no masks, unreadable mask or id map.
         DocumentError: the document does not match the render (unknown camera or object).
     """
-    from usdscene.document import output_layout as layout
-    from usdscene.converters.openlabel import load_document, read_openlabel, write_openlabel
     from usdscene.converters.openlabel.annotations import add_annotations
-    from usdscene.errors import OutputError
     from usdscene.labels.image_labels import label_images
+
+    out, pairs, labeller, document, scene = _prepare(out_dir, document_path, epsilon_px, min_visible_fraction,
+                                                     amodal, labeller)
+    images = []
+    with _progress_bar(progress, len(pairs)) as advance:
+        for frame, camera_name in pairs:
+            images.append(labeller.labels(frame, camera_name))
+            advance()
+    annotations = label_images(images, epsilon_px=labeller.epsilon_px,
+                               min_visible_fraction=labeller.min_visible_fraction)
+    densities, cuboids = _geometry_labels(annotations, labeller)
+    return (add_annotations(document, scene, annotations, out, densities=densities, cuboids=cuboids),
+            annotations)
+
+
+def _prepare(out_dir, document_path, epsilon_px, min_visible_fraction, amodal, labeller):
+    """``(out, pairs, labeller, document, scene)`` of an output folder to label: its masks'
+    sorted ``(frame, camera)`` pairs, an :class:`ImageLabeller` of the settings asked for (the
+    one given when it fits), and the document and scene the labels go into."""
+    from usdscene.converters.openlabel import load_document, read_openlabel, write_openlabel
+    from usdscene.document import output_layout as layout
+    from usdscene.errors import OutputError
 
     out = Path(out_dir)
     stage_path = layout.stage_root(out)
@@ -302,7 +524,6 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
     if labeller is None or labeller.out != out or labeller.settings != wanted:
         labeller = ImageLabeller(out, epsilon_px=epsilon_px, min_visible_fraction=min_visible_fraction,
                                  amodal=amodal)
-
     if document_path is None and stage_path.is_file():
         document_path = _source_document(stage_path)
     if document_path is not None:
@@ -315,32 +536,4 @@ def annotate_output(out_dir, *, document_path=None, epsilon_px: float | None = N
         # renumber uids for OpenLABEL; add_annotations matches those by name and class.
         scene = scene_from_stage(stage_path)
         document = write_openlabel(scene)
-
-    bar = None
-    if progress:
-        from rich.progress import Progress
-
-        bar = Progress(transient=True)
-        bar.start()
-        task = bar.add_task("annotating", total=len(pairs))
-    images = []
-    try:
-        for frame, camera_name in pairs:
-            images.append(labeller.labels(frame, camera_name))
-            if bar is not None:
-                bar.advance(task)
-    finally:
-        if bar is not None:
-            bar.stop()
-    annotations = label_images(images, epsilon_px=labeller.epsilon_px,
-                               min_visible_fraction=labeller.min_visible_fraction)
-    densities = cuboids = None
-    if labeller.geometry is not None:  # px/m of the cross-camera table, at the objects' centres
-        from usdscene.labels.cross_camera import object_densities
-
-        densities = object_densities(annotations, labeller.cameras, labeller.geometry)
-        from usdscene.labels.cuboids import labelled_cuboids
-
-        cuboids = labelled_cuboids(annotations.frames(), labeller.geometry, labeller.uids)
-    return (add_annotations(document, scene, annotations, out, densities=densities, cuboids=cuboids),
-            annotations)
+    return out, pairs, labeller, document, scene

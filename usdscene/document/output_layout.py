@@ -9,7 +9,11 @@
     out/depth/<camera>/<frame:06d>.png|.exr  distance to the image plane (render.depth: 16-bit
                                         millimetres or float metres; usdscene.render.depth)
     out/labels/<camera>/<frame:06d>.json labels of one image, kept so they are computed once
-    out/annotations.openlabel.json      input + per-frame, per-camera labels and image uris
+    out/annotations/index.json          the annotation store: index of the shards below
+    out/annotations/static.openlabel.json  the document without its frames
+    out/annotations/frames/<first:06d>-<last:06d>.json  OpenLABEL frames of a frame range
+    out/annotations.openlabel.json      input + per-frame, per-camera labels and image uris, in one
+                                        document (written from the store for small runs)
     out/exports/<format>/...            coco, yolo, rois
     out/manifest.json                   finished (frame, camera) pairs, versions, timings
 
@@ -33,6 +37,7 @@ DEPTH_DIR = "depth"
 ID_MAP_FILE = "masks/ids.json"
 MANIFEST_FILE = "manifest.json"
 ANNOTATIONS_FILE = "annotations.openlabel.json"
+ANNOTATION_STORE_DIR = "annotations"  # usdscene.converters.openlabel.store
 
 BACKGROUND_ID = 0
 MAX_MASK_ID = 65535  # masks are uint16
