@@ -112,7 +112,7 @@ def test_more_objects_than_mask_ids_are_refused_by_validate(tmp_path, monkeypatc
     monkeypatch.setattr(output_layout, "MAX_MASK_ID", 2)  # the minimal scene has 3 objects
     with pytest.raises(DocumentError) as info:
         validate_document(_write(tmp_path, doc))
-    assert "3 objects exceed the 2 ids of a uint16 mask" in _messages(info.value)
+    assert "3 objects present at frame 1 exceed the 2 ids of a uint16 mask" in " ".join(_messages(info.value))
 
 
 def test_a_render_that_cannot_fit_on_the_disk_is_refused_before_it_starts(tmp_path):

@@ -233,7 +233,7 @@ def _geometry_labels(annotations, labeller):
     from usdscene.labels.cuboids import labelled_cuboids
 
     densities = object_densities(annotations, labeller.cameras, labeller.geometry)
-    cuboids = labelled_cuboids(annotations.frames(), labeller.geometry, set(labeller.ids.values()))
+    cuboids = labelled_cuboids(annotations.frames(), labeller.geometry, labeller.uids)
     return densities, cuboids
 
 
@@ -305,8 +305,12 @@ class ImageLabeller:
         try:
             id_bytes = id_file.read_bytes()
             id_map = json.loads(id_bytes)
-            self.ids = {int(k): str(v["uid"]) for k, v in id_map.items()}
-            self.classes = {str(v["uid"]): str(v.get("class", "")) for v in id_map.values()}
+            owners = layout.id_map_entries(id_map)
+            self.uids = {str(v["uid"]) for v in owners}
+            self.classes = {str(v["uid"]): str(v.get("class", "")) for v in owners}
+            # mask id → uid; ids shared over time (long sequences) are resolved per frame.
+            self.ids = layout.mask_owners(id_map)
+            self._shared_ids = id_map if len(owners) > len(id_map) else None
         except FileNotFoundError:
             raise OutputError("no mask id map; render the output first", where=str(id_file)) from None
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
@@ -378,6 +382,7 @@ class ImageLabeller:
         import cv2
         import numpy as np
 
+        from usdscene.document import output_layout as layout
         from usdscene.labels.amodal import amodal_projections
         from usdscene.labels.cross_camera import camera_for_image
         from usdscene.errors import OutputError
@@ -391,7 +396,7 @@ class ImageLabeller:
         camera = self.cameras.get(camera_name)
         if self.geometry is not None and camera is not None:
             if self._triangles is None or self._triangles[0] != frame:
-                self._triangles = (frame, self.geometry.triangles(frame, set(self.ids.values())))
+                self._triangles = (frame, self.geometry.triangles(frame, self.uids))
             height, width = mask.shape
             # as rendered: its pose at the frame, its intrinsics at the image's resolution scale
             camera = camera_for_image(camera, frame, width, height)
@@ -399,7 +404,7 @@ class ImageLabeller:
             # Objects the camera does not see at all carry no label there.
             amodal_masks = {uid: a for uid, a in amodal_masks.items() if a.pixel_count}
             if self._keypoints is None or self._keypoints[0] != frame:
-                self._keypoints = (frame, self.geometry.keypoints(frame, set(self.ids.values())))
+                self._keypoints = (frame, self.geometry.keypoints(frame, self.uids))
             # The same lens model and pose as the amodal projections; every person's in one call.
             people = self._keypoints[1]
             keypoints = {}
@@ -407,7 +412,8 @@ class ImageLabeller:
                 uv, valid = project_points(camera, np.concatenate(list(people.values())), frame)
                 starts = np.cumsum([0] + [len(points) for points in people.values()])
                 keypoints = {uid: (uv[a:b], valid[a:b]) for uid, a, b in zip(people, starts[:-1], starts[1:])}
-        return label_image(mask, self.ids, amodal_masks, classes=self.classes, camera=camera_name,
+        ids = self.ids if self._shared_ids is None else layout.mask_owners(self._shared_ids, frame)
+        return label_image(mask, ids, amodal_masks, classes=self.classes, camera=camera_name,
                            frame=frame, epsilon_px=self.epsilon_px,
                            min_visible_fraction=self.min_visible_fraction, keypoints=keypoints)
 

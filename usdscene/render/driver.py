@@ -237,8 +237,7 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     _check_free_space(out_dir, plan, todo, float(settings["resolution_scale"]), keep_clean)
     total = len(frame_list) * len(camera_list)
     skipped = total - len(todo)
-    write_json_atomic(out_dir / layout.ID_MAP_FILE, {
-        str(o.mask_id): {"uid": o.uid, "class": o.class_name, "prim": o.prim_path} for o in plan.objects})
+    write_json_atomic(out_dir / layout.ID_MAP_FILE, layout.id_map_json(plan.objects))
 
     tally = Tally(manifest, on_event)
     if todo:

@@ -31,7 +31,8 @@ class ObjectEntry:
         uid: OpenLABEL uid (``userProperties:usdscene_uid``, else customData, else prim name).
         class_name: asset class.
         prim_path: prim path under ``/World/Objects``.
-        mask_id: value in the masks (``usdscene:maskId``), 1..65535.
+        mask_id: value in the masks (``usdscene:maskId``), 1..65535; objects never visible on
+            a common frame may share one (per-frame ids, ``output_layout.mask_ids``).
         visible_frames: frames of the stage range where the prim is visible, ascending.
         pose_frames: for an object whose pose changes per frame (a walker), ``(variant,
             frames)`` per pose child prim (``stage_schema.POSE_CHILD_PREFIX``): the frames of
@@ -374,7 +375,7 @@ def _read_objects(stage, frames, problems) -> list[ObjectEntry]:
     parent_visible = {f: UsdGeom.Imageable(root).ComputeVisibility(f) != UsdGeom.Tokens.invisible
                       for f in frames} if root.IsA(UsdGeom.Imageable) else {f: True for f in frames}
     entries: list[ObjectEntry] = []
-    seen_ids: dict[int, str] = {}
+    seen_ids: dict[int, list[tuple[str, frozenset]]] = {}
     for prim in root.GetChildren():
         where = prim.GetPath().pathString
         uid = _attr(prim, names.ATTR_USER_UID) or prim.GetCustomDataByKey(names.CUSTOM_UID) or prim.GetName()
@@ -387,11 +388,13 @@ def _read_objects(stage, frames, problems) -> list[ObjectEntry]:
         if not 1 <= mask_id <= 65535:
             problems.append(Problem(where, f"{names.ATTR_MASK_ID} {mask_id} is outside 1..65535"))
             continue
-        if mask_id in seen_ids:
-            problems.append(Problem(where, f"{names.ATTR_MASK_ID} {mask_id} is also used by {seen_ids[mask_id]}"))
-            continue
-        seen_ids[mask_id] = where
         visible = tuple(f for f in _visible_frames(prim, frames) if parent_visible[f])
+        # Ids are per frame (output_layout.mask_ids): objects never visible together may share one.
+        clash = next((other for other, shown in seen_ids.get(mask_id, ()) if not shown.isdisjoint(visible)), None)
+        if clash is not None:
+            problems.append(Problem(where, f"{names.ATTR_MASK_ID} {mask_id} is also used by {clash}"))
+            continue
+        seen_ids.setdefault(mask_id, []).append((where, frozenset(visible)))
         pose_frames = []
         for child in prim.GetChildren():
             variant = _attr(child, names.ATTR_USER_POSE)
