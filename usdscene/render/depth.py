@@ -14,7 +14,7 @@ ones: :func:`plane_depth` multiplies the latter by ``cos θ`` of each pixel's ra
 render. It is written from the first sample only, from the same camera ray as the object-index
 pass, so the depth of a pixel is the depth of the object the mask gives it. Lenses Blender
 lacks are remapped after the conversion with the mask's nearest-neighbour map, so depth and
-mask stay pixel for pixel the same surface.
+mask come from the same native pixel: pixel for pixel the same surface point.
 
 **Encodings** (:data:`DEPTH_FORMATS`, the document's ``metadata.usdscene.render.depth``):
 
@@ -69,18 +69,17 @@ def plane_depth(z_pass: np.ndarray, render: Intrinsics, cosines: np.ndarray | No
     return np.where(surface, z, 0.0).astype(np.float32)
 
 
-def remap_depth(depth_m: np.ndarray, ids: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
+def remap_depth(depth_m: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
     """A native render's depth through the remap of a lens Blender lacks.
 
-    The mask takes the nearest native pixel (:func:`cv2.remap` ``INTER_NEAREST``); the depth
-    interpolates bilinearly between the four native pixels around the source position where all
-    four show the object the mask takes (one surface: the depth of the output pixel's own ray, to
-    second order), and takes that nearest pixel's depth elsewhere (silhouettes), so every output
-    pixel's depth is a depth of the object its mask pixel names.
+    Nearest-neighbour with the mask's maps (:func:`cv2.remap` ``INTER_NEAREST``, as the worker
+    remaps the object index), so each output pixel takes its depth and its mask id from the same
+    native pixel: the depth is that of the very surface point whose object the mask names, seen
+    along that native pixel's ray (up to half a native pixel from the output pixel's own ray).
+    Interpolating instead would mix depths of different surfaces across silhouettes.
 
     Args:
         depth_m: (h, w) float plane depth of the native render (:func:`plane_depth`).
-        ids: (h, w) uint16 object index of the native render.
         map_x, map_y: (H, W) float32 source positions (:func:`usdscene.labels.projection.remap_grids`).
 
     Returns:
@@ -88,23 +87,8 @@ def remap_depth(depth_m: np.ndarray, ids: np.ndarray, map_x: np.ndarray, map_y: 
     """
     import cv2
 
-    h, w = depth_m.shape
-    nearest = cv2.remap(depth_m.astype(np.float32), map_x, map_y, cv2.INTER_NEAREST,
-                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    nearest_ids = cv2.remap(ids, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    x0 = np.floor(map_x).astype(np.int64)
-    y0 = np.floor(map_y).astype(np.int64)
-    inside = (x0 >= 0) & (y0 >= 0) & (x0 + 1 < w) & (y0 + 1 < h)
-    xa, ya = np.clip(x0, 0, w - 2), np.clip(y0, 0, h - 2)
-    fx, fy = (map_x - xa).astype(np.float64), (map_y - ya).astype(np.float64)
-    corners_ids = [ids[ya, xa], ids[ya, xa + 1], ids[ya + 1, xa], ids[ya + 1, xa + 1]]
-    corners = [depth_m[ya, xa], depth_m[ya, xa + 1], depth_m[ya + 1, xa], depth_m[ya + 1, xa + 1]]
-    one_surface = inside & (nearest_ids > 0)
-    for corner_ids, corner in zip(corners_ids, corners):
-        one_surface &= (corner_ids == nearest_ids) & (corner > 0)
-    bilinear = ((1 - fx) * (1 - fy) * corners[0] + fx * (1 - fy) * corners[1]
-                + (1 - fx) * fy * corners[2] + fx * fy * corners[3])
-    return np.where(one_surface, bilinear, nearest).astype(np.float32)
+    return cv2.remap(np.asarray(depth_m, dtype=np.float32), map_x, map_y, cv2.INTER_NEAREST,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
 def encode_depth(depth_m: np.ndarray, depth_format: str) -> bytes:

@@ -342,7 +342,7 @@ class Session:
             from usdscene.render.depth import encode_depth
 
             write_bytes_atomic(layout.depth_path(self.job["out_dir"], camera, frame, self.depth_format),
-                               encode_depth(self._finish_depth(camera, z_pass, ids), self.depth_format))
+                               encode_depth(self._finish_depth(camera, z_pass), self.depth_format))
         rgb, ids = self._finish(camera, rgb, ids)
         clean = None
         if camera in self.sensors:
@@ -379,9 +379,9 @@ class Session:
         rgb, ids, timing = self.render_image(frame, camera)
         return {**timing, **self.write_image(frame, camera, rgb, ids)}
 
-    def _finish_depth(self, camera: str, z_pass, ids):
-        """Cycles' Z pass → distance to the image plane, remapped with the mask (``ids``: the
-        native render's object index)."""
+    def _finish_depth(self, camera: str, z_pass):
+        """Cycles' Z pass → distance to the image plane, remapped as the mask (nearest native
+        pixel, the same maps)."""
         from usdscene.labels.projection import remap_grids
         from usdscene.render.depth import plane_depth, ray_cosines, remap_depth
         from usdscene.render.job import intrinsics_from_json
@@ -394,7 +394,7 @@ class Session:
         if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
             if camera not in self._remaps:  # the mask's map (_finish makes the same one)
                 self._remaps[camera] = remap_grids(intrinsics_from_json(cam_job["intrinsics"]), render)
-            depth = remap_depth(depth, ids, *self._remaps[camera])
+            depth = remap_depth(depth, *self._remaps[camera])
         return depth
 
     def _finish(self, camera: str, rgb, ids):
