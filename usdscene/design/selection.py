@@ -34,6 +34,7 @@ class Selection:
         rows: rows of the integer program (targets with demand, merged when the same cameras
             cover them).
         columns: columns of the integer program (cameras left after dropping dominated ones).
+        zones: programs the floor was planned in (1: the whole floor at once).
     """
 
     chosen: tuple[int, ...]
@@ -47,6 +48,7 @@ class Selection:
     seconds: float = 0.0
     rows: int = 0
     columns: int = 0
+    zones: int = 1
 
     @property
     def gap(self) -> float:
@@ -110,11 +112,29 @@ def greedy_cover(cover, demand: np.ndarray, weights: np.ndarray | None = None) -
             break
         chosen.append(c)
         remaining[ind[ptr[c]:ptr[c + 1]]] -= 1
-    # Reverse-delete: a camera whose targets keep their demand without it is redundant.
+    return drop_redundant(m, chosen, demand, w)
+
+
+def drop_redundant(cover, chosen: list[int], demand: np.ndarray, weights: np.ndarray) -> list[int]:
+    """Reverse-delete: drop, smallest weight first (ties: higher index), every camera whose
+    targets keep their demand without it.
+
+    Args:
+        cover: (C, T) bool, dense or sparse.
+        chosen: a camera set meeting ``demand``.
+        demand: (T,) int.
+        weights: (C,) preference (larger kept first).
+
+    Returns:
+        The cameras kept, ascending.
+    """
+    m = _as_csr(cover)
+    ptr, ind = m.indptr, m.indices
+    chosen = list(chosen)
     counts = np.zeros(m.shape[1], dtype=np.int64)
     for c in chosen:
         counts[ind[ptr[c]:ptr[c + 1]]] += 1
-    for c in sorted(chosen, key=lambda i: (w[i], -i)):
+    for c in sorted(chosen, key=lambda i: (weights[i], -i)):
         mine = ind[ptr[c]:ptr[c + 1]]
         if np.all(counts[mine] - 1 >= demand[mine]):
             counts[mine] -= 1
@@ -336,7 +356,7 @@ def _solve_program(a, demand: np.ndarray, start: np.ndarray, time_limit_s: float
 
 
 def select_cameras(cover, k: int = 1, *, time_limit_s: float = 60.0,
-                   weights: np.ndarray | None = None) -> Selection:
+                   weights: np.ndarray | None = None, demand: np.ndarray | None = None) -> Selection:
     """The smallest camera set giving every target ``min(k, coverable)`` covering cameras.
 
     Integer program ``min Σ x_c  s.t.  Σ_c cover[c, t] x_c ≥ demand_t,  x ∈ {0, 1}`` solved by
@@ -355,6 +375,8 @@ def select_cameras(cover, k: int = 1, *, time_limit_s: float = 60.0,
         k: cameras each target needs.
         time_limit_s: HiGHS wall-time limit, seconds.
         weights: (C,) preference among equal-size sets (e.g. summed px/m), larger better.
+        demand: (T,) cameras asked of each target instead of ``min(k, coverable)`` (a zone's
+            remaining demand, :mod:`usdscene.design.zones`); never more than it can get.
 
     Returns:
         A :class:`Selection`.
@@ -365,7 +387,7 @@ def select_cameras(cover, k: int = 1, *, time_limit_s: float = 60.0,
     m = _as_csr(cover)
     n_c, n_t = m.shape
     able = np.asarray(m.sum(axis=0)).ravel().astype(np.int64)
-    demand = np.minimum(able, k).astype(np.int64)
+    demand = np.minimum(able, k if demand is None else np.asarray(demand, dtype=np.int64)).astype(np.int64)
     uncoverable = tuple(int(t) for t in np.flatnonzero(able == 0))
     short = tuple(int(t) for t in np.flatnonzero((able > 0) & (able < k)))
     w = np.zeros(n_c) if weights is None else np.asarray(weights, dtype=np.float64)
