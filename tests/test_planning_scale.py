@@ -232,3 +232,30 @@ def test_the_packing_bound_never_exceeds_the_optimum(seed, k):
     # Two targets that share no camera need two cameras.
     assert packing_bound(np.array([[1, 0], [0, 1]], bool), np.array([1, 1])) == 2
     assert packing_bound(np.array([[1, 1], [0, 1]], bool), np.array([1, 1])) == 1
+
+
+@pytest.mark.parametrize("seed,k", [(0, 1), (3, 1), (4, 2)])
+def test_the_lagrangian_bound_lies_below_the_lp_optimum_and_near_it(seed, k):
+    from scipy.optimize import linprog
+
+    from usdscene.design.selection import lagrangian_bound
+
+    rng = np.random.default_rng(seed)
+    cover = rng.random((80, 300)) < 0.04
+    demand = np.minimum(cover.sum(axis=0), k)
+    rows = np.flatnonzero(demand > 0)
+    a = cover[:, rows].T.astype(float)
+    lp = linprog(np.ones(cover.shape[0]), A_ub=-a, b_ub=-demand[rows], bounds=(0, 1), method="highs")
+    bound = lagrangian_bound(coverage_like(a), demand[rows], int(cover.shape[0]))
+    assert lp.status == 0 and bound <= lp.fun + 1e-6
+    assert bound >= 0.9 * lp.fun
+
+
+def test_the_program_starts_from_the_greedy_set_so_a_tiny_limit_never_returns_more():
+    rng = np.random.default_rng(6)
+    cover = rng.random((600, 900)) < 0.01
+    sel = select_cameras(coverage_like(cover), 1, time_limit_s=0.1)
+    demand = np.minimum(cover.sum(axis=0), 1)
+    assert np.all(cover[list(sel.chosen)].sum(axis=0) >= demand)
+    assert len(sel.chosen) <= sel.greedy_size and sel.lower_bound <= len(sel.chosen)
+    assert sel.method in ("milp", "greedy") and (sel.optimal or sel.gap > 0)

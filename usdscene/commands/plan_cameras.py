@@ -58,6 +58,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="refuse, before casting rays, a request whose (camera, target) pairs would take more "
                              "than this (6)")
     parser.add_argument("--time-limit", type=float, default=60.0, metavar="S", help="MILP time limit in seconds (60)")
+    parser.add_argument("--zone", type=float, default=0.0, metavar="M",
+                        help="plan the floor in square zones of this side in metres, one program each, cameras "
+                             "shared across zone borders (0: the whole floor in one program)")
     parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
                         help="render size of --verify relative to the cameras' resolution (0.5)")
     parser.add_argument("--verify-samples", type=positive_int, default=1, metavar="N", help="Cycles samples of --verify (1)")
@@ -96,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
     sel = result.selection
     console.print(f"planned {s['cameras']} cameras from {s['candidates']} candidates ({s['mounts']} mounts) "
                   f"for {s['targets']} targets in {sum(result.seconds.values()):.1f} s")
-    console.print(f"  solver:  {sel.method}{' (optimal)' if sel.optimal else ''}, lower bound {sel.lower_bound}, "
+    console.print(f"  solver:  {sel.method}{f' ({sel.zones} zones)' if sel.zones > 1 else ''}"
+                  f"{' (optimal)' if sel.optimal else ''}, lower bound {sel.lower_bound}, "
                   f"gap {100 * sel.gap:.1f} %, greedy {sel.greedy_size}")
     request = result.coverage["request"]
     console.print(f"  covered: {s['targets_covered']}/{s['targets']} targets by >= {args.k} camera(s) at >= "
@@ -136,7 +140,8 @@ def plan_request(args: argparse.Namespace):
                              dori_table_file=args.dori_table, standard=args.standard, occluders=args.occluders,
                              min_visible=args.min_visible, aims=args.aims, time_limit_s=args.time_limit,
                              pole_heights_m=args.pole_heights, pole_spacing_m=args.pole_spacing, cell_m=args.cell,
-                             target_spacing_m=args.target_spacing, max_memory_gb=args.max_memory)
+                             target_spacing_m=args.target_spacing, max_memory_gb=args.max_memory,
+                             zone_m=args.zone)
 
 
 class _ProgressBar:

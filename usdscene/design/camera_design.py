@@ -47,6 +47,7 @@ from usdscene.design.plan_picture import plan_picture
 from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
+from usdscene.design.zones import select_by_zones, zone_index
 from usdscene.design.visibility import (PAIR_BYTES, Uncovered, Visibility, coverage_matrix, covering_pairs,
                                         evaluate_visibility, pairs_in_range, why_uncovered)
 from usdscene.labels.pixel_density import (STANDARD_FILES, DoriClass, class_index, load_dori, pixel_density,
@@ -274,7 +275,11 @@ def plan_cameras(request: PlanRequest, out_dir: str | Path,
     t = time.perf_counter()
     weights = covering_px_per_m(visibility, covering_pairs(visibility, min_visible=request.min_visible,
                                                            min_dori=required))
-    selection = select_cameras(cover, k, time_limit_s=request.time_limit_s, weights=weights)
+    if request.zone_m > 0:
+        zones = zone_index(np.array([t.centre_m for t in target_list]).reshape(-1, 3), request.zone_m)
+        selection = select_by_zones(cover, k, zones, time_limit_s=request.time_limit_s, weights=weights)
+    else:
+        selection = select_cameras(cover, k, time_limit_s=request.time_limit_s, weights=weights)
     seconds["select"] = time.perf_counter() - t
 
     t = time.perf_counter()

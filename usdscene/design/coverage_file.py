@@ -143,7 +143,8 @@ def coverage_report(request: Mapping, coverage: Coverage, *, rescored: bool = Fa
         "short_of_k": [targets[t].name for t in selection.short],
         "why_uncoverable": {targets[u.target].name: {"reason": u.reason, "best_dori": table[u.best_dori].name
                                                      if u.best_dori >= 0 else None} for u in why},
-        "pairs": len(visibility.camera), "program": {"rows": selection.rows, "columns": selection.columns},
+        "pairs": len(visibility.camera), "program": {"rows": selection.rows, "columns": selection.columns,
+                                                **({"zones": selection.zones} if selection.zones > 1 else {})},
         "floor_area": floor_area(targets, [r["covering_cameras"] >= int(request["k"]) for r in target_rows]),
     }
     extra = {}

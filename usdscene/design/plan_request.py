@@ -50,6 +50,8 @@ class PlanRequest:
         max_memory_gb: the most the kept (camera, target) pairs may take; a larger request is
             refused before any ray is cast, GB.
         time_limit_s: MILP time limit, seconds.
+        zone_m: plan the floor in square zones of this side, one program each
+            (:mod:`usdscene.design.zones`), metres; 0: the whole floor in one program.
         pole_heights_m: camera heights of open-air poles above the ground, metres (empty: no
             poles and no façade mounts).
         pole_spacing_m: grid spacing of open-air poles, metres.
@@ -74,6 +76,7 @@ class PlanRequest:
     time_limit_s: float = 60.0
     pole_heights_m: tuple[float, ...] = (4.0, 6.0)
     pole_spacing_m: float = 4.0
+    zone_m: float = 0.0
 
     @classmethod
     def build(cls, setup_document: str | Path, *, targets: Sequence[str] | None = None,
@@ -100,7 +103,8 @@ class PlanRequest:
         problems = ProblemCollector()
         limits = {"k": (1, None), "min_visible": (0.0, 1.0), "spacing_m": (0.05, None),
                   "target_spacing_m": (0.01, None), "aims": (0, None), "time_limit_s": (0.1, None),
-                  "pole_spacing_m": (0.5, None), "cell_m": (0.1, None), "max_memory_gb": (1e-9, None)}
+                  "pole_spacing_m": (0.5, None), "cell_m": (0.1, None), "max_memory_gb": (1e-9, None),
+                  "zone_m": (0.0, None)}
         values = [(name, getattr(self, name)) for name in limits] + \
             [("pole_heights_m", h) for h in self.pole_heights_m]
         limits["pole_heights_m"] = (0.5, 100.0)
@@ -146,4 +150,4 @@ class PlanRequest:
                 "dori_table": [{"name": c.name, "px_per_m": c.px_per_m, **({"group": c.group} if c.group else {})}
                                for c in table],
                 "standard": standard_name, "pole_heights_m": list(self.pole_heights_m),
-                "pole_spacing_m": self.pole_spacing_m}
+                "pole_spacing_m": self.pole_spacing_m, **({"zone_m": self.zone_m} if self.zone_m else {})}
