@@ -8,7 +8,9 @@ targets are floor cells of that size, 1.8 m tall, sampled every 0.5 m; mounts on
 and walls every 4 m; the two perspective lenses of the shipped catalog (a 118° fisheye on an
 8 m ceiling reaches 43 px/m at best, below observe). Prints, measured in this run, per cell
 size: targets, candidates, pairs kept, cameras, method, lower bound, MILP gap, greedy size,
-floor area covered, wall seconds per step and in total, and the child's peak resident memory.
+floor area covered, wall seconds per step and in total, the child's CPU seconds (user + system,
+all threads: on a loaded machine the figure that does not grow with the load) and its peak
+resident memory.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ def plan_one(cell_m: float, out: Path, time_limit_s: float) -> dict:
             "targets_covered": s["targets_covered"], "area": s.get("floor_area"),
             "seconds": {k: round(v, 1) for k, v in plan.seconds.items()}, "total_s": round(total, 1),
             "peak_rss_gb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2, 2),
+            "cpu_s": round(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]), 1),
             "backend": plan.backend}
 
 
@@ -72,7 +75,7 @@ def main() -> None:
               f"greedy {r['greedy']}); {r['targets_covered']}/{r['targets']} cells covered, "
               f"{area.get('covered_m2', 0):.0f} of {area.get('total_m2', 0):.0f} m² ({100 * area.get('share', 0):.1f} %)")
         print(f"  {r['total_s']:.0f} s ({', '.join(f'{k} {v}' for k, v in r['seconds'].items())}; ray casting "
-              f"{r['backend']}), peak memory {r['peak_rss_gb']:.2f} GB")
+              f"{r['backend']}), {r['cpu_s']:.0f} CPU s, peak memory {r['peak_rss_gb']:.2f} GB")
     print(f"plan folders: {root}")
 
 

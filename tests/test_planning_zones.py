@@ -69,3 +69,15 @@ def test_a_zoned_plan_of_the_open_lot_covers_what_the_whole_plan_covers(tmp_path
                for z in plans}
     assert len(covered[0.0]) >= 40 and covered[12.0] >= covered[0.0]
     assert zoned["summary"]["lower_bound"] <= whole["summary"]["cameras"] <= zoned["summary"]["cameras"]
+
+
+def test_the_command_refuses_a_negative_zone_and_a_zero_verify_sample_readably(tmp_path, capsys):
+    from usdscene.cli import main
+
+    doc = tmp_path / "missing.json"
+    assert main(["plan-cameras", "--setup", str(doc), "-o", str(tmp_path / "p"), "--zone", "-1"]) == 1
+    err = capsys.readouterr().err
+    assert "--zone" in err and "-1.0" in err and "Traceback" not in err
+    assert not (tmp_path / "p").exists()
+    assert main(["plan-cameras", "--verify", str(tmp_path / "p"), "--verify-cameras", "0"]) == 2
+    assert "--verify-cameras" in capsys.readouterr().err

@@ -64,6 +64,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verify-scale", type=float, default=0.5, metavar="S",
                         help="render size of --verify relative to the cameras' resolution (0.5)")
     parser.add_argument("--verify-samples", type=positive_int, default=1, metavar="N", help="Cycles samples of --verify (1)")
+    parser.add_argument("--verify-cameras", type=positive_int, default=None, metavar="N",
+                        help="--verify renders a random sample of N of the plan's cameras (default: all)")
+    parser.add_argument("--verify-targets", type=positive_int, default=None, metavar="N",
+                        help="--verify checks a random sample of N targets in view of each rendered camera "
+                             "(default: all)")
+    parser.add_argument("--verify-seed", type=non_negative_int, default=0, metavar="SEED",
+                        help="seed of the --verify sample (0)")
     parser.add_argument("--marker-radius", type=float, default=0.02, metavar="M",
                         help="radius of the target markers of --verify in metres (0.02; larger for distant "
                              "open-air targets, so that a marker covers a pixel)")
@@ -82,10 +89,16 @@ def run(args: argparse.Namespace) -> int:
         from usdscene.design.camera_design import VERIFY_DIR, verify_plan
 
         result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples,
-                             marker_radius_m=args.marker_radius)
+                             marker_radius_m=args.marker_radius, cameras=args.verify_cameras,
+                             targets_per_camera=args.verify_targets, seed=args.verify_seed)
+        sample = result.report["summary"]["sample"]
         console.print(f"verified {args.verify}: {result.agreeing}/{result.pairs} (camera, target) pairs agree "
                       f"({100 * result.agreement:.1f} %, visible fractions within {result.tolerance:g}); "
                       f"{result.points_agreeing}/{result.points} target points agree")
+        console.print(f"  sample:  {sample['cameras']} of {sample['of_cameras']} cameras, {sample['targets']} of "
+                      f"{sample['of_targets']} targets (seed {sample['seed']}); agreement {100 * result.interval.low:.1f}"
+                      f"-{100 * result.interval.high:.1f} % at {100 * result.interval.confidence:g} % confidence "
+                      f"(exact binomial interval)")
         console.print(f"  render {result.seconds['render']:.1f} s; details in {args.verify}/{VERIFY_DIR}/")
         return 0
     if not args.setup or not args.out:

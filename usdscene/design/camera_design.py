@@ -47,6 +47,7 @@ from usdscene.design.plan_picture import plan_picture
 from usdscene.design.plan_request import DEFAULT_TARGETS, OCCLUDER_MODES, PlanRequest  # noqa: F401 (DEFAULT_TARGETS re-exported)
 from usdscene.design.selection import Selection, select_cameras
 from usdscene.design.targets import Target, parse_target_spec, targets_from_places
+from usdscene.design.verify_sample import AgreementInterval, agreement_interval, sample_cameras, sample_targets
 from usdscene.design.zones import select_by_zones, zone_index
 from usdscene.design.visibility import (PAIR_BYTES, Uncovered, Visibility, coverage_matrix, covering_pairs,
                                         evaluate_visibility, pairs_in_range, why_uncovered)
@@ -374,6 +375,7 @@ class VerifyResult:
         points_agreeing: see ``points``.
         report: the ``verification.json`` content.
         seconds: wall seconds (compose, render, compare).
+        interval: exact binomial interval on the agreement rate (the report's confidence).
     """
 
     pairs: int
@@ -383,6 +385,7 @@ class VerifyResult:
     points_agreeing: int
     report: Mapping
     seconds: Mapping[str, float] = field(default_factory=dict)
+    interval: AgreementInterval | None = None
 
     @property
     def agreement(self) -> float:
@@ -441,8 +444,14 @@ def write_marker_layer(targets: Sequence[Target], path: Path, *, radius_m: float
 
 def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples: int = 1,
                 marker_radius_m: float = RAY_MARGIN_M, tolerance: float = 0.15,
-                progress: bool = True) -> VerifyResult:
+                progress: bool = True, cameras: int | None = None, targets_per_camera: int | None = None,
+                seed: int = 0, confidence: float = 0.95) -> VerifyResult:
     """Render the plan's cameras with its targets as markers and compare with the prediction.
+
+    At scale a random sample is rendered instead (:mod:`usdscene.design.verify_sample`):
+    ``cameras`` of the chosen cameras and, per sampled camera, ``targets_per_camera`` of the
+    targets in its view (markers only for those), drawn with ``seed``; the report gives the
+    sample and an exact binomial interval at ``confidence`` on the agreement rate.
 
     The occluder scene of the plan is composed again with the chosen cameras, a layer of
     marker spheres (radius ``marker_radius_m``, one object per target) is added, and every
@@ -458,6 +467,10 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
         marker_radius_m: marker sphere radius, metres.
         tolerance: pairs agree when the fractions differ by at most this.
         progress: render progress bar on stderr.
+        cameras: cameras to draw from the plan's (None: all).
+        targets_per_camera: targets to draw per drawn camera from those in its view (None: all).
+        seed: seed of the draws.
+        confidence: confidence level of the agreement interval, in (0, 1).
 
     Returns:
         A :class:`VerifyResult`; ``PLAN_DIR/verify/verification.json`` and ``sheet.png`` written.
@@ -487,15 +500,36 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
         raise DocumentError(f"not a plan folder (cannot read {COVERAGE_FILE}: {exc})", where=str(plan)) from None
     if not 0 < resolution_scale <= 4:
         raise DocumentError(f"expected a scale in (0, 4], got {resolution_scale!r}", where="--verify-scale")
+    for name, value in (("--verify-cameras", cameras), ("--verify-targets", targets_per_camera)):
+        if value is not None and value < 1:
+            raise DocumentError(f"expected a positive count, got {value!r}", where=name)
+    if not 0 < confidence < 1:
+        raise DocumentError(f"expected a confidence in (0, 1), got {confidence!r}", where="--verify-confidence")
     t0 = time.perf_counter()
     planned, catalog = _read_setup(plan / CAMERAS_FILE)
     if not planned.cameras:
         raise DocumentError("the plan has no cameras to verify", where=str(plan / CAMERAS_FILE))
+    rng = np.random.default_rng(seed)
+    all_cameras = len(planned.cameras)
+    drawn = sample_cameras(all_cameras, cameras, rng)
+    planned = dataclasses.replace(planned, cameras=tuple(planned.cameras[i] for i in drawn))
     scene = occluder_scene(planned, catalog, occluders)
     verify = plan / VERIFY_DIR
     composed = compose_stage(scene, catalog, verify / layout.STAGE_DIR)
     triangles = stage_triangles(composed.root_layer, scene.frame_start)
     occ = Occluders(triangles)
+    all_targets = len(targets)
+    sampled = targets_per_camera is not None or cameras is not None
+    if sampled:
+        # Only the drawn targets get markers: a marker for every cell of a terminal is
+        # millions of spheres.
+        in_view = evaluate_visibility(planned.cameras, targets, occ, table).in_image
+        per_camera = sample_targets(in_view, targets_per_camera, rng)
+        keep = np.unique(np.concatenate(per_camera)) if per_camera else np.zeros(0, np.int64)
+        targets = [targets[t] for t in keep]
+        wanted = {(c, int(np.searchsorted(keep, t))) for c, ts in enumerate(per_camera) for t in ts}
+    else:
+        wanted = None
     marker_file = composed.stage_dir / "markers.usda"
     first_id = max(layout.mask_ids(scene).values(), default=0) + 1
     target_mask_ids = {t: mask_id for mask_id, t in
@@ -512,13 +546,13 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     seconds["render"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    cameras = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
+    scaled = [dataclasses.replace(c, intrinsics=scale_intrinsics(c.intrinsics, resolution_scale))
                for c in planned.cameras]
-    predicted = evaluate_visibility(cameras, targets, occ, table, keep_points=True)
+    predicted = evaluate_visibility(scaled, targets, occ, table, keep_points=True)
     predicted_in_image, predicted_visible = predicted.in_image, predicted.visible
     rows, pairs, agreeing, points, points_ok = [], 0, 0, 0, 0
     thumbs = []
-    for c, camera in enumerate(cameras):
+    for c, camera in enumerate(scaled):
         mask_file = layout.mask_path(verify, camera.name, frame)
         mask = cv2.imread(str(mask_file), cv2.IMREAD_UNCHANGED)
         if mask is None:
@@ -526,7 +560,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
         image = cv2.imread(str(layout.image_path(verify, camera.name, frame)), cv2.IMREAD_COLOR)
         thumbs.append((camera.name, image))
         for t, target in enumerate(targets):
-            if predicted_in_image[c, t] == 0:
+            if predicted_in_image[c, t] == 0 or (wanted is not None and (c, t) not in wanted):
                 continue
             seen = _rendered_points(camera, target.points_m, mask, target_mask_ids[t], marker_radius_m)
             pred = predicted.point_visible[predicted.pair_index(c, t)]
@@ -540,8 +574,13 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
             rows.append({"camera": camera.name, "target": target.name,
                          "predicted_visible_fraction": round_figure(predicted_fraction),
                          "rendered_visible_fraction": round_figure(rendered_fraction), "agree": bool(ok)})
+    interval = agreement_interval(agreeing, pairs, confidence)
     summary = {"pairs": pairs, "agreeing_pairs": agreeing, "agreement": round_figure(agreeing / pairs if pairs else 1.0),
-               "tolerance": tolerance, "points": points, "agreeing_points": points_ok,
+               "agreement_interval": [round_figure(interval.low), round_figure(interval.high)],
+               "confidence": confidence, "tolerance": tolerance, "points": points, "agreeing_points": points_ok,
+               "sample": {"cameras": len(scaled), "of_cameras": all_cameras, "targets": len(targets),
+                          "of_targets": all_targets, "targets_per_camera": targets_per_camera, "seed": seed,
+                          "sampled": sampled},
                "resolution_scale": resolution_scale, "samples": samples, "marker_radius_m": marker_radius_m}
     out = {"format": "usdscene-verification", "version": 1, "summary": summary, "pairs": rows}
     write_json_atomic(verify / VERIFY_FILE, out)
@@ -550,7 +589,7 @@ def verify_plan(plan_dir: str | Path, *, resolution_scale: float = 0.5, samples:
     tiles = [(name, image if image is not None else np.zeros((180, 240, 3), np.uint8)) for name, image in thumbs]
     write_png_atomic(verify / "sheet.png", contact_sheet(tiles, tile_width=240, columns=6))
     seconds["compare"] = time.perf_counter() - t0
-    return VerifyResult(pairs, agreeing, tolerance, points, points_ok, out, seconds)
+    return VerifyResult(pairs, agreeing, tolerance, points, points_ok, out, seconds, interval)
 
 
 def _rendered_points(camera: Camera, points_m: np.ndarray, mask: np.ndarray, mask_id: int,

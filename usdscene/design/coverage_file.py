@@ -114,10 +114,13 @@ def coverage_report(request: Mapping, coverage: Coverage, *, rescored: bool = Fa
 
     target_rows = []
     holes = []
+    vis_t, covers_t = np.ascontiguousarray(vis.T), np.ascontiguousarray(covers.T)
     for t, target in enumerate(targets):
-        seen = [pair(i, t) for i in range(len(picked)) if vis[i, t] > 0]
+        # The chosen cameras that see the target, from the column (not a loop over all of them:
+        # 203 cameras x 19,560 targets at the terminal's 1 m cells).
+        seen = [pair(int(i), t) for i in np.flatnonzero(vis_t[t] > 0)]
         count = sum(1 for p in seen if p["covers"])
-        best = max((int(dori[i, t]) for i in range(len(picked)) if covers[i, t]), default=-1)
+        best = max((int(dori[i, t]) for i in np.flatnonzero(covers_t[t])), default=-1)
         if count < int(request["k"]):
             holes.append(target.name)
         target_rows.append({"name": target.name, "place": target.place, "region": target.region,

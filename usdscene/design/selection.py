@@ -367,13 +367,14 @@ def select_cameras(cover, k: int = 1, *, time_limit_s: float = 60.0,
     are not in the objective (a tie-breaking term makes HiGHS several times slower). The
     lazy-greedy set (:func:`greedy_cover`) is computed first and handed to HiGHS as its start
     solution, so the answer is never larger than greedy's, whatever the limit. The lower bound
-    is the optimum when HiGHS proves it, else the higher of HiGHS's dual bound and
-    :func:`packing_bound`; the gap refers to it.
+    is the optimum when HiGHS proves it, else the highest of HiGHS's dual bound,
+    :func:`lagrangian_bound` (computed first, inside the time limit) and :func:`packing_bound`;
+    the gap refers to it. The time limit covers the whole step; HiGHS gets what is left of it.
 
     Args:
         cover: (C, T) bool, dense or ``scipy.sparse``, from :func:`coverage_matrix`.
         k: cameras each target needs.
-        time_limit_s: HiGHS wall-time limit, seconds.
+        time_limit_s: wall-time limit of the step, seconds (HiGHS stops at it).
         weights: (C,) preference among equal-size sets (e.g. summed px/m), larger better.
         demand: (T,) cameras asked of each target instead of ``min(k, coverable)`` (a zone's
             remaining demand, :mod:`usdscene.design.zones`); never more than it can get.
@@ -403,6 +404,8 @@ def select_cameras(cover, k: int = 1, *, time_limit_s: float = 60.0,
     # The greedy set may hold a dominated camera: its start is the greedy set with each such
     # camera swapped for the one that dominates it (as large, and still a cover).
     start = _start_solution(m[:, rows], greedy, useful, demand[rows])
+    # The bound first, so that the time limit covers the whole step (seconds at 1 m cells).
+    lagrangian = int(math.ceil(lagrangian_bound(a, demand[rows], len(greedy)) - 1e-6))
     elapsed = time.perf_counter() - started
     x, optimal, dual, status = _solve_program(a, demand[rows], start, max(0.0, time_limit_s - elapsed))
     chosen, method = greedy, "greedy"
@@ -416,7 +419,7 @@ def select_cameras(cover, k: int = 1, *, time_limit_s: float = 60.0,
         bound = len(chosen)
     else:
         optimal = False
-        bound = max(packing_bound(m, demand), int(math.ceil(lagrangian_bound(a, demand[rows], len(chosen)) - 1e-6)))
+        bound = max(packing_bound(m, demand), lagrangian)
         if np.isfinite(dual):
             bound = max(bound, int(math.ceil(dual - 1e-6)))
     return Selection(tuple(chosen), method, optimal, min(bound, len(chosen)), len(greedy), demand, uncoverable,
