@@ -284,7 +284,8 @@ def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = Expo
     import os
     from pathlib import Path
 
-    from usdscene.converters.exports.coco import COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries
+    from usdscene.converters.exports.coco import (COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries,
+                                                  document_tables)
     from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
     from usdscene.converters.exports.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
     from usdscene.errors import OutputError
@@ -354,11 +355,12 @@ def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = Expo
         image_root = Path(os.path.relpath(base, coco_dir.resolve())).as_posix()
         # Annotation ids are numbered over the whole dataset in image order, like image ids.
         entries, next_id = {}, 1
+        tables = [document_tables(document) for document, _ in loaded]  # one pass each, not one per image
         for _, image_id, index, record in items:
             entries[image_id] = coco_entries(loaded[index][0], [record], category_ids, [image_id],
                                              first_annotation_id=next_id, uri_prefix=prefixes[index],
                                              index=label_indexes[index], label_filter=label_filter,
-                                             rle_below_px=int(options.rle_below_px))
+                                             rle_below_px=int(options.rle_below_px), tables=tables[index])
             next_id += len(entries[image_id][1])
         for split_name, members in groups.items():
             images = [e for _, image_id, _, _ in members for e in entries[image_id][0]]
