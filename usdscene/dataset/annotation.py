@@ -222,7 +222,7 @@ def _merge_static(merged: dict, part: dict) -> dict:
         for name, pointer in pointers.items():
             if name not in into:
                 into[name] = pointer
-            elif into[name] != pointer:
+            elif into[name] != pointer:  # equal ones stay as given (the input's own key order)
                 into[name]["frame_intervals"] = union(into[name].get("frame_intervals"), pointer.get("frame_intervals"))
         if mine.get("frame_intervals") != element.get("frame_intervals"):
             mine["frame_intervals"] = union(mine.get("frame_intervals"), element.get("frame_intervals"))
