@@ -117,7 +117,9 @@ def _cameras(document: dict) -> list[Camera]:
     from usdscene.converters.openlabel.cameras import read_cameras
     from usdscene.converters.openlabel.load import DocumentBody
 
-    body = DocumentBody(document["openlabel"])
+    from usdscene.converters.openlabel.store import scene_document
+
+    body = DocumentBody(scene_document(document)["openlabel"])
     cameras = read_cameras(body, RenderSettings())
     body.problems.raise_if_any(DocumentError)
     return cameras

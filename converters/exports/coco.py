@@ -118,10 +118,18 @@ def _rle(rings: list[np.ndarray], width_px: int, height_px: int) -> dict:
     return {"size": [int(height_px), int(width_px)], "counts": [int(c) for c in counts]}
 
 
+def document_tables(document: dict) -> tuple:
+    """``(track ids or None, 3D boxes)`` of a document, as :func:`coco_entries` reads them:
+    each is a pass over every frame, so a caller exporting one image at a time reads them once."""
+    # Only moving sequences carry track ids: the COCO files of other documents keep their bytes.
+    return (track_ids(document) if document_fps(document) is not None else None), document_cuboids(document)
+
+
 def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[str, int],
                  image_ids: Iterable[int], first_annotation_id: int = 1,
                  uri_prefix: str = "", index: LabelIndex | None = None,
-                 label_filter: LabelFilter = KEEP_ALL, rle_below_px: int = 0) -> tuple[list[dict], list[dict]]:
+                 label_filter: LabelFilter = KEEP_ALL, rle_below_px: int = 0,
+                 tables: tuple | None = None) -> tuple[list[dict], list[dict]]:
     """COCO image and annotation records of some images of one document.
 
     Args:
@@ -135,15 +143,14 @@ def coco_entries(document: dict, records: Iterable[dict], category_ids: Mapping[
         index: the document's :class:`LabelIndex` when the caller exports many images of it.
         label_filter: which visible labels to keep.
         rle_below_px: objects with fewer visible pixels get an RLE segmentation (0: never).
+        tables: :func:`document_tables` of the document when the caller has them.
 
     Returns:
         ``(images, annotations)`` lists of COCO dicts.
     """
     images, annotations = [], []
     index = index or LabelIndex(document)
-    # Only moving sequences carry track ids: the COCO files of other documents keep their bytes.
-    tracks = track_ids(document) if document_fps(document) is not None else None
-    boxes3d = document_cuboids(document)
+    tracks, boxes3d = tables if tables is not None else document_tables(document)
     for image_id, record in zip(image_ids, records):
         file_name = f"{uri_prefix}/{record['uri']}" if uri_prefix else record["uri"]
         images.append({"id": image_id, "file_name": file_name, "width": record["width_px"],

@@ -207,7 +207,9 @@ def _cameras(document: dict) -> list[Camera]:
     from usdscene.converters.openlabel.cameras import read_cameras
     from usdscene.converters.openlabel.load import DocumentBody
 
-    body = DocumentBody(document["openlabel"])
+    from usdscene.converters.openlabel.store import scene_document
+
+    body = DocumentBody(scene_document(document)["openlabel"])
     cameras = read_cameras(body, RenderSettings())
     body.problems.raise_if_any(DocumentError)
     return cameras
@@ -314,7 +316,9 @@ def fixed_ground_positions(document: dict, uids: Iterable[str], frames: Iterable
         return {}, []
     # Only these objects are read: reading every mover's per-frame poses of a long sequence
     # would cost more than the whole export.
-    root = document["openlabel"]
+    from usdscene.converters.openlabel.store import scene_document
+
+    root = scene_document(document)["openlabel"]
     frames_in = root.get("frames", {}) or {}
     trimmed = dict(root, objects={u: o for u, o in (root.get("objects", {}) or {}).items() if u in wanted},
                    frames={k: {"objects": {u: e for u, e in ((f or {}).get("objects", {}) or {}).items() if u in wanted}}

@@ -172,10 +172,13 @@ def _has_object_data(document: dict, kind: str, wanted: Callable[[dict], bool]) 
     """Whether some object of the document holds object data of ``kind`` (static or in a frame)
     that ``wanted`` accepts."""
     root = document.get("openlabel", {})
-    blocks = [element.get("object_data") or {} for element in (root.get("objects") or {}).values()]
-    for frame in (root.get("frames") or {}).values():
-        blocks += [element.get("object_data") or {} for element in (frame.get("objects") or {}).values()]
-    return any(wanted(item) for block in blocks for item in block.get(kind) or ())
+
+    def blocks():  # frame by frame, stopping at the first hit (a store's frames are read lazily)
+        yield from (element.get("object_data") or {} for element in (root.get("objects") or {}).values())
+        for frame in (root.get("frames") or {}).values():
+            yield from (element.get("object_data") or {} for element in (frame.get("objects") or {}).values())
+
+    return any(wanted(item) for block in blocks() for item in block.get(kind) or ())
 
 
 def _require_moving(document: dict, what: str) -> None:

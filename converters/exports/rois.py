@@ -146,7 +146,9 @@ def plan_rois(document: dict, catalog: Catalog, *, min_size_px: int = 8,
     from usdscene.converters.openlabel import read_openlabel
     from usdscene.converters.openlabel.read import roi_ignored_classes
 
-    scene = read_openlabel(document)
+    from usdscene.converters.openlabel.store import scene_document
+
+    scene = read_openlabel(scene_document(document))
     if not scene.places:
         return []
     if scene.environment is None or scene.environment not in catalog:

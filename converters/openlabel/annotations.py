@@ -569,19 +569,32 @@ def labels_in(document: dict, frame: int, camera: str) -> list[dict]:
 class LabelIndex:
     """:func:`labels_in` for many images of one document: each frame's objects are read once
     for all its cameras (reading them per image costs cameras × cameras passes over a frame).
-    Keeps every frame read; the document must not change meanwhile."""
+    Keeps the ``max_frames`` frames read last (the exports read frame after frame, so a run of
+    any length holds a few frames' labels; a document from the annotation store reads its
+    frames shard by shard); the document must not change meanwhile.
 
-    def __init__(self, document: dict) -> None:
+    Attributes:
+        most_frames_held: the most frames held at once so far.
+    """
+
+    MAX_FRAMES = 16
+
+    def __init__(self, document: dict, max_frames: int = MAX_FRAMES) -> None:
         root = document.get("openlabel", {})
         self._objects = root.get("objects", {})
         self._frames = root.get("frames", {})
-        self._read: dict[int, dict[str, list[dict]]] = {}  # frame → camera → labels
+        self._max_frames = max(1, int(max_frames))
+        self._read: dict[int, dict[str, list[dict]]] = {}  # frame → camera → labels, oldest first
+        self.most_frames_held = 0
 
     def labels(self, frame: int, camera: str) -> list[dict]:
         """As :func:`labels_in` (fresh dicts on every call)."""
         frame = int(frame)
         if frame not in self._read:
+            while len(self._read) >= self._max_frames:
+                del self._read[next(iter(self._read))]
             self._read[frame] = self._read_frame(frame)
+            self.most_frames_held = max(self.most_frames_held, len(self._read))
         return [dict(label, attributes=dict(label["attributes"]), polygons=[dict(p) for p in label["polygons"]],
                      keypoints=None if label["keypoints"] is None else list(label["keypoints"]))
                 for label in self._read[frame].get(camera, [])]

@@ -369,6 +369,38 @@ class _StoredValues(ValuesView):
         return (frame for _, frame in self._mapping._store.frames())
 
 
+def scene_document(document: dict) -> dict:
+    """The document as the scene readers need it (cameras, poses, places: ``read_openlabel``,
+    ``read_cameras``): unchanged when its frames are a plain dict; for a store's document, a
+    plain dict whose frames keep everything but the labels (boxes, polygons, keypoints, 3D
+    boxes, the cross-camera table, resolved places), read shard by shard, so that memory holds
+    the input document's frames and never the run's labels."""
+    frames = (document.get("openlabel") or {}).get("frames")
+    if not isinstance(frames, StoredFrames):
+        return document
+    from usdscene.converters.openlabel.annotations import (CAMERAS_DATA, RESOLVED_PLACE, RESOLVED_RELATION)
+    from usdscene.labels.cuboids import CUBOID_NAME
+
+    label_kinds = {"bbox", "poly2d", "point2d"}
+    label_names = {CUBOID_NAME, CAMERAS_DATA, RESOLVED_PLACE, RESOLVED_RELATION}
+    kept = {}
+    for key, frame in frames.items():
+        objects = {}
+        for uid, entry in ((frame or {}).get("objects") or {}).items():
+            data = {kind: [i for i in items if not (isinstance(i, dict) and i.get("name") in label_names)]
+                    for kind, items in ((entry or {}).get("object_data") or {}).items() if kind not in label_kinds}
+            data = {kind: items for kind, items in data.items() if items}
+            if data:
+                objects[uid] = dict(entry, object_data=data)
+            elif set(entry or {}) - {"object_data"}:
+                objects[uid] = {k: v for k, v in entry.items() if k != "object_data"}
+        trimmed = {k: v for k, v in frame.items() if k != "objects"}
+        if objects:
+            trimmed["objects"] = objects
+        kept[key] = trimmed
+    return {"openlabel": dict(document["openlabel"], frames=kept)}
+
+
 def store_folder(out_dir: str | os.PathLike) -> Path:
     """``OUT/annotations``, the store of an output folder."""
     from usdscene.document import output_layout as layout

@@ -1,5 +1,5 @@
 """``usdscene export FORMAT... OUT... [--dataset DIR] [--split RULE]``: training sets from
-``OUT/annotations.openlabel.json`` (the exporters are :mod:`usdscene.dataset.export`). Without
+the labels of OUT (the store ``OUT/annotations/``, else ``OUT/annotations.openlabel.json``; the exporters are :mod:`usdscene.dataset.export`). Without
 ``--split``, the rule the documents carry (``metadata.usdscene.split``) applies."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from usdscene.converters.exports.registry import FORMATS  # pure: names no write
 NAME = "export"
 _SUMMARIES = [f.summary for f in FORMATS.values()]
 HELP = (f"export annotated outputs as {', '.join(_SUMMARIES[:-1])} or {_SUMMARIES[-1]} (from "
-        "OUT/annotations.openlabel.json), with training splits; several outputs as one "
+        "the labels of OUT/annotations/), with training splits; several outputs as one "
         f"{'/'.join(f.summary for f in FORMATS.values() if f.dataset)} dataset")
 
 
@@ -34,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``usdscene export`` arguments and options to ``parser``."""
     parser.add_argument("items", nargs="+", action=_FormatsThenOutputs, metavar="FORMAT|OUT",
                         help=f"one or more formats ({', '.join(FORMATS)}), then one or more output "
-                             "folders with annotations.openlabel.json")
+                             "folders with labels (annotations/ or annotations.openlabel.json)")
     parser.add_argument("--dataset", metavar="DIR",
                         help="write one COCO/YOLO dataset of every OUT into DIR (needed for several OUT); "
                              "default: OUT/exports")

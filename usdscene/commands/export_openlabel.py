@@ -1,11 +1,15 @@
-"""``usdscene export-openlabel STAGE -o DOC``: Scene2VCD, a USD stage or .blend → OpenLABEL."""
+"""``usdscene export-openlabel STAGE -o DOC``: Scene2VCD, a USD stage or .blend → OpenLABEL;
+``usdscene export-openlabel OUT -o DOC``: the labels of an annotated output folder (its
+annotation store, :mod:`usdscene.converters.openlabel.store`) as one OpenLABEL document,
+streamed frame by frame."""
 
 from __future__ import annotations
 
 import argparse
 
 NAME = "export-openlabel"
-HELP = "read a USD stage (.usd/.usda/.usdc) or a .blend back into an OpenLABEL scene document"
+HELP = ("read a USD stage (.usd/.usda/.usdc) or a .blend back into an OpenLABEL scene document, or write "
+        "the labels of an annotated output folder as one OpenLABEL document")
 ORDER = 60
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -16,7 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from usdscene.commands._arguments import output_path
 
     parser.add_argument("stage", metavar="STAGE",
-                        help="composed or DCC-edited stage (file, or a stage folder with scene.usda), or a .blend file")
+                        help="composed or DCC-edited stage (file, or a stage folder with scene.usda), a .blend "
+                             "file, or an annotated output folder (OUT with annotations/)")
     parser.add_argument("-o", "--out", type=output_path, metavar="DOC", required=True, help="OpenLABEL document to write (.json)")
 
 
@@ -32,6 +37,17 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.errors import DocumentError
 
     source = Path(args.stage)
+    if source.is_dir():
+        from usdscene.converters.openlabel.store import INDEX_FILE, AnnotationStore, store_folder
+
+        if (store_folder(source) / INDEX_FILE).is_file():
+            store = AnnotationStore(store_folder(source))
+            written = store.write_document(args.out)
+            index = store.index
+            Console(highlight=False, soft_wrap=True).print(
+                f"wrote {args.out}: {index['frames']} frames, {index['images']} images, {index['labels']} visible "
+                f"labels from {store.folder}/ ({written['bytes'] / 1e6:.1f} MB)")
+            return 0
     suffix = source.suffix.lower()
     if source.is_dir():  # a composed stage folder
         suffix = ".usda"

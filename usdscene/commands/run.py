@@ -12,7 +12,8 @@ from usdscene.converters.exports.registry import format_names  # pure: names no 
 
 NAME = "run"
 HELP = ("the whole job: validate the scene document, compose the USD stage, render every camera "
-        "of every frame, write labels into OUT/annotations.openlabel.json and export datasets; "
+        "of every frame, write labels into OUT/annotations/ (and OUT/annotations.openlabel.json for "
+        "small runs) and export datasets; "
         "re-running resumes")
 ORDER = 5
 

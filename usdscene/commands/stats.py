@@ -5,7 +5,8 @@ Given a scene document (a file) instead of an output folder, it prints the balan
 :func:`usdscene.generate.balance.balance_report` (instance-frames per class, class × relation,
 place kinds) and draws it at ``DOC.stats.png`` (or ``--chart``).
 
-Reads ``OUT/annotations.openlabel.json`` and prints per-class and per-camera counts and the
+Reads the annotations of OUT (the store ``OUT/annotations/``, read frame range by frame
+range, or ``OUT/annotations.openlabel.json``; :func:`usdscene.converters.openlabel.store.open_annotations`) and prints per-class and per-camera counts and the
 histogram of visible fractions as tables, the cross-camera summary (object-frames seen by 0, 1,
 2, ... cameras; per class the median number of cameras, the median best px/m and the best DORI
 class), and draws the same as a PNG chart at ``OUT/stats.png`` (or ``--chart``); the counting and
@@ -78,18 +79,14 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     from usdscene.document import output_layout as layout
-    from usdscene.converters.openlabel import load_document
-    from usdscene.errors import OutputError
+    from usdscene.converters.openlabel.store import open_annotations
     from usdscene.files import write_png_atomic
     from usdscene.dataset.statistics import HISTOGRAM_BINS, dori_text, draw_chart, label_statistics
 
     out = Path(args.output)
     if out.is_file():
         return _document_stats(args)
-    path = out / layout.ANNOTATIONS_FILE
-    if not path.is_file():
-        raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
-    stats = label_statistics(load_document(path))
+    stats = label_statistics(open_annotations(out))
     console = Console()
     table = Table(title=f"classes ({stats['images']} images)")
     for column in ("class", "objects", "labels", "hidden"):

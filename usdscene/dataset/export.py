@@ -1,7 +1,9 @@
-"""Training sets from an annotated output: ``OUT/annotations.openlabel.json`` → COCO, YOLO, ROI crops.
+"""Training sets from an annotated output: its labels → COCO, YOLO, ROI crops and more.
 
 Exporters read only the annotated document (and the asset catalog for class lists and place
-regions), never internal state:
+regions), never internal state; the document is the annotation store ``OUT/annotations/``
+read frame range by frame range as the writers go (or ``OUT/annotations.openlabel.json``,
+see :func:`usdscene.converters.openlabel.store.open_annotations`):
 
 * ``coco``: ``OUT/exports/coco/annotations.json`` (see :mod:`usdscene.converters.exports.coco`);
 * ``yolo``: ``OUT/exports/yolo/{detect,segment}/`` with ``data.yaml`` (see :mod:`usdscene.converters.exports.yolo`);
@@ -85,14 +87,10 @@ def _load_annotated(out_dir, extra_assets, need_catalog: bool):
     """``(document, catalog or None)`` of one annotated output folder."""
     from pathlib import Path
 
-    from usdscene.converters.openlabel import load_document
-    from usdscene.document import output_layout as layout
-    from usdscene.errors import AssetError, OutputError
+    from usdscene.converters.openlabel.store import open_annotations
+    from usdscene.errors import AssetError
 
-    path = Path(out_dir) / layout.ANNOTATIONS_FILE
-    if not path.is_file():
-        raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
-    document = load_document(path)
+    document = open_annotations(out_dir)
     try:
         return document, load_export_catalog(document, out_dir, extra_assets)
     except AssetError:
@@ -114,18 +112,17 @@ def carried_split(out_dirs) -> tuple:
     """
     from pathlib import Path
 
+    from usdscene.converters.openlabel.store import open_annotations
     from usdscene.document import output_layout as layout
-    from usdscene.converters.openlabel import load_document
-    from usdscene.errors import DocumentError, OutputError, Problem
+    from usdscene.errors import DocumentError, Problem
     from usdscene.document.splits import DOCUMENT_FIELD, document_split
 
     found = None
     for out in out_dirs:
         path = Path(out) / layout.ANNOTATIONS_FILE
-        if not path.is_file():
-            raise OutputError("no annotations; run `usdscene annotate OUT` first", where=str(path))
+        document = open_annotations(out)
         try:
-            carried = document_split(load_document(path))
+            carried = document_split(document)
         except DocumentError as exc:
             raise DocumentError([Problem(f"{path}: {p.where}", p.message) for p in exc.problems]) from None
         if carried is None:
@@ -287,7 +284,8 @@ def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = Expo
     import os
     from pathlib import Path
 
-    from usdscene.converters.exports.coco import COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries
+    from usdscene.converters.exports.coco import (COCO_DIR, COCO_FILE, LabelFilter, coco_document, coco_entries,
+                                                  document_tables)
     from usdscene.converters.openlabel.annotations import LabelIndex, image_records, label_classes
     from usdscene.converters.exports.yolo import TASKS, YOLO_DIR, write_yolo_data_yaml, write_yolo_images
     from usdscene.errors import OutputError
@@ -357,11 +355,12 @@ def export_dataset(out_dirs, formats, dataset_dir, options: ExportOptions = Expo
         image_root = Path(os.path.relpath(base, coco_dir.resolve())).as_posix()
         # Annotation ids are numbered over the whole dataset in image order, like image ids.
         entries, next_id = {}, 1
+        tables = [document_tables(document) for document, _ in loaded]  # one pass each, not one per image
         for _, image_id, index, record in items:
             entries[image_id] = coco_entries(loaded[index][0], [record], category_ids, [image_id],
                                              first_annotation_id=next_id, uri_prefix=prefixes[index],
                                              index=label_indexes[index], label_filter=label_filter,
-                                             rle_below_px=int(options.rle_below_px))
+                                             rle_below_px=int(options.rle_below_px), tables=tables[index])
             next_id += len(entries[image_id][1])
         for split_name, members in groups.items():
             images = [e for _, image_id, _, _ in members for e in entries[image_id][0]]

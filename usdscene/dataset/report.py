@@ -24,8 +24,9 @@ A page cannot read the pixels of a ``file://`` image (the canvas is tainted) and
 its image or mask is newer. They are written by replacing a temporary file, without fsync: a
 lost one is only redrawn.
 
-Labels come from ``OUT/annotations.openlabel.json``. In a half-finished run (no annotations
-document yet) they come from the labels kept per image in ``OUT/labels/`` (see
+Labels come from the annotation store ``OUT/annotations/``, read frame range by frame range
+(or ``OUT/annotations.openlabel.json``: :func:`usdscene.converters.openlabel.store.open_annotations`).
+In a half-finished run (no annotations yet) they come from the labels kept per image in ``OUT/labels/`` (see
 :class:`usdscene.dataset.annotation.ImageLabeller`), and images rendered but not yet labelled are shown
 without labels.
 
@@ -95,7 +96,7 @@ class ReportSummary:
 def _note(complete: bool, images: int, labels: int, labelled_images: int) -> str:
     if complete:
         return f"{images} images, {labels} labels"
-    return (f"half-finished run: no {layout.ANNOTATIONS_FILE} yet; the report shows the "
+    return (f"half-finished run: no annotations ({layout.ANNOTATION_STORE_DIR}/) yet; the report shows the "
             f"{images} images rendered so far, {labelled_images} of them labelled")
 
 
@@ -128,9 +129,11 @@ def build_report(out_dir: str | os.PathLike, report_dir: str | os.PathLike | Non
     target = Path(report_dir) if report_dir is not None else out / REPORT_DIR
     if not out.is_dir():
         raise OutputError("not a folder" if out.exists() else "no such output folder", where=str(out))
-    annotations = out / layout.ANNOTATIONS_FILE
-    if annotations.is_file():
-        images, title = _images_from_document(out, annotations), _document_title(annotations)
+    from usdscene.converters.openlabel.store import annotations_source
+
+    source, annotations = annotations_source(out)
+    if source is not None:
+        images, title = _images_from_document(out, annotations, source), _document_title(annotations)
         complete = True
     else:
         images, title, complete = _images_from_kept_labels(out), out.name, False
@@ -227,8 +230,9 @@ def _document_title(path: Path) -> str:
     return found.group(1) if found else path.parent.name
 
 
-def _images_from_document(out: Path, path: Path) -> list[dict]:
-    """Every labelled image of the annotations document with its labels (see :func:`_image`)."""
+def _images_from_document(out: Path, path: Path, source: str = "document") -> list[dict]:
+    """Every labelled image of the annotations with its labels (see :func:`_image`): the
+    document at ``path``, or for ``source`` ``"store"`` the store whose static part it is."""
     import json
 
     from usdscene.converters.exports.tracks import track_ids
@@ -239,10 +243,15 @@ def _images_from_document(out: Path, path: Path) -> list[dict]:
 
     # A document usdscene wrote: the plain reader (the checking reader of input documents,
     # with its duplicate-key and NaN hooks, took 3x longer on large outputs).
-    try:
-        document = json.loads(path.read_bytes())
-    except (OSError, ValueError) as exc:
-        raise OutputError(f"unreadable annotations document: {exc}", where=str(path)) from None
+    if source == "store":
+        from usdscene.converters.openlabel.store import AnnotationStore
+
+        document = AnnotationStore(path.parent).document()
+    else:
+        try:
+            document = json.loads(path.read_bytes())
+        except (OSError, ValueError) as exc:
+            raise OutputError(f"unreadable annotations document: {exc}", where=str(path)) from None
     if not isinstance(document, dict) or not isinstance(document.get("openlabel"), dict):
         raise OutputError("not an OpenLABEL document (no 'openlabel' object)", where=str(path))
     root = document["openlabel"]
