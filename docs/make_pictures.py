@@ -84,7 +84,7 @@ def main(argv=None) -> int:
     tiles = [(r["camera"], cv2.imread(str(layout.image_path(args.output, r["camera"], args.frame))))
              for r in records]
     # JPEG: a sheet of 39 noisy camera images is a photograph (a PNG of it took 1.8 MB)
-    ok, sheet = cv2.imencode(".jpg", contact_sheet(tiles, tile_width=180, columns=8), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    ok, sheet = cv2.imencode(".jpg", contact_sheet(tiles, tile_width=180, columns=8), [cv2.IMWRITE_JPEG_QUALITY, 80])
     write_bytes_atomic(IMG / "contact_sheet.jpg", sheet.tobytes())
 
     image = cv2.imread(str(layout.image_path(args.output, args.camera, args.frame)))

@@ -39,7 +39,7 @@ PROFILES: dict[str, dict[str, Any]] = {
         "compression": "jpeg", "quality": 90,
     },
     "fisheye_ceiling": {
-        "iso": 250, "full_well_e": 4500.0, "read_noise_e": 2.2, "vignetting": 0.45,
+        "iso": 320, "full_well_e": 4500.0, "read_noise_e": 2.2, "vignetting": 0.45,
         "auto_exposure": True, "metering": "centre_weighted", "target_grey": 0.2,
         "exposure_speed": 1.0, "wdr_stops": 3.0,
         "mtf50_cy_px": 0.28, "sharpen": 1.0, "sharpen_radius_px": 1.2, "chroma_420": True,

@@ -245,7 +245,8 @@ class Session:
 
         Returns:
             ``(rgb, ids, timing)``: (H, W, 3) float32 linear beauty and (H, W) uint16 ids of the
-            native render, and seconds: wall (``render_s``) and CPU time of the whole process,
+            native render, and seconds: wall (``render_s``, with an adapting camera's meter
+            pre-passes) and CPU time of the whole process,
             all threads (``render_cpu_s``; robust on a shared machine).
         """
         started, cpu_started = time.perf_counter(), time.process_time()
