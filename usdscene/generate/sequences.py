@@ -209,6 +209,17 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
 
         # A generator of its own: the objects drawn above stay what they were without ranges.
         scene, drawn = randomize_scene(scene, np.random.default_rng([int(options.seed), DOMAIN_STREAM]))
+    report = _sequence_report(scene, catalog, options, plan, combos, classes, (per_frame, n_frames), setup_sha256)
+    if drawn is not None:
+        report["domain_randomization"] = drawn
+    return GeneratedSequence(scene=scene, report=report)
+
+
+def _sequence_report(scene: SceneSpec, catalog: Catalog, options: GenerateOptions, plan, combos, classes,
+                     sizes: tuple[int, int], setup_sha256: str) -> dict:
+    """The generated sequence's report: its balance, the generator's options and what the plan
+    covers of the combinations (``sizes``: objects per frame and frames)."""
+    per_frame, n_frames = sizes
     covered = {c for frame in plan for c in frame}
     uncovered = sorted(set(combos) - covered)
     report = balance_report(scene, catalog)
@@ -229,9 +240,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
     single = _without_variants(catalog, classes, options)
     if single:  # only then: reports of documents without such classes stay as they were
         report["coverage"]["classes_without_variants"] = single
-    if drawn is not None:
-        report["domain_randomization"] = drawn
-    return GeneratedSequence(scene=scene, report=report)
+    return report
 
 
 def _without_variants(catalog: Catalog, classes: Sequence[str], options: GenerateOptions) -> list[str]:
