@@ -68,7 +68,7 @@ from usdscene.generate.combinations import (Combination, Region, fitting_combina
                                            most_combinations, region_conflicts, selected_places)
 from usdscene.generate.laps import (PASSENGER_RELATION, Lap, lap_combinations, lap_place_name, passenger_seats,
                                    with_lap_places)
-from usdscene.generate.sequence_plans import plan_balanced, plan_random, plan_single_class
+from usdscene.generate.sequence_plans import FrameSlots, plan_balanced, plan_random, plan_single_class
 from usdscene.scene.catalog import COMBINED_SETS, Catalog, PlaceRegion
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec
@@ -196,7 +196,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         taken = [_taken_at(fixed_taken, f) | _seated_taken(row, laps, seat_laps, conflicts)
                  for f, row in enumerate(seated)]
         plan_strategy = plan_random if options.strategy == "random" else plan_balanced
-        plan = plan_strategy(combos, classes, n_frames, per_frame, taken, conflicts, rng)
+        plan = plan_strategy(combos, classes, FrameSlots(n_frames, per_frame, taken), conflicts, rng)
 
     slots = _pool_indices(plan, options.strategy)
     looks = _draw_looks(plan, slots, catalog, setup.environment, options, rng)

@@ -180,19 +180,18 @@ def _asset_box(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...])
     return (lo + hi) / 2.0, (hi - lo) / 2.0
 
 
-def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
-                  centres: np.ndarray, axes_k: np.ndarray, halves: np.ndarray,
-                  tolerance_m: float = CONTACT_TOLERANCE_M) -> np.ndarray:
+def boxes_overlap(box: tuple, others: tuple, tolerance_m: float = CONTACT_TOLERANCE_M) -> np.ndarray:
     """Separating-axis test of one oriented box against K others.
 
     Args:
-        centre, axes, half: the box: (3,), (3, 3) axes as columns, (3,) half sizes.
-        centres, axes_k, halves: the others: (K, 3), (K, 3, 3), (K, 3).
+        box: ``(centre, axes, half)``: (3,) metres, (3, 3) axes as columns, (3,) half sizes.
+        others: ``(centres, axes, halves)`` of the others: (K, 3), (K, 3, 3), (K, 3).
         tolerance_m: penetration depth still counted as contact.
 
     Returns:
         (K,) bool: True where the boxes interpenetrate by more than ``tolerance_m``.
     """
+    (centre, axes, half), (centres, axes_k, halves) = box, others
     box = np.concatenate([np.asarray(centre, dtype=np.float64).reshape(3), np.asarray(axes, dtype=np.float64).reshape(9),
                           np.asarray(half, dtype=np.float64).reshape(3)])
     centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
