@@ -295,21 +295,7 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
                                         f"asset catalog (known: {', '.join(catalog.classes('environment')) or 'none'})")
         else:
             env_places = catalog.places(scene.environment)
-    for obj in scene.objects:
-        if obj.class_name not in catalog:
-            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has unknown class {obj.class_name!r} "
-                                                f"(known classes: {', '.join(catalog.classes()) or 'none'})")
-        elif catalog[obj.class_name].kind == "environment":
-            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has class {obj.class_name!r}, "
-                                                "which is an environment, not a placeable object")
-        else:
-            for field_name, set_name, chosen in (("appearance", "appearance", obj.appearance),
-                                                 ("pose_variant", "pose", obj.pose_variant)):
-                choices = catalog[obj.class_name].variants.get(set_name, ())
-                if chosen is not None and chosen not in choices:
-                    problems.add(f"objects.{obj.uid}.{field_name}",
-                                 f"object {obj.uid!r}: {set_name} {chosen!r} is not a variant of "
-                                 f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+    _check_object_classes(scene, catalog, problems)
     for rel in scene.relations:
         if rel.type not in PLACEMENT_RELATIONS:
             continue
@@ -358,7 +344,31 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
         else:
             problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
                                 "which is neither a place nor an object of the document")
-    # Cycles among object → object relations.
+    _check_cycles(scene, objects, problems)
+    problems.raise_if_any(CompositionError)
+
+
+def _check_object_classes(scene: SceneSpec, catalog: Catalog, problems: ProblemCollector) -> None:
+    """Every object's class is a placeable catalog class and its variants exist."""
+    for obj in scene.objects:
+        if obj.class_name not in catalog:
+            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has unknown class {obj.class_name!r} "
+                                                f"(known classes: {', '.join(catalog.classes()) or 'none'})")
+        elif catalog[obj.class_name].kind == "environment":
+            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has class {obj.class_name!r}, "
+                                                "which is an environment, not a placeable object")
+        else:
+            for field_name, set_name, chosen in (("appearance", "appearance", obj.appearance),
+                                                 ("pose_variant", "pose", obj.pose_variant)):
+                choices = catalog[obj.class_name].variants.get(set_name, ())
+                if chosen is not None and chosen not in choices:
+                    problems.add(f"objects.{obj.uid}.{field_name}",
+                                 f"object {obj.uid!r}: {set_name} {chosen!r} is not a variant of "
+                                 f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+
+
+def _check_cycles(scene: SceneSpec, objects: Mapping, problems: ProblemCollector) -> None:
+    """No object rests on itself through object → object relations."""
     graph: dict[str, list[tuple[str, str]]] = {}
     for rel in scene.relations:
         if (rel.type in PLACEMENT_RELATIONS and rel.subject_uid in objects and rel.object_uid in objects
@@ -368,7 +378,6 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
         chain = " → ".join(repr(u) for u in cycle)
         problems.add(f"objects.{cycle[0]}", f"cyclic placement relations: {chain}; object "
                                             f"{cycle[0]!r} would rest on itself")
-    problems.raise_if_any(CompositionError)
 
 
 def _add_fit_problem(problems: ProblemCollector, obj: SceneObject, catalog: Catalog,
