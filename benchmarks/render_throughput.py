@@ -40,11 +40,10 @@ NAIVE = textwrap.dedent("""
     import json, sys, time
     from pathlib import Path
     from usdscene.render.blender import outputs, session as sessions
-    job = json.loads(Path(sys.argv[1]).read_text())
-    for o in job["objects"]:
-        o["_visible"] = set(o["visible_frames"])
+    from usdscene.render.job import from_json
+    job = from_json(Path(sys.argv[1]).read_text())
     times = []
-    for frame, camera in job["pairs"]:
+    for frame, camera in job.pairs:
         t0 = time.perf_counter()
         session = sessions.Session(job)          # factory reset + full USD import, every image
         session.set_frame(frame)
@@ -56,7 +55,7 @@ NAIVE = textwrap.dedent("""
         session.bpy.ops.render.render(write_still=True)
         _, ids, _ = outputs.read_exr(session.exr_path)
         rgb, ids = session._finish(camera, rgb, ids)
-        outputs.write_outputs(Path(job["out_dir"]), camera, frame, rgb, ids)
+        outputs.write_outputs(Path(job.out_dir), camera, frame, rgb, ids)
         times.append(time.perf_counter() - t0)
     print("@naive " + json.dumps(times))
 """)
@@ -70,9 +69,9 @@ def scene_stage(root: Path, frames: int) -> tuple[Path, str]:
 
         return stage_for_input(doc, root), f"aircraft cabin example ({doc.name})"
     except Exception as exc:  # the example is not composable in this checkout yet
-        from usdscene.render.synthetic import cabin_like_scene, write_synthetic_stage
+        from usdscene.render.synthetic import CabinLike, cabin_like_scene, write_synthetic_stage
 
-        scene = cabin_like_scene(frames=frames)
+        scene = cabin_like_scene(CabinLike(frames=frames))
         return (write_synthetic_stage(scene, root / "stage"),
                 f"synthetic cabin-like scene (cabin example unavailable: {type(exc).__name__})")
 
@@ -80,6 +79,7 @@ def scene_stage(root: Path, frames: int) -> tuple[Path, str]:
 def naive(stage: Path, out: Path, override: dict) -> tuple[float, float, list[float]]:
     """Wall seconds, CPU seconds (all threads) and per-image wall seconds of the naive script."""
     from usdscene.render.driver import camera_jobs, resolve_settings
+    from usdscene.render.job import JobObject, RenderJob, to_json
     from usdscene.render.stage_reader import read_stage_plan
 
     plan = read_stage_plan(stage)
@@ -87,13 +87,12 @@ def naive(stage: Path, out: Path, override: dict) -> tuple[float, float, list[fl
     frames = list(plan.frames)
     names = [c.name for c in plan.cameras]
     scratch = Path(tempfile.mkdtemp(prefix="naive-", dir="/dev/shm"))
-    job = {"stage": str(plan.stage_path), "out_dir": str(out), "scratch_dir": str(scratch),
-           "prim_path_mask": "", "settings": settings, "threads": None,
-           "objects": [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                        "visible_frames": list(o.visible_frames)} for o in plan.objects],
-           "cameras": camera_jobs(plan, names, frames), "pairs": [[f, c] for f in frames for c in names]}
+    job = RenderJob(stage=str(plan.stage_path), out_dir=str(out), scratch_dir=str(scratch),
+                    prim_path_mask="", settings=settings,
+                    objects=tuple(JobObject.of(o) for o in plan.objects),
+                    cameras=camera_jobs(plan, names, frames), pairs=tuple((f, c) for f in frames for c in names))
     job_path = scratch / "job.json"
-    job_path.write_text(json.dumps(job))
+    job_path.write_text(to_json(job))
     t0 = time.perf_counter()
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run([sys.executable, "-c", NAIVE, str(job_path)], capture_output=True, text=True)
@@ -139,9 +138,9 @@ def memory(root: Path, renders: int) -> tuple[float, float, int]:
     renders/4 frames, 4 cameras, 64x48, 1 sample; the driver recycles the worker process every
     ``MAX_RENDERS_PER_WORKER`` renders, as in any run)."""
     from usdscene.render.driver import render
-    from usdscene.render.synthetic import cabin_like_scene, write_synthetic_stage
+    from usdscene.render.synthetic import CabinLike, cabin_like_scene, write_synthetic_stage
 
-    stage = write_synthetic_stage(cabin_like_scene(frames=max(3, renders // 4)), root / "mem-stage")
+    stage = write_synthetic_stage(cabin_like_scene(CabinLike(frames=max(3, renders // 4))), root / "mem-stage")
     rss: list[float] = []
     report = render(stage, root / "mem-out",
                     settings_override={"samples": 1, "denoise": False, "resolution_scale": 0.1},

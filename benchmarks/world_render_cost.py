@@ -60,10 +60,10 @@ def bake_sky(sky_document: Path, hdri: Path) -> np.ndarray:
     from usdscene.converters.openlabel import read_openlabel
     from usdscene.document.imaging import world_stage_json
     from usdscene.render.driver import run_job
+    from usdscene.render.job import BakeWorldJob
 
     world_job = json.loads(world_stage_json(read_openlabel(sky_document)))
-    run_job({"mode": "bake_world", "world": world_job, "frame": 0, "size_px": [1024, 512], "samples": 4,
-             "out": str(hdri)}, "sky bake")
+    run_job(BakeWorldJob(world=world_job, frame=0, size_px=(1024, 512), samples=4, out=str(hdri)), "sky bake")
     return cv2.imread(str(hdri), cv2.IMREAD_UNCHANGED)[..., ::-1].astype(np.float32)
 
 

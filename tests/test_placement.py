@@ -159,7 +159,7 @@ def test_separating_axis_test_handles_rotated_boxes():
     rot = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
     # A 45° box at distance 1.2: its corner reaches 0.5 + 0.707 > 1.2 → overlap; at 1.25 → free.
     for dist, expected in ((1.2, True), (1.25, False)):
-        got = boxes_overlap(np.zeros(3), np.eye(3), half, np.array([[dist, 0, 0]]), rot[None], half[None])
+        got = boxes_overlap((np.zeros(3), np.eye(3), half), (np.array([[dist, 0, 0]]), rot[None], half[None]))
         assert bool(got[0]) is expected
 
 

@@ -22,7 +22,7 @@ from usdscene.converters.openlabel import read_openlabel, write_document, write_
 from usdscene.errors import DocumentError
 from usdscene.generate.balance import balance_report
 from usdscene.generate.combinations import Combination, fitting_combinations
-from usdscene.generate.sequence_plans import plan_random
+from usdscene.generate.sequence_plans import FrameSlots, plan_random
 from usdscene.generate.sequences import GenerateOptions, check_composes, generate_sequence, report_path
 
 CLASSES = {  # class: (extent min, extent max, appearance variants)
@@ -153,7 +153,7 @@ def test_random_draws_classes_then_places_uniformly():
     combos += [Combination("b", rel, "p1") for rel in ("is_on", "is_in", "is_below", "is_in_front_of")]
     combos += [Combination("b", "is_on", "p2")]
     conflicts = {c.region: frozenset({c.region}) for c in combos}
-    plan = plan_random(combos, ("a", "b"), 2000, 1, [set() for _ in range(2000)], conflicts,
+    plan = plan_random(combos, ("a", "b"), FrameSlots(2000, 1, [set() for _ in range(2000)]), conflicts,
                        np.random.default_rng(3))
     drawn = [c for frame in plan for c in frame]
     assert len(drawn) == 2000
@@ -162,7 +162,8 @@ def test_random_draws_classes_then_places_uniformly():
     share_p2 = sum(c.place == "p2" for c in b) / len(b)
     assert 0.45 < share_a < 0.55 and 0.44 < share_p2 < 0.56
     # A taken region is never drawn again in that frame: two draws per frame, A at most once.
-    plan = plan_random(combos, ("a", "b"), 200, 2, [set() for _ in range(200)], conflicts, np.random.default_rng(4))
+    plan = plan_random(combos, ("a", "b"), FrameSlots(200, 2, [set() for _ in range(200)]), conflicts,
+                       np.random.default_rng(4))
     assert all(sum(c.class_name == "a" for c in frame) <= 1 for frame in plan)
     assert any(len(frame) == 1 for frame in plan)  # A drawn twice: the second draw is lost
 

@@ -207,6 +207,7 @@ def test_bake_world_lays_out_the_world_as_an_hdri_is_read(tmp_path):
     # A world baked from an HDRI gives that HDRI back (same orientation, same values): so the
     # sky baked by benchmarks/world_render_cost.py is the sky, as an environment image.
     from usdscene.render.driver import run_job
+    from usdscene.render.job import BakeWorldJob
 
     height, width = 32, 64
     lon = (np.arange(width) + 0.5) / width * 2 * np.pi
@@ -217,8 +218,8 @@ def test_bake_world_lays_out_the_world_as_an_hdri_is_read(tmp_path):
     rgb[..., 2] = 0.2 + 0.6 * rows[:, None]
     assert cv2.imwrite(str(tmp_path / "pattern.hdr"), rgb[..., ::-1])
     world = {"world": {"hdri": "pattern.hdr"}, "hdri_path": str(tmp_path / "pattern.hdr"), "sun": None}
-    run_job({"mode": "bake_world", "world": world, "frame": 0, "size_px": [width, height], "samples": 4,
-             "out": str(tmp_path / "baked.hdr")}, "bake")
+    run_job(BakeWorldJob(world=world, frame=0, size_px=(width, height), samples=4, out=str(tmp_path / "baked.hdr")),
+            "bake")
     baked = cv2.imread(str(tmp_path / "baked.hdr"), cv2.IMREAD_UNCHANGED)[..., ::-1]
     assert baked.shape == rgb.shape
     # 0.004 measured (a smooth pattern, linearly interpolated); the layout one pixel off in

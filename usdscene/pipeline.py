@@ -224,7 +224,7 @@ class _Run:
         """Render every image; each is labelled as soon as it is written, while the workers
         render the next ones."""
         from usdscene.dataset.annotation import LabelsWhileRendering
-        from usdscene.render.driver import render
+        from usdscene.render.driver import DEFAULT_RETRIES, RenderOptions, render
 
         options = self.options
         with self._step("render"):
@@ -241,10 +241,10 @@ class _Run:
                 for listener in listeners:
                     listener(event)
 
-            report = render(stage_path, self.out, frames=options.frames, cameras=options.cameras,
-                            settings_override=override, progress=self.progress, workers=options.workers,
-                            executor=self.executor, on_event=on_event, keep_clean=options.keep_clean,
-                            **({} if options.retries is None else {"retries": options.retries}))
+            report = render(stage_path, self.out, RenderOptions(
+                frames=options.frames, cameras=options.cameras, settings_override=override, progress=self.progress,
+                workers=options.workers, executor=self.executor, keep_clean=options.keep_clean,
+                retries=DEFAULT_RETRIES if options.retries is None else options.retries), on_event=on_event)
         return labelling, report
 
     def annotate(self, checked, labelling):

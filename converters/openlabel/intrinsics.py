@@ -75,28 +75,12 @@ def read_intrinsics(props: Mapping, friendly: Mapping, where: str, render: Rende
     if len(present) > 1:
         problems.add(f"{where}.{present[1]}", f"give one calibration, not {' and '.join(present)}")
         return INVALID
-    model = None
-    if "model" in friendly:
-        text = read_text(friendly["model"], f"{where_f}.model", problems)
-        if text is None:
-            return INVALID
-        try:
-            model = LensModel(text)
-        except ValueError:
-            names = [m.value for m in LensModel]
-            problems.add(f"{where_f}.model", f"unknown lens model {text!r}{suggest(text, names)}; "
-                                             f"expected one of {', '.join(names)}")
-            return INVALID
-    sensor_w = None
-    if "sensor_size_mm" in friendly:
-        size = read_numbers(friendly["sensor_size_mm"], f"{where_f}.sensor_size_mm", problems,
-                            lengths=(2,), what="sensor [width, height] in mm")
-        if size is None:
-            return INVALID
-        if size[0] <= 0 or size[1] <= 0:
-            problems.add(f"{where_f}.sensor_size_mm", f"sensor size must be positive, got {list(size)}")
-            return INVALID
-        sensor_w = size[0]
+    model = _friendly_model(friendly, where_f, problems)
+    if model is INVALID:
+        return INVALID
+    sensor_w = _sensor_width(friendly, where_f, problems)
+    if sensor_w is INVALID:
+        return INVALID
     if not present:
         if not friendly:
             return None
@@ -139,6 +123,37 @@ def read_intrinsics(props: Mapping, friendly: Mapping, where: str, render: Rende
     return Intrinsics(lens=lens, width_px=w, height_px=h, fx_px=fx, fy_px=fy, cx_px=cx, cy_px=cy,
                       distortion=dist, fov_deg=fov,
                       sensor_width_mm=sensor_w if sensor_w is not None else DEFAULT_SENSOR_WIDTH_MM)
+
+
+def _friendly_model(friendly: Mapping, where: str, problems: ProblemCollector):
+    """The lens model the friendly block names (``where``: its JSON path); None without one,
+    INVALID when unknown (the problem is recorded)."""
+    if "model" not in friendly:
+        return None
+    text = read_text(friendly["model"], f"{where}.model", problems)
+    if text is None:
+        return INVALID
+    try:
+        return LensModel(text)
+    except ValueError:
+        names = [m.value for m in LensModel]
+        problems.add(f"{where}.model", f"unknown lens model {text!r}{suggest(text, names)}; "
+                                       f"expected one of {', '.join(names)}")
+        return INVALID
+
+
+def _sensor_width(friendly: Mapping, where: str, problems: ProblemCollector):
+    """The friendly ``sensor_size_mm`` width (mm); None without one, INVALID when bad."""
+    if "sensor_size_mm" not in friendly:
+        return None
+    size = read_numbers(friendly["sensor_size_mm"], f"{where}.sensor_size_mm", problems,
+                        lengths=(2,), what="sensor [width, height] in mm")
+    if size is None:
+        return INVALID
+    if size[0] <= 0 or size[1] <= 0:
+        problems.add(f"{where}.sensor_size_mm", f"sensor size must be positive, got {list(size)}")
+        return INVALID
+    return size[0]
 
 
 def calibration_family(lens: LensModel) -> list[LensModel]:

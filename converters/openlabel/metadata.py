@@ -7,7 +7,7 @@ the render settings (``docs/scene-format.md`` lists every key).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 from usdscene.document.model import MAX_BOUNCES, MAX_FPS, MAX_RENDER_SEED, MAX_SAMPLES, MAX_TILE_SIZE_PX, RenderSettings
 
@@ -92,6 +92,12 @@ def read_metadata(doc: DocumentBody) -> dict:
     if not isinstance(block, dict):
         problems.add(where, f"expected a JSON object, got {describe(block)}")
         return out
+    _read_usdscene_block(block, where, problems, out)
+    return out
+
+
+def _read_usdscene_block(block: Mapping, where: str, problems, out: dict) -> None:
+    """Read ``metadata.usdscene`` (at ``where``) into ``out``, the result of :func:`read_metadata`."""
     for key in block:
         if key not in METADATA_KEYS:
             problems.add(f"{where}.{key}", f"unknown key {key!r}{suggest(key, METADATA_KEYS)}; "
@@ -133,7 +139,6 @@ def read_metadata(doc: DocumentBody) -> dict:
         from usdscene.converters.openlabel.imaging import read_world
 
         out["world"] = read_world(block["world"], f"{where}.world", problems)
-    return out
 
 
 def read_fps(value: Any, where: str, problems: ProblemCollector) -> float | None:

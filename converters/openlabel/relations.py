@@ -48,33 +48,7 @@ def read_relations(doc: DocumentBody, uids: Mapping[str, str]) -> list[Relation]
         if not isinstance(rtype, str) or not rtype:
             doc.add(f"{where}.type", f"expected the relation type (e.g. 'is_below'), got {describe(rtype)}")
             continue
-        agents = {}
-        ok = True
-        for side in ("rdf_subjects", "rdf_objects"):
-            entries = rel.get(side)
-            if not isinstance(entries, list) or not entries:
-                doc.add(f"{where}.{side}", f"expected a non-empty list of {{'uid', 'type'}}, got {describe(entries)}")
-                ok = False
-                continue
-            agents[side] = []
-            for index, agent in enumerate(entries):
-                here = f"{where}.{side}[{index}]"
-                if not isinstance(agent, dict) or not isinstance(agent.get("uid"), str):
-                    doc.add(here, f"expected {{'uid': str, 'type': 'object'}}, got {describe(agent)}")
-                    ok = False
-                    continue
-                kind = agent.get("type", "object")
-                if kind not in ("object", "action", "event", "context"):
-                    doc.add(f"{here}.type", f"expected object, action, event or context, got {describe(kind)}")
-                    ok = False
-                    continue
-                target = agent["uid"]
-                exists = target in uids if kind == "object" else target in others[kind + "s"]
-                if not exists:
-                    doc.add(f"{here}.uid", f"relation {ruid} refers to {kind} {target!r}, which does not exist")
-                    ok = False
-                    continue
-                agents[side].append((kind, target))
+        agents, ok = _read_agents(doc, where, ruid, rel, uids, others)
         intervals: tuple[FrameInterval, ...] = ()
         if "frame_intervals" in rel:
             intervals = read_intervals(rel["frame_intervals"], f"{where}.frame_intervals", doc.problems) or ()
@@ -103,6 +77,41 @@ def read_relations(doc: DocumentBody, uids: Mapping[str, str]) -> list[Relation]
         relations.append(Relation(uid=ruid, type=rtype, subject_uid=subject, object_uid=target,
                                   frame_intervals=intervals, extra=relation_residue(rel)))
     return relations
+
+
+def _read_agents(doc: DocumentBody, where: str, ruid: str, rel: Mapping, uids: Mapping[str, str],
+                 others: Mapping[str, Mapping]) -> tuple[dict[str, list[tuple[str, str]]], bool]:
+    """A relation's ``rdf_subjects`` and ``rdf_objects`` as ``side → [(kind, uid)]``, and
+    whether every entry was good (each bad one is recorded in ``doc``); ``others``: the
+    document's actions, events and contexts by section name."""
+    agents = {}
+    ok = True
+    for side in ("rdf_subjects", "rdf_objects"):
+        entries = rel.get(side)
+        if not isinstance(entries, list) or not entries:
+            doc.add(f"{where}.{side}", f"expected a non-empty list of {{'uid', 'type'}}, got {describe(entries)}")
+            ok = False
+            continue
+        agents[side] = []
+        for index, agent in enumerate(entries):
+            here = f"{where}.{side}[{index}]"
+            if not isinstance(agent, dict) or not isinstance(agent.get("uid"), str):
+                doc.add(here, f"expected {{'uid': str, 'type': 'object'}}, got {describe(agent)}")
+                ok = False
+                continue
+            kind = agent.get("type", "object")
+            if kind not in ("object", "action", "event", "context"):
+                doc.add(f"{here}.type", f"expected object, action, event or context, got {describe(kind)}")
+                ok = False
+                continue
+            target = agent["uid"]
+            exists = target in uids if kind == "object" else target in others[kind + "s"]
+            if not exists:
+                doc.add(f"{here}.uid", f"relation {ruid} refers to {kind} {target!r}, which does not exist")
+                ok = False
+                continue
+            agents[side].append((kind, target))
+    return agents, ok
 
 
 def check_frame_relations(doc: DocumentBody) -> None:

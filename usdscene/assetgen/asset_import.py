@@ -641,11 +641,12 @@ def _export_blend(blend: Path, usd_path: Path) -> Path:
     """
     from usdscene.errors import RenderError
     from usdscene.render.driver import run_job
+    from usdscene.render.job import BlendToUsdJob
 
     usd_path.parent.mkdir(parents=True, exist_ok=True)
     partial = usd_path.with_name(usd_path.name + ".partial.usda")
     try:
-        run_job({"mode": "export_usd", "blend": str(blend), "usd": str(partial)}, "USD export of a .blend")
+        run_job(BlendToUsdJob(blend=str(blend), usd=str(partial)), "USD export of a .blend")
         os.replace(partial, usd_path)
     except RenderError as exc:
         raise AssetError([Problem(str(blend), p.message) for p in exc.problems]) from None
@@ -715,22 +716,8 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
         _refuse_person(resolved)
     target = catalog / IMPORTED_FOLDER / f"{class_name}.usda"
     suffix = resolved.suffix.lower()
-    from usdscene.document import stage_schema
-
     if suffix in MESH_FORMATS:
-        from usdscene.scene.place_discovery import places_from_boxes
-
-        if options.color_material is not None:
-            raise AssetError("--color-material names a material of a USD file; a converted mesh is "
-                             f"recoloured through its {DEFAULT_COLOR_SHADER} material", where="--color-material")
-
-        parts, boxes = _load_parts(resolved, discover_places=options.kind == "environment")
-        up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[suffix]]
-        scale = options.unit_scale_m if options.unit_scale_m is not None else 1.0
-        authored, places = places_from_boxes(boxes, up_axis, scale, source=str(resolved))
-        lo, hi = _write_mesh_asset(parts, class_name, options, up_axis, scale, target, authored)
-        variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)}
-        written = _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()}, unit_scale_m=scale)
+        written = _import_mesh(resolved, class_name, options, target)
         fmt = MESH_FORMATS[suffix].upper()
     elif suffix == BLEND_FORMAT:
         exported = _export_blend(resolved, target.with_name(f"{class_name}.blend.usda"))
@@ -760,6 +747,29 @@ def import_asset(source: str | os.PathLike, class_name: str, catalog_dir: str | 
     register_entry(catalog, entry, data)
     log.info("registered %s (%s) in %s", class_name, fmt, catalog)
     return entry
+
+
+def _import_mesh(resolved: Path, class_name: str, options: ImportOptions, target: Path) -> "_Written":
+    """Convert a mesh file (OBJ, GLB/glTF, PLY, STL) into the asset layer ``target``, its places
+    found from marker boxes for an environment.
+
+    Raises:
+        AssetError: ``--color-material`` was given (a converted mesh has one colour material).
+    """
+    from usdscene.document import stage_schema
+    from usdscene.scene.place_discovery import places_from_boxes
+
+    if options.color_material is not None:
+        raise AssetError("--color-material names a material of a USD file; a converted mesh is "
+                         f"recoloured through its {DEFAULT_COLOR_SHADER} material", where="--color-material")
+
+    parts, boxes = _load_parts(resolved, discover_places=options.kind == "environment")
+    up_axis = options.up_axis or DEFAULT_UP_AXIS[MESH_FORMATS[resolved.suffix.lower()]]
+    scale = options.unit_scale_m if options.unit_scale_m is not None else 1.0
+    authored, places = places_from_boxes(boxes, up_axis, scale, source=str(resolved))
+    lo, hi = _write_mesh_asset(parts, class_name, options, up_axis, scale, target, authored)
+    variants = {stage_schema.VARIANT_SET_APPEARANCE: ("original",)}
+    return _Written(lo, hi, places, variants, {k: v[0] for k, v in variants.items()}, unit_scale_m=scale)
 
 
 def register_entry(catalog_dir: Path, entry: AssetEntry, data: dict | None = None) -> Path:

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.pipeline import stage_for_input
     from usdscene.errors import RenderError
     from usdscene.files import prepare_output_file, write_png_atomic
-    from usdscene.render.driver import render
+    from usdscene.render.driver import RenderOptions, render
     from usdscene.render.stage_reader import read_stage_plan
 
     if not Path(args.input).exists():
@@ -47,9 +47,9 @@ def run(args: argparse.Namespace) -> int:
         frame = plan.frame_start if args.frame is None else args.frame
         widest = max((c.intrinsics.width_px for c in plan.cameras), default=args.tile_width)
         scale = min(1.0, args.tile_width / widest)
-        render(stage, Path(tmp) / "out", frames=[frame],
-               settings_override={"samples": args.samples, "denoise": False, "resolution_scale": scale},
-               progress=sys.stderr.isatty())
+        render(stage, Path(tmp) / "out", RenderOptions(
+            frames=[frame], settings_override={"samples": args.samples, "denoise": False, "resolution_scale": scale},
+            progress=sys.stderr.isatty()))
         tiles = [(c.name, cv2.imread(str(layout.image_path(Path(tmp) / "out", c.name, frame))))
                  for c in plan.cameras]
     sheet = contact_sheet(tiles, args.tile_width, args.columns)

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from usdscene.commands._arguments import executor_for, parse_frames
     from usdscene.errors import Problem, RenderError
     from usdscene.pipeline import stage_for_input
-    from usdscene.render.driver import node_summary_lines, render
+    from usdscene.render.driver import RenderOptions, node_summary_lines, render
 
     executor = executor_for(args)  # bad executor options fail before composing a document
     try:
@@ -51,9 +51,10 @@ def run(args: argparse.Namespace) -> int:
         raise RenderError(f"input {args.input!r} does not exist", where=args.input)
     stage = stage_for_input(args.input, args.output)
     override = {"samples": args.samples} if args.samples is not None else None
-    report = render(stage, Path(args.output), frames=frames, cameras=args.cameras,
-                    settings_override=override, progress=not args.no_progress and sys.stderr.isatty(),
-                    executor=executor, retries=args.retries, keep_clean=args.keep_clean)
+    report = render(stage, Path(args.output), RenderOptions(
+        frames=frames, cameras=args.cameras, settings_override=override,
+        progress=not args.no_progress and sys.stderr.isatty(), executor=executor, retries=args.retries,
+        keep_clean=args.keep_clean))
     rate = report.pairs_rendered / report.wall_s if report.wall_s > 0 else 0.0
     retried = f", {report.retries} shards retried" if report.retries else ""
     print(f"{report.pairs_rendered} images rendered, {report.pairs_skipped} already done, "

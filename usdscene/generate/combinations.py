@@ -98,7 +98,7 @@ def region_conflicts(catalog: Catalog, environment: str,
     centres_a, axes_a, halves_a = np.asarray(centres), np.asarray(axes), np.asarray(halves)
     out = {}
     for i, region in enumerate(regions):
-        hits = boxes_overlap(centres_a[i], axes_a[i], halves_a[i], centres_a, axes_a, halves_a,
+        hits = boxes_overlap((centres_a[i], axes_a[i], halves_a[i]), (centres_a, axes_a, halves_a),
                              tolerance_m=REGION_TOUCH_M)
         out[region] = frozenset({regions[j] for j in np.flatnonzero(hits)} | {region})
     return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import collections
 import logging
+from dataclasses import dataclass
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -45,8 +46,22 @@ def plan_single_class(combinations: Sequence[Combination], conflicts: Mapping[Re
     return frames
 
 
-def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n_frames: int,
-                  objects_per_frame: int, taken: Sequence[set[Region]],
+@dataclass(frozen=True)
+class FrameSlots:
+    """The frames a plan fills (:func:`plan_balanced`, :func:`plan_random`).
+
+    Attributes:
+        count: sequence length, frames.
+        objects_per_frame: instance-frames (draws) per frame.
+        taken: per frame, regions already used (fixed objects, passengers); not changed.
+    """
+
+    count: int
+    objects_per_frame: int
+    taken: Sequence[set[Region]]
+
+
+def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], slots: FrameSlots,
                   conflicts: Mapping[Region, frozenset[Region]],
                   rng: np.random.Generator) -> list[list[Combination]]:
     """Share ``n_frames × objects_per_frame`` instance-frames equally among the classes.
@@ -54,9 +69,8 @@ def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n
     Args:
         combinations: the fitting combinations (:func:`fitting_combinations`).
         classes: classes to balance (each has at least one combination).
-        n_frames: sequence length.
-        objects_per_frame: instance-frames per frame.
-        taken: per frame, regions already used (fixed objects); not changed.
+        slots: the frames: how many, instance-frames per frame, regions already used per frame
+            (fixed objects).
         conflicts: region → overlapping regions (:func:`region_conflicts`); one object
             among them per frame.
         rng: generator (draw order: class shares, per-class orders and extras, the shuffle).
@@ -65,6 +79,7 @@ def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n
         Per frame, its combinations. A class that cannot get a free region in any frame with
         room loses that instance (logged; the report shows the counts).
     """
+    n_frames, objects_per_frame, taken = slots.count, slots.objects_per_frame, slots.taken
     by_class: dict[str, list[Combination]] = collections.defaultdict(list)
     for combo in sorted(combinations):
         by_class[combo.class_name].append(combo)
@@ -116,8 +131,7 @@ def plan_balanced(combinations: Sequence[Combination], classes: Sequence[str], n
     return frames
 
 
-def plan_random(combinations: Sequence[Combination], classes: Sequence[str], n_frames: int,
-                objects_per_frame: int, taken: Sequence[set[Region]],
+def plan_random(combinations: Sequence[Combination], classes: Sequence[str], slots: FrameSlots,
                 conflicts: Mapping[Region, frozenset[Region]],
                 rng: np.random.Generator) -> list[list[Combination]]:
     """The naive generator: uniform random classes and places, no balancing.
@@ -132,15 +146,15 @@ def plan_random(combinations: Sequence[Combination], classes: Sequence[str], n_f
     Args:
         combinations: the fitting combinations (:func:`fitting_combinations`).
         classes: classes to draw from (each has at least one combination).
-        n_frames: sequence length.
-        objects_per_frame: draws per frame.
-        taken: per frame, regions already used (fixed objects, passengers); not changed.
+        slots: the frames: how many, draws per frame, regions already used per frame (fixed
+            objects, passengers).
         conflicts: region → overlapping regions (:func:`region_conflicts`).
         rng: generator (draw order per frame and draw: class, place, relation).
 
     Returns:
         Per frame, its combinations.
     """
+    n_frames, objects_per_frame, taken = slots.count, slots.objects_per_frame, slots.taken
     by_class: dict[str, list[Combination]] = collections.defaultdict(list)
     for combo in sorted(combinations):
         by_class[combo.class_name].append(combo)

@@ -68,7 +68,7 @@ from usdscene.generate.combinations import (Combination, Region, fitting_combina
                                            most_combinations, region_conflicts, selected_places)
 from usdscene.generate.laps import (PASSENGER_RELATION, Lap, lap_combinations, lap_place_name, passenger_seats,
                                    with_lap_places)
-from usdscene.generate.sequence_plans import plan_balanced, plan_random, plan_single_class
+from usdscene.generate.sequence_plans import FrameSlots, plan_balanced, plan_random, plan_single_class
 from usdscene.scene.catalog import COMBINED_SETS, Catalog, PlaceRegion
 from usdscene.errors import DocumentError, ProblemCollector
 from usdscene.document.model import PLACEMENT_RELATIONS, FrameInterval, PlaceRef, Randomization, Relation, SceneObject, SceneSpec
@@ -196,7 +196,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
         taken = [_taken_at(fixed_taken, f) | _seated_taken(row, laps, seat_laps, conflicts)
                  for f, row in enumerate(seated)]
         plan_strategy = plan_random if options.strategy == "random" else plan_balanced
-        plan = plan_strategy(combos, classes, n_frames, per_frame, taken, conflicts, rng)
+        plan = plan_strategy(combos, classes, FrameSlots(n_frames, per_frame, taken), conflicts, rng)
 
     slots = _pool_indices(plan, options.strategy)
     looks = _draw_looks(plan, slots, catalog, setup.environment, options, rng)
@@ -209,6 +209,17 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
 
         # A generator of its own: the objects drawn above stay what they were without ranges.
         scene, drawn = randomize_scene(scene, np.random.default_rng([int(options.seed), DOMAIN_STREAM]))
+    report = _sequence_report(scene, catalog, options, plan, combos, classes, (per_frame, n_frames), setup_sha256)
+    if drawn is not None:
+        report["domain_randomization"] = drawn
+    return GeneratedSequence(scene=scene, report=report)
+
+
+def _sequence_report(scene: SceneSpec, catalog: Catalog, options: GenerateOptions, plan, combos, classes,
+                     sizes: tuple[int, int], setup_sha256: str) -> dict:
+    """The generated sequence's report: its balance, the generator's options and what the plan
+    covers of the combinations (``sizes``: objects per frame and frames)."""
+    per_frame, n_frames = sizes
     covered = {c for frame in plan for c in frame}
     uncovered = sorted(set(combos) - covered)
     report = balance_report(scene, catalog)
@@ -229,9 +240,7 @@ def generate_sequence(setup: SceneSpec, catalog: Catalog, options: GenerateOptio
     single = _without_variants(catalog, classes, options)
     if single:  # only then: reports of documents without such classes stay as they were
         report["coverage"]["classes_without_variants"] = single
-    if drawn is not None:
-        report["domain_randomization"] = drawn
-    return GeneratedSequence(scene=scene, report=report)
+    return report
 
 
 def _without_variants(catalog: Catalog, classes: Sequence[str], options: GenerateOptions) -> list[str]:

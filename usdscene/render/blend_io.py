@@ -51,29 +51,25 @@ def write_blend(stage_path: str | Path, blend_path: str | Path) -> Path:
     """
     from usdscene.files import prepare_output_file
     from usdscene.render.driver import camera_jobs, resolve_settings, run_job
+    from usdscene.render.job import BlendJob, JobObject
     from usdscene.render.stage_reader import read_stage_plan
 
     prepare_output_file(blend_path, what="Blender file")
     plan = read_stage_plan(stage_path)
     frames = list(plan.frames)
-    job = {
-        "mode": "blend",
-        "stage": str(plan.stage_path),
-        "blend": str(Path(blend_path).resolve()),
-        "out_dir": str(Path(blend_path).resolve().parent),
+    job = BlendJob(
+        stage=str(plan.stage_path),
+        blend=str(Path(blend_path).resolve()),
+        out_dir=str(Path(blend_path).resolve().parent),
         # Everything but the stage's cameras (the project gets real Blender cameras instead).
-        "prim_path_mask": ",".join([*plan.shared_prims, *(o.prim_path for o in plan.objects)])
-                          or "/World/__nothing__",
-        "settings": resolve_settings(plan.settings, None),
-        "objects": [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                     "visible_frames": list(o.visible_frames),
-                     **({"pose_frames": {v: list(fs) for v, fs in o.pose_frames}} if o.pose_frames else {})}
-                    for o in plan.objects],
-        "cameras": camera_jobs(plan, [c.name for c in plan.cameras], frames),
-        "frame_start": plan.frame_start,
-        "frame_end": plan.frame_end,
-        "document": _stage_document(plan.stage_path),
-    }
+        prim_path_mask=",".join([*plan.shared_prims, *(o.prim_path for o in plan.objects)]) or "/World/__nothing__",
+        settings=resolve_settings(plan.settings, None),
+        objects=tuple(JobObject.of(o) for o in plan.objects),
+        cameras=camera_jobs(plan, [c.name for c in plan.cameras], frames),
+        frame_start=plan.frame_start,
+        frame_end=plan.frame_end,
+        document=_stage_document(plan.stage_path),
+    )
     run_job(job, str(blend_path))
     return Path(blend_path)
 
@@ -104,6 +100,7 @@ def scene_from_blend(path: str | Path) -> SceneSpec:
     from usdscene.converters.stage.usd_stage import scene_from_stage
 
     from usdscene.render.driver import run_job
+    from usdscene.render.job import InspectBlendJob
 
     path = Path(path)
     if not path.is_file():
@@ -111,8 +108,7 @@ def scene_from_blend(path: str | Path) -> SceneSpec:
     with tempfile.TemporaryDirectory(prefix="usdscene-blend-") as tmp:
         usd = Path(tmp) / "scene.usda"
         info_path = Path(tmp) / "cameras.json"
-        run_job({"mode": "inspect_blend", "blend": str(path.resolve()), "usd": str(usd),
-                 "json": str(info_path)}, str(path))
+        run_job(InspectBlendJob(blend=str(path.resolve()), usd=str(usd), json=str(info_path)), str(path))
         info = json.loads(info_path.read_text())
         scene = scene_from_stage(usd)
     carried = _carried_scene(info.get("document"), path)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import logging
 import shutil
 import time
@@ -28,7 +27,7 @@ from usdscene.errors import Problem, RenderError
 from usdscene.files import write_json_atomic
 from usdscene.document.model import MAX_BOUNCES, RenderSettings
 from usdscene.labels.projection import undistorted_render_intrinsics
-from usdscene.render.job import intrinsics_to_json
+from usdscene.render.job import JobCamera, to_json
 from usdscene.render.manifest import Manifest, fingerprint
 from usdscene.render.shards import Progress, ShardQueue, ShardRunner, Tally, shard_job
 
@@ -174,12 +173,39 @@ def scale_intrinsics(intr, scale: float):
     return intr.resized(max(1, round(intr.width_px * scale)), max(1, round(intr.height_px * scale)))
 
 
-def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = None,
-           cameras: Sequence[str] | None = None,
-           settings_override: RenderSettings | Mapping[str, Any] | None = None,
-           progress: bool = True, workers: int | None = None,
-           on_event: Callable[[dict], None] | None = None,
-           executor: str | Any = "local", retries: int = DEFAULT_RETRIES, keep_clean: bool = False) -> RenderReport:
+@dataclass(frozen=True)
+class RenderOptions:
+    """What a :func:`render` call renders, and how.
+
+    Attributes:
+        frames: frames to render (default: the stage's whole range).
+        cameras: camera names (default: every camera under ``/World/Cameras``).
+        settings_override: RenderSettings or a mapping of fields that win over the stage's.
+        progress: show a ``rich`` progress bar on stderr.
+        workers: shards run side by side: local worker processes (default 1; CPU threads are
+            split between them), or for Ray an upper bound on tasks in flight (default: what
+            the cluster holds). Used only when ``executor`` is a name; an executor object
+            carries its own.
+        executor: ``"local"``, ``"ray"`` (a local Ray runtime) or an executor object from
+            :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
+        retries: how many times a shard whose worker died (a signal such as the OOM killer's
+            SIGKILL, a lost node) is run again for its unfinished images, on any slot.
+        keep_clean: for cameras with a sensor, also write the image before the sensor's
+            effects to ``out/images_clean/<camera>/<frame:06d>.png``.
+    """
+
+    frames: Sequence[int] | None = None
+    cameras: Sequence[str] | None = None
+    settings_override: RenderSettings | Mapping[str, Any] | None = None
+    progress: bool = True
+    workers: int | None = None
+    executor: str | Any = "local"
+    retries: int = DEFAULT_RETRIES
+    keep_clean: bool = False
+
+
+def render(stage_path: Path, out_dir: Path, options: RenderOptions | None = None, *,
+           on_event: Callable[[dict], None] | None = None, **fields) -> RenderReport:
     """Render every requested camera of every requested frame of a composed stage.
 
     Writes ``out/images/<camera>/<frame:06d>.png`` (8-bit sRGB), ``out/masks/<camera>/
@@ -190,23 +216,11 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     Args:
         stage_path: root layer of the composed stage (``out/stage/scene.usda``).
         out_dir: output folder.
-        frames: frames to render (default: the stage's whole range).
-        cameras: camera names (default: every camera under ``/World/Cameras``).
-        settings_override: RenderSettings or a mapping of fields that win over the stage's.
-        progress: show a ``rich`` progress bar on stderr.
-        workers: shards run side by side: local worker processes (default 1; CPU threads are
-            split between them), or for Ray an upper bound on tasks in flight (default: what
-            the cluster holds). Used only when ``executor`` is a name; an executor object
-            carries its own.
+        options: what to render and how (:class:`RenderOptions`; default: everything, locally).
         on_event: called with every progress event of the workers (dicts), in the parent, one
             at a time; a ``done`` event (its image and mask are written) before the image is
             recorded as finished in the manifest.
-        executor: ``"local"``, ``"ray"`` (a local Ray runtime) or an executor object from
-            :func:`usdscene.render.executors.make_executor` (e.g. Ray at an address).
-        retries: how many times a shard whose worker died (a signal such as the OOM killer's
-            SIGKILL, a lost node) is run again for its unfinished images, on any slot.
-        keep_clean: for cameras with a sensor, also write the image before the sensor's
-            effects to ``out/images_clean/<camera>/<frame:06d>.png``.
+        fields: :class:`RenderOptions` fields by keyword (``frames=[0]``), over ``options``.
 
     Returns:
         A :class:`RenderReport`.
@@ -220,36 +234,38 @@ def render(stage_path: Path, out_dir: Path, *, frames: Sequence[int] | None = No
     from usdscene.render.stage_reader import read_stage_plan
 
     started = time.perf_counter()
+    options = dataclasses.replace(options or RenderOptions(), **fields)
     out_dir = Path(out_dir)
     plan = read_stage_plan(stage_path)
-    settings = resolve_settings(plan.settings, settings_override)
-    frame_list, camera_list = _checked_selection(plan, stage_path, frames, cameras, workers=workers,
-                                                 retries=retries)
+    settings = resolve_settings(plan.settings, options.settings_override)
+    frame_list, camera_list = _checked_selection(plan, stage_path, options.frames, options.cameras,
+                                                 workers=options.workers, retries=options.retries)
+    executor = options.executor
     if isinstance(executor, str):
-        executor = make_executor(executor, workers=workers)
+        executor = make_executor(executor, workers=options.workers)
 
-    cam_json = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
-    manifest = _open_manifest(out_dir, plan, settings, cam_json, keep_clean=keep_clean)
+    job_cameras = camera_jobs(plan, camera_list, frame_list, float(settings["resolution_scale"]))
+    manifest = _open_manifest(out_dir, plan, settings, job_cameras, keep_clean=options.keep_clean)
     manifest.depth_format = settings["depth"]
     _remove_stale_temporaries(out_dir, camera_list, settings["depth"])
     remove_stale_scratch()
     todo = [(f, c) for f in frame_list for c in camera_list if not manifest.is_done(f, c)]
-    _check_free_space(out_dir, plan, todo, float(settings["resolution_scale"]), keep_clean)
+    _check_free_space(out_dir, plan, todo, float(settings["resolution_scale"]), options.keep_clean)
     total = len(frame_list) * len(camera_list)
     skipped = total - len(todo)
     write_json_atomic(out_dir / layout.ID_MAP_FILE, layout.id_map_json(plan.objects))
 
     tally = Tally(manifest, on_event)
     if todo:
-        bar = Progress(total, skipped, enabled=progress)
+        bar = Progress(total, skipped, enabled=options.progress)
         try:
             with executor, bar:
                 executor.prepare(plan.stage_path, settings)
                 queue = ShardQueue(todo, executor.slots, executor.target_shard_s,
-                                    _seconds_per_image(manifest), retries=int(retries))
+                                    _seconds_per_image(manifest), retries=int(options.retries))
                 runner = ShardRunner(executor, queue, tally, bar, out_dir,
-                                      functools.partial(shard_job, plan, settings, cam_json,
-                                                        executor.threads_per_worker, keep_clean))
+                                      functools.partial(shard_job, plan, settings, job_cameras,
+                                                        executor.threads_per_worker, options.keep_clean))
                 errors = runner.run()
         finally:
             if tally.totals["retries"]:
@@ -306,7 +322,7 @@ def _checked_selection(plan, stage_path: Path, frames: Sequence[int] | None, cam
     return frame_list, camera_list
 
 
-def _open_manifest(out_dir: Path, plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], *,
+def _open_manifest(out_dir: Path, plan, settings: Mapping[str, Any], cameras: Mapping[str, JobCamera], *,
                    keep_clean: bool = False) -> Manifest:
     """The output's manifest of finished pairs, kept only when it was written for the same stage,
     settings (the device aside), cameras and objects."""
@@ -316,16 +332,17 @@ def _open_manifest(out_dir: Path, plan, settings: Mapping[str, Any], cam_json: M
     manifest = Manifest.load(out_dir, fingerprint({
         **({"keep_clean": True} if keep_clean and plan.sensors else {}),
         "stage": stage_digest(plan.stage_path), "settings": print_settings,
-        "cameras": {n: {k: v for k, v in c.items()} for n, c in cam_json.items()},
+        "cameras": {n: c.to_json() for n, c in cameras.items()},
         "objects": [dataclasses.asdict(o) for o in plan.objects],
     }))
     manifest.versions = {"usdscene": __version__}
     return manifest
 
 
-def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict:
-    """Per camera: its intrinsics, the native lens to render (a wider undistorted view for
-    OpenCV models), its base pose and per-frame poses (OpenCV axes, 16 row-major numbers)."""
+def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale: float = 1.0) -> dict[str, JobCamera]:
+    """Per camera, its :class:`~usdscene.render.job.JobCamera`: its intrinsics, the native lens
+    to render (a wider undistorted view for OpenCV models), its base pose and per-frame poses
+    (OpenCV axes, 16 row-major numbers) and its sensor."""
     by_name = {c.name: c for c in plan.cameras}
     out = {}
     for name in camera_names:
@@ -338,19 +355,12 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
             render_intr = undistorted_render_intrinsics(intr)
         except ValueError as exc:
             raise RenderError(str(exc), where=f"{plan.stage_path}:/World/Cameras/{name}") from None
-        out[name] = {
-            "intrinsics": intrinsics_to_json(intr),
-            "render_intrinsics": intrinsics_to_json(render_intr),
-            "pose": list(cam.pose.matrix),
-            "poses": {str(f): list(p.matrix) for f, p in cam.frame_poses if f in wanted},
-            "clip_m": [cam.clip_near_m, cam.clip_far_m],
-        }
-        # Only cameras with a sensor carry the key: the manifest fingerprint of the others
-        # stays what it was before sensors existed.
-        if name in getattr(plan, "sensors", {}):
-            out[name]["sensor"] = plan.sensors[name]
+        sensor = getattr(plan, "sensors", {}).get(name)
         if warmup:  # exposure adapting over frames: the window (usdscene.sensor.exposure.meter_window)
-            out[name]["sensor"] = {**plan.sensors[name], "warmup_frames": warmup, "first_frame": plan.frames.start}
+            sensor = {**sensor, "warmup_frames": warmup, "first_frame": plan.frames.start}
+        out[name] = JobCamera(intr, render_intr, tuple(cam.pose.matrix),
+                              {f: tuple(p.matrix) for f, p in cam.frame_poses if f in wanted},
+                              (cam.clip_near_m, cam.clip_far_m), sensor)
     return out
 
 
@@ -367,8 +377,8 @@ def sequence_warmup(plan, camera: str) -> int:
     return warmup_frames(float(spec.exposure_speed)) if spec.auto_exposure else 0
 
 
-def run_job(job: dict, what: str) -> list[dict]:
-    """Run one worker on ``job`` (any mode) and return its events.
+def run_job(job, what: str) -> list[dict]:
+    """Run one worker on ``job`` (any kind of :mod:`usdscene.render.job`) and return its events.
 
     Raises:
         RenderError: the worker failed (its message, the signal that killed it, or the tail
@@ -380,9 +390,9 @@ def run_job(job: dict, what: str) -> list[dict]:
     scratch = make_scratch("job")
     events: list[dict] = []
     try:
-        job = dict(job, scratch_dir=str(scratch))
+        job = dataclasses.replace(job, scratch_dir=str(scratch))
         job_path = scratch / "job-0.json"
-        job_path.write_text(json.dumps(job))
+        job_path.write_text(to_json(job))
         for event in iter_worker_events(job_path, scratch / "job-0.log"):
             if event["event"] == "exit":
                 outcome = describe_exit(event["code"], event["error"], event["log_tail"])

@@ -1,6 +1,6 @@
 """Where render shards run: the executor boundary of the driver. Never imports bpy.
 
-A *shard* is a job dict (see :mod:`usdscene.render.job`) for a run of (frame, camera) pairs
+A *shard* is a :class:`~usdscene.render.job.RenderJob` for a run of (frame, camera) pairs
 of consecutive frames, without the machine-specific paths (``out_dir``, ``scratch_dir``). An
 executor runs one shard at a time per *slot* and reports every worker event to the driver:
 
@@ -19,14 +19,15 @@ The driver owns planning, retries, the manifest and progress.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import itertools
-import json
 import logging
 import os
 import socket
 from pathlib import Path
 from typing import Callable
 
+from usdscene.render.job import RenderJob, to_json
 from usdscene.render.worker_process import (
     ShardExit,
     describe_exit,
@@ -96,14 +97,14 @@ class LocalExecutor:
     def prepare(self, stage_path: Path, settings: dict) -> None:
         """Nothing to ship: the worker reads the stage where it lies."""
 
-    def run_shard(self, job: dict, out_dir: Path, on_event: Callable[[dict], None]) -> ShardExit:
+    def run_shard(self, job: RenderJob, out_dir: Path, on_event: Callable[[dict], None]) -> ShardExit:
         """Run one shard in one worker process; every event goes to ``on_event`` (from this
         thread), each tagged with ``node``."""
         assert self._scratch is not None, "use LocalExecutor as a context manager"
         job_path = self._scratch / f"job-{next(self._numbers)}.json"
-        job = dict(job, out_dir=str(Path(out_dir).resolve()), scratch_dir=str(self._scratch),
-                   parent_pid=os.getpid())
-        job_path.write_text(json.dumps(job))
+        job = dataclasses.replace(job, out_dir=str(Path(out_dir).resolve()), scratch_dir=str(self._scratch),
+                                  parent_pid=os.getpid())
+        job_path.write_text(to_json(job))
         on_event({"event": "started", "node": self.node, "pid": os.getpid()})
         for event in iter_worker_events(job_path, job_path.with_suffix(".log")):
             if event["event"] == "exit":

@@ -25,7 +25,7 @@ node image); a task on a node with another version fails with a message naming b
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import logging
 import os
 import shutil
@@ -34,6 +34,7 @@ from pathlib import Path, PurePosixPath
 from typing import Callable
 
 from usdscene.errors import Problem, RenderError
+from usdscene.render.job import RenderJob, to_json
 from usdscene.render.worker_process import ShardExit, describe_exit, iter_worker_events
 
 log = logging.getLogger(__name__)
@@ -75,13 +76,13 @@ class StageBundle:
             target.write_bytes(data)
         return folder / self.stage
 
-    def node_job(self, job: dict, folder: Path) -> dict:
+    def node_job(self, job: RenderJob, folder: Path) -> RenderJob:
         """``job`` as a node runs it after :meth:`extract` into ``folder``: the stage and the
         world's HDRI read from the extracted copies."""
         folder = Path(folder)
-        job = dict(job, stage=str(folder / self.stage))
-        if self.hdri is not None and job.get("world", {}).get("hdri_path"):
-            job["world"] = dict(job["world"], hdri_path=str(folder / self.hdri))
+        job = dataclasses.replace(job, stage=str(folder / self.stage))
+        if self.hdri is not None and (job.world or {}).get("hdri_path"):
+            job = dataclasses.replace(job, world=dict(job.world, hdri_path=str(folder / self.hdri)))
         return job
 
 
@@ -107,7 +108,7 @@ def bundle_stage(stage_path: Path) -> StageBundle:
                        _mirrored(found.hdri) if found.hdri is not None else None)
 
 
-def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
+def render_shard_task(job: RenderJob, bundle: StageBundle, driver_version: str):
     """The body of one Ray task (runs on a node): extract the stage, run the worker, stream
     its events; ``done`` events carry ``image_png`` and ``mask_png`` bytes.
 
@@ -135,16 +136,16 @@ def render_shard_task(job: dict, bundle: StageBundle, driver_version: str):
     try:
         bundle.extract(scratch / "stage")
         out = scratch / "out"
-        job = dict(bundle.node_job(job, scratch / "stage"), out_dir=str(out), scratch_dir=str(scratch),
-                   parent_pid=os.getpid())
+        job = dataclasses.replace(bundle.node_job(job, scratch / "stage"), out_dir=str(out),
+                                  scratch_dir=str(scratch), parent_pid=os.getpid())
         job_path = scratch / "job.json"
-        job_path.write_text(json.dumps(job))
+        job_path.write_text(to_json(job))
         for event in iter_worker_events(job_path, scratch / "worker.log"):
             if event["event"] == "done":
                 frame, camera = int(event["frame"]), event["camera"]
                 files = [("mask_png", layout.mask_path(out, camera, frame)),
                          ("image_png", layout.image_path(out, camera, frame))]
-                depth = job["settings"].get("depth")
+                depth = job.settings.get("depth")
                 if depth:
                     files.append(("depth_bytes", layout.depth_path(out, camera, frame, depth)))
                 for key, path in files:
@@ -260,7 +261,7 @@ class RayExecutor:
 
         self._version = __version__
 
-    def run_shard(self, job: dict, out_dir: Path, on_event: Callable[[dict], None]) -> ShardExit:
+    def run_shard(self, job: RenderJob, out_dir: Path, on_event: Callable[[dict], None]) -> ShardExit:
         """Run one shard as a Ray task; write each image as it arrives, then report it."""
         from usdscene.document import output_layout as layout
         from usdscene.files import write_bytes_atomic
@@ -278,7 +279,7 @@ class RayExecutor:
                     mask, image = event.pop("mask_png"), event.pop("image_png")
                     depth = event.pop("depth_bytes", None)
                     if depth is not None:  # before the mask, as in the worker
-                        write_bytes_atomic(layout.depth_path(out_dir, camera, frame, job["settings"]["depth"]), depth)
+                        write_bytes_atomic(layout.depth_path(out_dir, camera, frame, job.settings["depth"]), depth)
                     # Mask first: a pair counts as done only when both exist (as in the worker).
                     write_bytes_atomic(layout.mask_path(out_dir, camera, frame), mask)
                     write_bytes_atomic(layout.image_path(out_dir, camera, frame), image)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
+from usdscene.render.job import JobCamera, JobObject, RenderJob
 from usdscene.render.manifest import Manifest
 from usdscene.sensor.exposure import meter_window
 from usdscene.render.worker_process import ShardExit
@@ -30,36 +31,30 @@ MAX_RENDERS_PER_WORKER = 250
 ASSUMED_SECONDS_PER_IMAGE = 15.0
 
 
-def shard_job(plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], threads: int | None,
-              keep_clean: bool, pairs: Sequence[tuple[int, str]]) -> dict:
-    """The worker job (:mod:`usdscene.render.job`) of one shard: its (frame, camera) pairs, the
+def shard_job(plan, settings: Mapping[str, Any], cameras: Mapping[str, JobCamera], threads: int | None,
+              keep_clean: bool, pairs: Sequence[tuple[int, str]]) -> RenderJob:
+    """The :class:`~usdscene.render.job.RenderJob` of one shard: its (frame, camera) pairs, the
     objects present in its frames and the prims to import, without machine-specific paths;
     ``keep_clean`` asks sensor cameras' workers for the image before the sensor too."""
     frame_set = {f for f, _ in pairs}
     # an adapting camera's pre-passes: the frames of its exposure window (driver.sequence_warmup)
-    frame_set |= {g for f, c in pairs if "warmup_frames" in cam_json[c].get("sensor", {})
-                  for g in meter_window(f, cam_json[c]["sensor"]["warmup_frames"], cam_json[c]["sensor"]["first_frame"])}
-    objects = [{"uid": o.uid, "mask_id": o.mask_id, "prim": o.prim_path,
-                "visible_frames": [f for f in o.visible_frames if f in frame_set],
-                # only objects whose pose changes per frame add the key: other jobs stay as they were
-                **({"pose_frames": {v: [f for f in fs if f in frame_set] for v, fs in o.pose_frames}}
-                   if o.pose_frames else {})}
-               for o in plan.objects if frame_set.intersection(o.visible_frames)]
-    mask = list(plan.shared_prims) + [o["prim"] for o in objects]
-    return {
-        # Only documents with a world, and runs keeping clean images, add keys: other jobs stay
-        # what they were before worlds and sensors existed.
-        **({"world": plan.world} if plan.world is not None else {}),
-        **({"keep_clean": True} if keep_clean else {}),
-        "stage": str(plan.stage_path),
+    frame_set |= {g for f, c in pairs if "warmup_frames" in (cameras[c].sensor or {})
+                  for g in meter_window(f, cameras[c].sensor["warmup_frames"], cameras[c].sensor["first_frame"])}
+    frame_set = frozenset(frame_set)
+    objects = tuple(JobObject.of(o, frame_set) for o in plan.objects if frame_set.intersection(o.visible_frames))
+    mask = list(plan.shared_prims) + [o.prim for o in objects]
+    return RenderJob(
+        world=plan.world,
+        keep_clean=keep_clean,
+        stage=str(plan.stage_path),
         # An empty mask would import everything: name a path that cannot exist.
-        "prim_path_mask": ",".join(mask) if mask else "/World/__nothing__",
-        "settings": settings,
-        "threads": threads,
-        "objects": objects,
-        "cameras": {c: cam_json[c] for c in sorted({c for _, c in pairs})},
-        "pairs": [[f, c] for f, c in pairs],
-    }
+        prim_path_mask=",".join(mask) if mask else "/World/__nothing__",
+        settings=settings,
+        threads=threads,
+        objects=objects,
+        cameras={c: cameras[c] for c in sorted({c for _, c in pairs})},
+        pairs=tuple((f, c) for f, c in pairs),
+    )
 
 
 class Tally:
@@ -123,7 +118,7 @@ class ShardRunner:
     decides after each shard: finished, run again (its worker died), or failed."""
 
     def __init__(self, executor, queue: ShardQueue, tally: Tally, bar: Progress, out_dir: Path,
-                 job_for: Callable[[Sequence[tuple[int, str]]], dict]):
+                 job_for: Callable[[Sequence[tuple[int, str]]], RenderJob]):
         self.executor, self.queue, self.tally, self.bar = executor, queue, tally, bar
         self.out_dir, self.job_for = out_dir, job_for
         tally.bar = bar

@@ -223,7 +223,7 @@ def write_render_settings(stage, settings: RenderSettings) -> None:
 
 def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
     """Write ``stage_dir/scene.usda`` for ``scene`` and return its path."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, Vt
+    from pxr import Gf, Usd, UsdGeom, UsdLux
 
     stage_dir = Path(stage_dir)
     stage_dir.mkdir(parents=True, exist_ok=True)
@@ -243,56 +243,10 @@ def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
     frames = range(scene.frame_start, scene.frame_end + 1)
     for camera in scene.cameras:
         write_camera(stage, camera, frames)
-    seg, rings = scene.sphere_segments
     for sphere in scene.spheres:
-        prim_path = names.object_prim_path(sphere.class_name, sphere.uid)
-        mesh = UsdGeom.Mesh.Define(stage, prim_path)
-        pts, counts, idx = uv_sphere(sphere.radius_m, seg, rings)
-        mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in pts.tolist()]))
-        mesh.CreateFaceVertexCountsAttr(Vt.IntArray(counts.tolist()))
-        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(idx.tolist()))
-        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        mesh.CreateExtentAttr([Gf.Vec3f(-sphere.radius_m), Gf.Vec3f(sphere.radius_m)])
-        translate = mesh.AddTranslateOp()
-        if sphere.frame_centres:
-            for f, c in sphere.frame_centres:
-                translate.Set(Gf.Vec3d(*c), f)
-        else:
-            translate.Set(Gf.Vec3d(*sphere.centre_m))
-        prim = mesh.GetPrim()
-        prim.SetCustomDataByKey(names.CUSTOM_UID, sphere.uid)
-        prim.SetCustomDataByKey(names.CUSTOM_CLASS, sphere.class_name)
-        prim.CreateAttribute(names.ATTR_USER_UID, Sdf.ValueTypeNames.String).Set(sphere.uid)
-        prim.CreateAttribute(names.ATTR_USER_CLASS, Sdf.ValueTypeNames.String).Set(sphere.class_name)
-        prim.CreateAttribute(names.ATTR_MASK_ID, Sdf.ValueTypeNames.Int).Set(sphere.mask_id)
-        if sphere.frames:
-            vis = mesh.CreateVisibilityAttr()
-            for f in frames:
-                vis.Set(UsdGeom.Tokens.inherited if f in sphere.frames else UsdGeom.Tokens.invisible, f)
-        if sphere.emissive:
-            material = _material(stage, f"{prim_path}/Looks/Flat", emissive=sphere.color_rgb,
-                                 opacity=sphere.opacity)
-        else:
-            material = _material(stage, f"{prim_path}/Looks/Flat", diffuse=sphere.color_rgb,
-                                 opacity=sphere.opacity)
-        from pxr import UsdShade
-        UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
+        _write_sphere(stage, sphere, frames, scene.sphere_segments)
     for box in scene.boxes:
-        prim_path = f"{names.ENVIRONMENT}/{names.prim_name(box.name)}"
-        mesh = UsdGeom.Mesh.Define(stage, prim_path)
-        pts, counts, idx = box_mesh(box.size_m, box.inward)
-        mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
-        mesh.CreateFaceVertexCountsAttr(counts)
-        mesh.CreateFaceVertexIndicesAttr(idx)
-        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        mesh.AddTranslateOp().Set(Gf.Vec3d(*box.centre_m))
-        material = _material(stage, f"{prim_path}/Looks/Diffuse", diffuse=box.color_rgb)
-        if box.surface is not None:
-            from usdscene.document.surfaces import SURFACE_ATTRIBUTE
-
-            mesh.GetPrim().CreateAttribute(SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(box.surface)
-        from pxr import UsdShade
-        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+        _write_box(stage, box)
     if scene.lights:
         UsdGeom.Scope.Define(stage, names.LIGHTS)
     for light in scene.lights:
@@ -305,16 +259,100 @@ def write_synthetic_stage(scene: SyntheticScene, stage_dir: Path) -> Path:
     return path
 
 
-def cabin_like_scene(*, frames: int = 5, cameras: int = 4, objects: int = 60, rows: int = 20,
-                     width_px: int = 640, height_px: int = 480, seed: int = 0,
-                     sphere_segments: tuple[int, int] = (48, 24)) -> SyntheticScene:
+def _write_sphere(stage, sphere: SphereSpec, frames: range, segments: tuple[int, int]) -> None:
+    """One sphere object: its mesh (``segments``: longitude and latitude steps), per-frame
+    position and visibility over ``frames``, ids and material."""
+    from pxr import Gf, Sdf, UsdGeom, Vt
+
+    prim_path = names.object_prim_path(sphere.class_name, sphere.uid)
+    mesh = UsdGeom.Mesh.Define(stage, prim_path)
+    pts, counts, idx = uv_sphere(sphere.radius_m, *segments)
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in pts.tolist()]))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray(counts.tolist()))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(idx.tolist()))
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateExtentAttr([Gf.Vec3f(-sphere.radius_m), Gf.Vec3f(sphere.radius_m)])
+    translate = mesh.AddTranslateOp()
+    if sphere.frame_centres:
+        for f, c in sphere.frame_centres:
+            translate.Set(Gf.Vec3d(*c), f)
+    else:
+        translate.Set(Gf.Vec3d(*sphere.centre_m))
+    prim = mesh.GetPrim()
+    prim.SetCustomDataByKey(names.CUSTOM_UID, sphere.uid)
+    prim.SetCustomDataByKey(names.CUSTOM_CLASS, sphere.class_name)
+    prim.CreateAttribute(names.ATTR_USER_UID, Sdf.ValueTypeNames.String).Set(sphere.uid)
+    prim.CreateAttribute(names.ATTR_USER_CLASS, Sdf.ValueTypeNames.String).Set(sphere.class_name)
+    prim.CreateAttribute(names.ATTR_MASK_ID, Sdf.ValueTypeNames.Int).Set(sphere.mask_id)
+    if sphere.frames:
+        vis = mesh.CreateVisibilityAttr()
+        for f in frames:
+            vis.Set(UsdGeom.Tokens.inherited if f in sphere.frames else UsdGeom.Tokens.invisible, f)
+    if sphere.emissive:
+        material = _material(stage, f"{prim_path}/Looks/Flat", emissive=sphere.color_rgb,
+                             opacity=sphere.opacity)
+    else:
+        material = _material(stage, f"{prim_path}/Looks/Flat", diffuse=sphere.color_rgb,
+                             opacity=sphere.opacity)
+    from pxr import UsdShade
+    UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
+
+
+def _write_box(stage, box: BoxSpec) -> None:
+    """One environment box: its mesh, its diffuse material and its procedural surface."""
+    from pxr import Gf, Sdf, UsdGeom
+
+    prim_path = f"{names.ENVIRONMENT}/{names.prim_name(box.name)}"
+    mesh = UsdGeom.Mesh.Define(stage, prim_path)
+    pts, counts, idx = box_mesh(box.size_m, box.inward)
+    mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
+    mesh.CreateFaceVertexCountsAttr(counts)
+    mesh.CreateFaceVertexIndicesAttr(idx)
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.AddTranslateOp().Set(Gf.Vec3d(*box.centre_m))
+    material = _material(stage, f"{prim_path}/Looks/Diffuse", diffuse=box.color_rgb)
+    if box.surface is not None:
+        from usdscene.document.surfaces import SURFACE_ATTRIBUTE
+
+        mesh.GetPrim().CreateAttribute(SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(box.surface)
+    from pxr import UsdShade
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+
+
+@dataclass(frozen=True)
+class CabinLike:
+    """Sizes of :func:`cabin_like_scene`.
+
+    Attributes:
+        frames: frames of the sequence (from 0).
+        cameras: ceiling cameras looking down the aisle.
+        objects: diffuse spheres (bag and passenger stand-ins).
+        rows: seat rows (two seat boxes each, 0.8 m apart).
+        width_px, height_px: every camera's image size, pixels.
+        seed: the seed of the spheres' sizes, places, colours and appearances.
+        sphere_segments: longitude and latitude steps of each sphere's mesh.
+    """
+
+    frames: int = 5
+    cameras: int = 4
+    objects: int = 60
+    rows: int = 20
+    width_px: int = 640
+    height_px: int = 480
+    seed: int = 0
+    sphere_segments: tuple[int, int] = (48, 24)
+
+
+def cabin_like_scene(sizes: CabinLike = CabinLike()) -> SyntheticScene:
     """An enclosed, cabin-like benchmark scene: a 3.6 m wide, 2.2 m high tube of ``rows`` seat
     rows (boxes), 16 ceiling point lights, ``objects`` diffuse spheres of assorted colours
     (bags and passengers stand-ins; some appear mid-sequence, some move) and ``cameras``
-    ceiling cameras looking down the aisle at ``width_px`` × ``height_px``.
+    ceiling cameras looking down the aisle at ``width_px`` × ``height_px`` (``sizes``).
 
     Deterministic for a given ``seed``.
     """
+    frames, cameras, objects, rows = sizes.frames, sizes.cameras, sizes.objects, sizes.rows
+    width_px, height_px, seed, sphere_segments = sizes.width_px, sizes.height_px, sizes.seed, sizes.sphere_segments
     from usdscene.document.model import Intrinsics, LensModel, Pose
 
     rng = np.random.default_rng(seed)

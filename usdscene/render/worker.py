@@ -4,8 +4,8 @@
 Run as ``python -m usdscene.render.worker JOB.json`` (or with ``--wait-for-job``: import bpy
 first, then read the job file's path from stdin, for a worker started before its job exists,
 see :func:`usdscene.render.worker_process.prestart_workers`); never imported by the parent (bpy breaks
-``multiprocessing`` and owns process-wide state). The job file (written by
-:mod:`usdscene.render.driver`, see :mod:`usdscene.render.job`) says which stage to import,
+``multiprocessing`` and owns process-wide state). The job file (a
+:class:`usdscene.render.job.RenderJob` written by the executor) says which stage to import,
 which prims the shard needs, which objects are visible on which frames with which mask ids, the
 calibrated cameras and their poses per frame, the render settings and the (frame, camera)
 pairs to render, in order.
@@ -31,16 +31,17 @@ What happens:
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
 
+from usdscene.errors import RenderError
 from usdscene.render.blender.blend import build_blend, export_blend_usd, inspect_blend
 from usdscene.render.blender.cycles import DeviceError
 from usdscene.render.blender.process import die_with_parent, emit, import_bpy
 from usdscene.render.blender.session import Session, render_pairs
 from usdscene.render.blender.world import bake_world
+from usdscene.render.job import BakeWorldJob, BlendJob, BlendToUsdJob, InspectBlendJob, RenderJob, from_json
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,17 +57,16 @@ def main(argv: list[str] | None = None) -> int:
         if not job_path:  # not needed after all
             return 0
         argv = [job_path]
-    job = json.loads(Path(argv[0]).read_text())
-    die_with_parent(job.get("parent_pid"))
-    for o in job.get("objects", ()):
-        o["_visible"] = set(o["visible_frames"])
-        if "pose_frames" in o:
-            o["pose_frames"] = {v: set(fs) for v, fs in o["pose_frames"].items()}
-    mode = job.get("mode", "render")
-    if mode in ("blend", "inspect_blend", "export_usd", "bake_world"):
+    try:
+        job = from_json(Path(argv[0]).read_text(), where=argv[0])
+    except RenderError as exc:  # a job file of another version: one line for the driver
+        emit({"event": "error", "message": str(exc)})
+        return 1
+    die_with_parent(job.parent_pid)
+    if not isinstance(job, RenderJob):
         try:
-            {"blend": build_blend, "inspect_blend": inspect_blend, "export_usd": export_blend_usd,
-             "bake_world": bake_world}[mode](job)
+            {BlendJob: build_blend, InspectBlendJob: inspect_blend, BlendToUsdJob: export_blend_usd,
+             BakeWorldJob: bake_world}[type(job)](job)
         except Exception as exc:
             emit({"event": "error", "message": f"{type(exc).__name__}: {exc}"})
             return 1
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
         message = str(exc) if isinstance(exc, DeviceError) else f"{type(exc).__name__}: {exc}"
         emit({"event": "error", "message": message})
         return 1
-    if not render_pairs(session, job["pairs"]):
+    if not render_pairs(session, job.pairs):
         return 1
     try:
         session.exr_path.unlink()

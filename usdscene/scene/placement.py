@@ -180,19 +180,18 @@ def _asset_box(extent_min_m: tuple[float, ...], extent_max_m: tuple[float, ...])
     return (lo + hi) / 2.0, (hi - lo) / 2.0
 
 
-def boxes_overlap(centre: np.ndarray, axes: np.ndarray, half: np.ndarray,
-                  centres: np.ndarray, axes_k: np.ndarray, halves: np.ndarray,
-                  tolerance_m: float = CONTACT_TOLERANCE_M) -> np.ndarray:
+def boxes_overlap(box: tuple, others: tuple, tolerance_m: float = CONTACT_TOLERANCE_M) -> np.ndarray:
     """Separating-axis test of one oriented box against K others.
 
     Args:
-        centre, axes, half: the box: (3,), (3, 3) axes as columns, (3,) half sizes.
-        centres, axes_k, halves: the others: (K, 3), (K, 3, 3), (K, 3).
+        box: ``(centre, axes, half)``: (3,) metres, (3, 3) axes as columns, (3,) half sizes.
+        others: ``(centres, axes, halves)`` of the others: (K, 3), (K, 3, 3), (K, 3).
         tolerance_m: penetration depth still counted as contact.
 
     Returns:
         (K,) bool: True where the boxes interpenetrate by more than ``tolerance_m``.
     """
+    (centre, axes, half), (centres, axes_k, halves) = box, others
     box = np.concatenate([np.asarray(centre, dtype=np.float64).reshape(3), np.asarray(axes, dtype=np.float64).reshape(9),
                           np.asarray(half, dtype=np.float64).reshape(3)])
     centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
@@ -296,21 +295,7 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
                                         f"asset catalog (known: {', '.join(catalog.classes('environment')) or 'none'})")
         else:
             env_places = catalog.places(scene.environment)
-    for obj in scene.objects:
-        if obj.class_name not in catalog:
-            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has unknown class {obj.class_name!r} "
-                                                f"(known classes: {', '.join(catalog.classes()) or 'none'})")
-        elif catalog[obj.class_name].kind == "environment":
-            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has class {obj.class_name!r}, "
-                                                "which is an environment, not a placeable object")
-        else:
-            for field_name, set_name, chosen in (("appearance", "appearance", obj.appearance),
-                                                 ("pose_variant", "pose", obj.pose_variant)):
-                choices = catalog[obj.class_name].variants.get(set_name, ())
-                if chosen is not None and chosen not in choices:
-                    problems.add(f"objects.{obj.uid}.{field_name}",
-                                 f"object {obj.uid!r}: {set_name} {chosen!r} is not a variant of "
-                                 f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+    _check_object_classes(scene, catalog, problems)
     for rel in scene.relations:
         if rel.type not in PLACEMENT_RELATIONS:
             continue
@@ -359,7 +344,31 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
         else:
             problems.add(where, f"relation {rel.uid!r}: {rel.subject_uid!r} {rel.type} {rel.object_uid!r}, "
                                 "which is neither a place nor an object of the document")
-    # Cycles among object → object relations.
+    _check_cycles(scene, objects, problems)
+    problems.raise_if_any(CompositionError)
+
+
+def _check_object_classes(scene: SceneSpec, catalog: Catalog, problems: ProblemCollector) -> None:
+    """Every object's class is a placeable catalog class and its variants exist."""
+    for obj in scene.objects:
+        if obj.class_name not in catalog:
+            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has unknown class {obj.class_name!r} "
+                                                f"(known classes: {', '.join(catalog.classes()) or 'none'})")
+        elif catalog[obj.class_name].kind == "environment":
+            problems.add(f"objects.{obj.uid}", f"object {obj.uid!r} has class {obj.class_name!r}, "
+                                                "which is an environment, not a placeable object")
+        else:
+            for field_name, set_name, chosen in (("appearance", "appearance", obj.appearance),
+                                                 ("pose_variant", "pose", obj.pose_variant)):
+                choices = catalog[obj.class_name].variants.get(set_name, ())
+                if chosen is not None and chosen not in choices:
+                    problems.add(f"objects.{obj.uid}.{field_name}",
+                                 f"object {obj.uid!r}: {set_name} {chosen!r} is not a variant of "
+                                 f"class {obj.class_name!r} (variants: {', '.join(choices) or 'none'})")
+
+
+def _check_cycles(scene: SceneSpec, objects: Mapping, problems: ProblemCollector) -> None:
+    """No object rests on itself through object → object relations."""
     graph: dict[str, list[tuple[str, str]]] = {}
     for rel in scene.relations:
         if (rel.type in PLACEMENT_RELATIONS and rel.subject_uid in objects and rel.object_uid in objects
@@ -369,7 +378,6 @@ def check_placement_inputs(scene: SceneSpec, catalog: Catalog) -> None:
         chain = " → ".join(repr(u) for u in cycle)
         problems.add(f"objects.{cycle[0]}", f"cyclic placement relations: {chain}; object "
                                             f"{cycle[0]!r} would rest on itself")
-    problems.raise_if_any(CompositionError)
 
 
 def _add_fit_problem(problems: ProblemCollector, obj: SceneObject, catalog: Catalog,

@@ -120,6 +120,15 @@ def apply_settings(scene, s: dict, *, rendering: bool, exr_path, threads: int | 
     cycles.seed = int(s["seed"])
     cycles.use_animated_seed = False
     scene.render.use_persistent_data = True
+    _set_output(scene, s, exr_path)
+    if threads:
+        scene.render.threads_mode = "FIXED"
+        scene.render.threads = int(threads)
+
+
+def _set_output(scene, s: dict, exr_path) -> None:
+    """Colour management as rendered (Standard, no look or exposure) and the output: a
+    multilayer EXR at ``exr_path`` with the beauty, the object index and (``s["depth"]``) Z."""
     scene.render.resolution_percentage = 100
     scene.render.film_transparent = False
     scene.render.dither_intensity = 0.0
@@ -138,6 +147,3 @@ def apply_settings(scene, s: dict, *, rendering: bool, exr_path, threads: int | 
     image.exr_codec = "NONE"  # /dev/shm: compression costs time and saves nothing
     scene.render.filepath = str(exr_path)
     scene.render.use_file_extension = False
-    if threads:
-        scene.render.threads_mode = "FIXED"
-        scene.render.threads = int(threads)

@@ -12,15 +12,16 @@ from usdscene.render.blender.cycles import apply_settings, enable_gpu
 from usdscene.render.blender.outputs import linear_to_srgb8, read_exr, write_display_outputs
 from usdscene.render.blender.process import emit, import_bpy, rss_mb
 from usdscene.render.blender.world import WorldNodes
+from usdscene.render.job import BlendJob, JobObject, RenderJob
 
 
 class Session:
     """A Blender scene holding one imported stage shard and one render camera."""
 
-    def __init__(self, job: dict) -> None:
+    def __init__(self, job: RenderJob | BlendJob) -> None:
         self.job = job
         self.bpy = import_bpy()
-        self.scratch = Path(job["scratch_dir"])
+        self.scratch = Path(job.scratch_dir)
         self.scratch.mkdir(parents=True, exist_ok=True)
         self.exr_path = self.scratch / f"render-{os.getpid()}.exr"
         self.current_frame: int | None = None
@@ -28,7 +29,7 @@ class Session:
         self._remaps: dict[str, tuple] = {}
         self._fov_masks: dict[str, object] = {}
         # render.depth: (frame, camera) → the Z pass of a rendered image until it is written
-        self.depth_format = job["settings"].get("depth")
+        self.depth_format = job.settings.get("depth")
         self._depths: dict[tuple, object] = {}
         self._ray_cosines: dict[str, object] = {}
         # adapting cameras: (frame, camera) → pre-pass meter reading; → the exposure to apply
@@ -36,8 +37,8 @@ class Session:
         self._adapted: dict[tuple, tuple[float, float, float]] = {}
         self._setup_scene()
         # Before the import: a missing GPU is reported in a second, not after the stage loads.
-        self.rendering = job.get("mode", "render") == "render"
-        if self.rendering and job["settings"]["device"] == "gpu":
+        self.rendering = isinstance(job, RenderJob)
+        if self.rendering and job.settings["device"] == "gpu":
             enable_gpu(self.bpy)
         self._import_stage()
         # Meshes that name a procedural surface get its node tree (blender/surface_nodes.py).
@@ -65,8 +66,8 @@ class Session:
         bpy = self.bpy
         started = time.perf_counter()
         result = bpy.ops.wm.usd_import(
-            filepath=self.job["stage"],
-            prim_path_mask=self.job.get("prim_path_mask", ""),
+            filepath=self.job.stage,
+            prim_path_mask=self.job.prim_path_mask,
             import_cameras=False,
             import_visible_only=False,  # presence is per frame, applied below
             support_scene_instancing=False,  # realise instances: each needs its own pass index
@@ -75,9 +76,9 @@ class Session:
             create_collection=False,
         )
         if "FINISHED" not in result:
-            raise RuntimeError(f"USD import of {self.job['stage']} failed: {result}")
+            raise RuntimeError(f"USD import of {self.job.stage} failed: {result}")
         # uid → Blender objects carrying it (the object and everything below it).
-        wanted = {o["uid"]: o for o in self.job["objects"]}
+        wanted = {o.uid: o for o in self.job.objects}
         self.objects: dict[str, list] = {}
         for ob in bpy.data.objects:
             uid = ob.get("usdscene_uid")
@@ -93,10 +94,10 @@ class Session:
         for uid, members in self.objects.items():
             for ob in members:
                 variant = ob.get("usdscene_pose")
-                if variant is not None and "pose_frames" in wanted[uid]:
+                if variant is not None and wanted[uid].pose_frames is not None:
                     self.poses.setdefault(uid, {})[str(variant)] = [ob, *ob.children_recursive]
         for uid, members in self.objects.items():
-            mask_id = int(wanted[uid]["mask_id"])
+            mask_id = int(wanted[uid].mask_id)
             for ob in members:
                 ob.pass_index = mask_id
         missing = sorted(set(wanted) - set(self.objects))
@@ -107,8 +108,8 @@ class Session:
     def _setup_render(self) -> None:
         bpy = self.bpy
         scene = self.scene
-        apply_settings(scene, self.job["settings"], rendering=self.rendering, exr_path=self.exr_path,
-                       threads=self.job.get("threads"))
+        apply_settings(scene, self.job.settings, rendering=self.rendering, exr_path=self.exr_path,
+                       threads=getattr(self.job, "threads", None))
         data = bpy.data.cameras.new("usdscene_render_camera")
         self.camera = bpy.data.objects.new("usdscene_render_camera", data)
         scene.collection.objects.link(self.camera)
@@ -123,11 +124,11 @@ class Session:
         self.world = None
         self.world_at = None
         self.display_png = self.scratch / f"display-{os.getpid()}.png"
-        self.sensors = {name: (spec_from_json(Sensor, cam["sensor"]["sensor"]), int(cam["sensor"]["seed"]))
-                        for name, cam in self.job["cameras"].items() if "sensor" in cam}
+        self.sensors = {name: (spec_from_json(Sensor, cam.sensor["sensor"]), int(cam.sensor["seed"]))
+                        for name, cam in self.job.cameras.items() if cam.sensor is not None}
         self.ir_light = None
         self._shutter = 0.0
-        world_job = self.job.get("world")
+        world_job = self.job.world
         if world_job is None:
             return
         self.world = spec_from_json(World, world_job["world"])
@@ -137,7 +138,7 @@ class Session:
     def _build_world(self) -> None:
         """The document's world (:class:`WorldNodes`) and its view transform."""
         self.world_nodes = WorldNodes(self.bpy, self.scene, self.world, self.world_job)
-        self.scene.world.light_settings.distance = float(self.job["settings"]["fast_gi_distance_m"])
+        self.scene.world.light_settings.distance = float(self.job.settings["fast_gi_distance_m"])
         view = self.scene.view_settings
         if self.world.view_transform != "standard":
             from usdscene.document.imaging import VIEW_TRANSFORMS
@@ -181,11 +182,11 @@ class Session:
             if ir:
                 import math
 
-                render_intr = self.job["cameras"][name]["render_intrinsics"]
-                if render_intr.get("fov_deg"):  # a fisheye: its image circle
-                    field = math.radians(float(render_intr["fov_deg"]))
+                render_intr = self.job.cameras[name].render_intrinsics
+                if render_intr.fov_deg:  # a fisheye: its image circle
+                    field = math.radians(float(render_intr.fov_deg))
                 else:
-                    w, h, fx = render_intr["width_px"], render_intr["height_px"], render_intr["fx_px"]
+                    w, h, fx = render_intr.width_px, render_intr.height_px, render_intr.fx_px
                     field = 2.0 * math.atan(math.hypot(w, h) / 2.0 / fx)  # the diagonal
                 self.ir_light.data.spot_size = min(math.pi, field + math.radians(10.0))
                 self.ir_light.data.energy = ir_illuminator_power_w(sensor.ir_range_m)
@@ -198,19 +199,19 @@ class Session:
         if frame == self.current_frame:
             return
         self.scene.frame_set(frame)
-        for o in self.job["objects"]:
-            members = self.objects.get(o["uid"])
+        for o in self.job.objects:
+            members = self.objects.get(o.uid)
             if not members:
                 continue
-            poses = self.poses.get(o["uid"])
+            poses = self.poses.get(o.uid)
             if poses:
                 for ob, hide in member_hides(o, members, poses, frame):
                     ob.hide_render = hide
                 continue
-            hide = frame not in o["_visible"]
-            if self.hidden.get(o["uid"]) == hide:
+            hide = frame not in o.visible
+            if self.hidden.get(o.uid) == hide:
                 continue
-            self.hidden[o["uid"]] = hide
+            self.hidden[o.uid] = hide
             for ob in members:
                 ob.hide_render = hide
         if self.world is not None:
@@ -219,20 +220,20 @@ class Session:
 
     def set_camera(self, name: str, frame: int) -> None:
         """Point the render camera at camera ``name``'s pose and lens for ``frame``."""
-        from usdscene.render.job import intrinsics_from_json, usd_camera_matrix
+        from usdscene.render.job import usd_camera_matrix
 
-        cam_job = self.job["cameras"][name]
-        pose = cam_job["poses"].get(str(frame), cam_job["pose"])
-        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        cam_job = self.job.cameras[name]
+        pose = cam_job.pose_at(frame)
+        render = cam_job.render_intrinsics
         ob, data = self.camera, self.camera.data
         import mathutils
 
         # Touch only what changes: every assignment tags Blender data for a Cycles update.
-        key = (tuple(pose), tuple(cam_job["clip_m"]))
+        key = (tuple(pose), tuple(cam_job.clip_m))
         if key != getattr(self, "_pose_key", None):
             # mathutils.Matrix takes rows; a bare nested list would be read column by column.
             ob.matrix_world = mathutils.Matrix(usd_camera_matrix(pose))
-            data.clip_start, data.clip_end = cam_job["clip_m"]
+            data.clip_start, data.clip_end = cam_job.clip_m
             self._pose_key = key
         if render != getattr(self, "_lens", None):
             apply_intrinsics(self.scene, data, render)
@@ -250,7 +251,7 @@ class Session:
             all threads (``render_cpu_s``; robust on a shared machine).
         """
         started, cpu_started = time.perf_counter(), time.process_time()
-        if "warmup_frames" in self.job["cameras"][camera].get("sensor", {}):
+        if "warmup_frames" in (self.job.cameras[camera].sensor or {}):
             self._adapted[(frame, camera)] = self._sequence_exposure(frame, camera)
         self.set_frame(frame)
         self.set_camera(camera, frame)
@@ -271,7 +272,7 @@ class Session:
         pair only as pre-passes). Counted in the pair's render time."""
         from usdscene.sensor import exposure
 
-        window = self.job["cameras"][camera]["sensor"]
+        window = self.job.cameras[camera].sensor
         sensor = self.sensors[camera][0]
         readings = []
         for g in exposure.meter_window(frame, window["warmup_frames"], window["first_frame"]):
@@ -342,7 +343,7 @@ class Session:
             from usdscene.files import write_bytes_atomic
             from usdscene.render.depth import encode_depth
 
-            write_bytes_atomic(layout.depth_path(self.job["out_dir"], camera, frame, self.depth_format),
+            write_bytes_atomic(layout.depth_path(self.job.out_dir, camera, frame, self.depth_format),
                                encode_depth(self._finish_depth(camera, z_pass), self.depth_format))
         rgb, ids = self._finish(camera, rgb, ids)
         clean = None
@@ -360,19 +361,19 @@ class Session:
             from usdscene.document import output_layout as layout
             from usdscene.files import write_bytes_atomic
 
-            if self.job.get("keep_clean"):
+            if self.job.keep_clean:
                 clean = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
             image, record = process_image(as_linear(rgb), at, rng, self._adapted.pop((frame, camera), None))
-            write_bytes_atomic(layout.exposure_path(self.job["out_dir"], camera, frame),
+            write_bytes_atomic(layout.exposure_path(self.job.out_dir, camera, frame),
                                json.dumps(record, sort_keys=True).encode("utf-8"))
         else:
             image = rgb if rgb.dtype == np.uint8 else linear_to_srgb8(rgb)
             if camera in self.sensors and has_effect(at):
-                clean = image if self.job.get("keep_clean") else None
+                clean = image if self.job.keep_clean else None
                 image = apply_sensor(image, at, rng)
-            elif camera in self.sensors and self.job.get("keep_clean"):
+            elif camera in self.sensors and self.job.keep_clean:
                 clean = image
-        write_display_outputs(Path(self.job["out_dir"]), camera, frame, image, ids, clean=clean)
+        write_display_outputs(Path(self.job.out_dir), camera, frame, image, ids, clean=clean)
         return {"post_s": time.perf_counter() - started, "post_cpu_s": time.thread_time() - cpu_started}
 
     def render_pair(self, frame: int, camera: str) -> dict:
@@ -385,16 +386,15 @@ class Session:
         pixel, the same maps)."""
         from usdscene.labels.projection import remap_grids
         from usdscene.render.depth import plane_depth, ray_cosines, remap_depth
-        from usdscene.render.job import intrinsics_from_json
 
-        cam_job = self.job["cameras"][camera]
-        render = intrinsics_from_json(cam_job["render_intrinsics"])
+        cam_job = self.job.cameras[camera]
+        render = cam_job.render_intrinsics
         if camera not in self._ray_cosines:
             self._ray_cosines[camera] = ray_cosines(render)
         depth = plane_depth(z_pass, render, self._ray_cosines[camera])
-        if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
+        if cam_job.remapped:
             if camera not in self._remaps:  # the mask's map (_finish makes the same one)
-                self._remaps[camera] = remap_grids(intrinsics_from_json(cam_job["intrinsics"]), render)
+                self._remaps[camera] = remap_grids(cam_job.intrinsics, render)
             depth = remap_depth(depth, *self._remaps[camera])
         return depth
 
@@ -404,12 +404,10 @@ class Session:
 
         from usdscene.labels.projection import remap_grids
         from usdscene.lens import lens_for, valid_pixels
-        from usdscene.render.job import intrinsics_from_json
 
-        cam_job = self.job["cameras"][camera]
-        intr = intrinsics_from_json(cam_job["intrinsics"])
-        render = intrinsics_from_json(cam_job["render_intrinsics"])
-        if cam_job["render_intrinsics"] != cam_job["intrinsics"]:
+        cam_job = self.job.cameras[camera]
+        intr, render = cam_job.intrinsics, cam_job.render_intrinsics
+        if cam_job.remapped:
             if camera not in self._remaps:
                 self._remaps[camera] = remap_grids(intr, render)
             map_x, map_y = self._remaps[camera]
@@ -426,15 +424,15 @@ class Session:
         return rgb, ids
 
 
-def member_hides(o: dict, members: list, poses: dict[str, list], frame: int) -> list[tuple]:
+def member_hides(o: JobObject, members: list, poses: dict[str, list], frame: int) -> list[tuple]:
     """``(Blender object, hide_render)`` for every member of job object ``o`` at ``frame``:
     hidden when the object is absent; with pose children (``poses``: variant → its objects),
-    also the members of every pose but the one ``o["pose_frames"]`` shows at ``frame``."""
-    hide = frame not in o["_visible"]
+    also the members of every pose but the one ``o.pose_frames`` shows at ``frame``."""
+    hide = frame not in o.visible
     if not poses:
         return [(ob, hide) for ob in members]
     shown = set() if hide else {ob.name for variant, obs in poses.items()
-                                if frame in o["pose_frames"].get(variant, ()) for ob in obs}
+                                if frame in o.pose_frames.get(variant, ()) for ob in obs}
     posed = {ob.name for obs in poses.values() for ob in obs}
     return [(ob, hide or (ob.name in posed and ob.name not in shown)) for ob in members]
 

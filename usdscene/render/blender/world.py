@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 from usdscene.render.blender.process import emit, import_bpy
+from usdscene.render.job import BakeWorldJob
 
 
 # Width of the importance map of a physical sky (its height is half): see WorldNodes.
@@ -82,21 +83,21 @@ class WorldNodes:
             self.env_mapping.inputs["Rotation"].default_value[2] = math.radians(at.hdri_rotation_deg)
 
 
-def bake_world(job: dict) -> None:
+def bake_world(job: BakeWorldJob) -> None:
     """Render a document's world alone, as Cycles sees it, into an equirectangular radiance
     image (linear RGB, the Background's colour times its strength; longitude along the width,
     the zenith at the top), laid out as the environment images of a world's ``hdri`` are read.
 
-    Job fields: ``world`` (the stage's world, as in a render job), ``frame`` (whose per-frame
-    values apply), ``size_px`` ([width, height]), ``samples`` and ``out`` (a ``.hdr`` path).
+    The job's fields (:class:`~usdscene.render.job.BakeWorldJob`): the stage's world, the
+    frame whose per-frame values apply, the image size, the samples and the ``.hdr`` path.
     """
     from usdscene.document.imaging import World, spec_from_json
 
     bpy = import_bpy()
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    world = spec_from_json(World, job["world"]["world"])
-    WorldNodes(bpy, scene, world, job["world"]).apply(world.at_frame(int(job["frame"])))
+    world = spec_from_json(World, job.world["world"])
+    WorldNodes(bpy, scene, world, job.world).apply(world.at_frame(int(job.frame)))
     data = bpy.data.cameras.new("usdscene_bake_camera")
     data.type = "PANO"
     data.panorama_type = "EQUIRECTANGULAR"
@@ -107,15 +108,15 @@ def bake_world(job: dict) -> None:
     scene.camera = camera
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
-    scene.cycles.samples = int(job["samples"])
+    scene.cycles.samples = int(job.samples)
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.use_denoising = False
     scene.cycles.filter_width = 0.01  # each pixel its own direction: no blur across pixels
-    scene.render.resolution_x, scene.render.resolution_y = (int(v) for v in job["size_px"])
+    scene.render.resolution_x, scene.render.resolution_y = (int(v) for v in job.size_px)
     scene.render.resolution_percentage = 100
     scene.view_settings.view_transform = "Standard"
     scene.render.image_settings.file_format = "HDR"
-    scene.render.filepath = str(job["out"])
+    scene.render.filepath = str(job.out)
     scene.render.use_file_extension = False
     bpy.ops.render.render(write_still=True)
-    emit({"event": "baked", "path": str(job["out"])})
+    emit({"event": "baked", "path": str(job.out)})
