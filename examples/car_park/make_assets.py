@@ -247,12 +247,19 @@ VEHICLE_LOOKS = {
 }
 
 
+# The car park's models and paints: the three models and five paint names its documents were
+# generated with (``generate tracks`` draws an appearance per vehicle, so a longer list would
+# change every draw after it), each no larger than the block model it replaced.
+CAR_PARK_MODELS = ("sedan", "hatchback", "van")
+CAR_PARK_PAINTS = ("red", "blue", "silver", "black", "white")
+
+
 def write_vehicle(path: Path) -> Path:
     """The vehicle: Y up, centimetres, variant sets ``model`` (usdscene's procedural body
-    types) and ``paint`` (20 paints of 5 % of the world's fleet each)."""
+    types) and ``paint`` (fleet paints)."""
     from pxr import Gf, Sdf, Usd, UsdGeom
 
-    from usdscene.assetgen.vehicles import BODY_TYPES, PAINT_VARIANTS, vehicle_parts
+    from usdscene.assetgen.vehicles import PAINT_VARIANTS, vehicle_parts
     from usdscene.document.surfaces import SURFACE_ATTRIBUTE
 
     stage = Usd.Stage.CreateInMemory()
@@ -265,7 +272,7 @@ def write_vehicle(path: Path) -> Path:
              for name, (rgb, roughness, _) in VEHICLE_LOOKS.items()}
     to_cm = np.diag([100.0, 100.0, 100.0, 1.0])
     models = root.GetVariantSets().AddVariantSet("model")
-    for name in BODY_TYPES:
+    for name in CAR_PARK_MODELS:
         models.AddVariant(name)
         models.SetVariantSelection(name)
         with models.GetVariantEditContext():
@@ -279,7 +286,8 @@ def write_vehicle(path: Path) -> Path:
                         SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(kind)
     models.SetVariantSelection("sedan")
     paints = root.GetVariantSets().AddVariantSet("paint")
-    for name, rgb in PAINT_VARIANTS.items():
+    for name in CAR_PARK_PAINTS:
+        rgb = PAINT_VARIANTS[name]
         paints.AddVariant(name)
         paints.SetVariantSelection(name)
         with paints.GetVariantEditContext():

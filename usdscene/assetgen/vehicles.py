@@ -84,11 +84,11 @@ class BodyType:
 
 
 BODY_TYPES: dict[str, BodyType] = {b.name: b for b in (
-    BodyType("hatchback", 4.05, 1.76, 1.46, 0.17, 0.90, 0.85, 60.0, "hatch", 35.0, 0.0, 0.31, 2.55),
-    BodyType("sedan", 4.70, 1.82, 1.44, 0.15, 0.86, 1.05, 58.0, "notch", 50.0, 0.95, 0.32, 2.80),
-    BodyType("suv", 4.60, 1.88, 1.70, 0.22, 1.05, 1.00, 58.0, "box", 20.0, 0.0, 0.36, 2.75),
-    BodyType("van", 4.80, 1.95, 1.95, 0.18, 1.00, 0.60, 35.0, "box", 5.0, 0.0, 0.33, 3.20),
-    BodyType("pickup", 4.80, 1.86, 1.80, 0.25, 1.05, 1.00, 58.0, "bed", 10.0, 1.45, 0.37, 2.95, 1.10),
+    BodyType("hatchback", 3.97, 1.62, 1.46, 0.17, 0.90, 0.85, 60.0, "hatch", 35.0, 0.0, 0.31, 2.55),
+    BodyType("sedan", 4.57, 1.66, 1.44, 0.15, 0.86, 1.05, 58.0, "notch", 50.0, 0.95, 0.32, 2.80),
+    BodyType("suv", 4.45, 1.74, 1.70, 0.22, 1.05, 1.00, 58.0, "box", 20.0, 0.0, 0.36, 2.75),
+    BodyType("van", 4.80, 1.82, 1.95, 0.18, 1.00, 0.60, 35.0, "box", 5.0, 0.0, 0.33, 3.20),
+    BodyType("pickup", 4.70, 1.74, 1.80, 0.25, 1.05, 1.00, 58.0, "bed", 10.0, 1.45, 0.37, 2.95, 1.10),
 )}
 
 ROOF_ROUND_M = 0.06       # the roof's edges and the bumpers' corners are cut by this much
@@ -332,9 +332,11 @@ def vehicle_parts(name: str) -> dict[str, object]:
     tail_z = (b.bed_rail_m if b.rear == "bed" else b.belt_m) - 0.12
     taillights = [_box((0.04, 0.22, 0.12), (back - 0.005, s * (half - 0.16), tail_z)) for s in (-1, 1)]
     mirror_x = ws_foot - 0.1
-    mirrors = [_box((0.10, 0.16, 0.10), (mirror_x, s * (half + 0.08), b.belt_m + 0.08)) for s in (-1, 1)]
-    plates = [_box((0.02, 0.52, 0.11), (front + 0.012, 0.0, b.clearance_m + 0.18)),
-              _box((0.02, 0.52, 0.11), (back - 0.012, 0.0, tail_z - 0.2))]
+    # Mirrors stand 6 cm proud of the body: within the 1.8-2.0 m that the car park's generator
+    # and bays were laid out for.
+    mirrors = [_box((0.10, 0.10, 0.09), (mirror_x, s * (half + 0.01), b.belt_m + 0.08)) for s in (-1, 1)]
+    plates = [_box((0.02, 0.52, 0.11), (front + 0.005, 0.0, b.clearance_m + 0.18)),
+              _box((0.02, 0.52, 0.11), (back - 0.005, 0.0, tail_z - 0.2))]
     cat = trimesh.util.concatenate
     return {"body": body, "glass": cat(glass), "tyres": cat(tyres), "rims": cat(rims),
             "headlights": cat(headlights), "taillights": cat(taillights), "mirrors": cat(mirrors),
