@@ -241,7 +241,7 @@ def main() -> int:
     args = parser.parse_args()
     seconds = None
     if args.images is None:
-        work = args.out or Path(tempfile.mkdtemp(prefix="hog-people-"))
+        work = (args.out or Path(tempfile.mkdtemp(prefix="hog-people-"))).resolve()
         work.mkdir(parents=True, exist_ok=True)
         source = args.document.resolve()
         doc, cameras = scaled_document(json.loads(source.read_text()), *RESOLUTION_PX)

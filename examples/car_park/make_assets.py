@@ -200,13 +200,6 @@ def write_environment(path: Path) -> Path:
 
 # --- objects, written with pxr as a DCC's USD exporter would -------------------------------
 
-VEHICLE_MODELS_CM = {  # length, body height, width, cabin length, cabin height
-    "sedan": (460.0, 60.0, 180.0, 250.0, 45.0),
-    "hatchback": (400.0, 65.0, 175.0, 220.0, 55.0),
-    "van": (500.0, 95.0, 195.0, 380.0, 80.0),
-}
-PAINTS = {"red": (0.55, 0.04, 0.03), "blue": (0.04, 0.10, 0.45), "silver": (0.55, 0.56, 0.58),
-          "black": (0.02, 0.02, 0.025), "white": (0.80, 0.80, 0.78)}
 OUTFITS = {  # jacket, trousers, skin
     "grey_coat": ((0.25, 0.25, 0.27), (0.05, 0.05, 0.08), (0.72, 0.53, 0.42)),
     "red_jacket": ((0.55, 0.06, 0.05), (0.12, 0.12, 0.20), (0.45, 0.30, 0.22)),
@@ -246,9 +239,28 @@ def _in_cm_y_up(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return mesh.copy().apply_transform(Z_UP_TO_Y_UP)
 
 
+# Materials of the vehicle's parts: (rgb, roughness, usdscene surface kind or None).
+VEHICLE_LOOKS = {
+    "glass": ((0.03, 0.04, 0.05), 0.05, "glass"), "tyres": ((0.015, 0.015, 0.015), 0.9, None),
+    "rims": ((0.45, 0.46, 0.48), 0.3, "metal"), "headlights": ((0.85, 0.85, 0.80), 0.1, None),
+    "taillights": ((0.45, 0.02, 0.02), 0.2, None), "plates": ((0.80, 0.80, 0.74), 0.5, None),
+}
+
+
+# The car park's models and paints: the three models and five paint names its documents were
+# generated with (``generate tracks`` draws an appearance per vehicle, so a longer list would
+# change every draw after it), each no larger than the block model it replaced.
+CAR_PARK_MODELS = ("sedan", "hatchback", "van")
+CAR_PARK_PAINTS = ("red", "blue", "silver", "black", "white")
+
+
 def write_vehicle(path: Path) -> Path:
-    """The vehicle: Y up, centimetres, variant sets ``model`` and ``paint``."""
-    from pxr import Usd, UsdGeom
+    """The vehicle: Y up, centimetres, variant sets ``model`` (usdscene's procedural body
+    types) and ``paint`` (fleet paints)."""
+    from pxr import Gf, Sdf, Usd, UsdGeom
+
+    from usdscene.assetgen.vehicles import PAINT_VARIANTS, vehicle_parts
+    from usdscene.document.surfaces import SURFACE_ATTRIBUTE
 
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
@@ -256,38 +268,29 @@ def write_vehicle(path: Path) -> Path:
     root = UsdGeom.Xform.Define(stage, "/Vehicle").GetPrim()
     stage.SetDefaultPrim(root)
     paint, paint_color = _material(stage, "/Vehicle/Looks/Paint", None, roughness=0.25)
-    glass, _ = _material(stage, "/Vehicle/Looks/Glass", (0.03, 0.04, 0.05), roughness=0.05)
-    rubber, _ = _material(stage, "/Vehicle/Looks/Rubber", (0.015, 0.015, 0.015), roughness=0.9)
+    looks = {name: _material(stage, f"/Vehicle/Looks/{name.capitalize()}", rgb, roughness)[0]
+             for name, (rgb, roughness, _) in VEHICLE_LOOKS.items()}
+    to_cm = np.diag([100.0, 100.0, 100.0, 1.0])
     models = root.GetVariantSets().AddVariantSet("model")
-    for name, (length, body_h, width, cabin_l, cabin_h) in VEHICLE_MODELS_CM.items():
+    for name in CAR_PARK_MODELS:
         models.AddVariant(name)
         models.SetVariantSelection(name)
         with models.GetVariantEditContext():
-            clearance = 20.0  # body above the ground; wheels fill the gap
-            body = trimesh.creation.box(extents=(length, width, body_h))
-            body.apply_translation((0.0, 0.0, clearance + body_h / 2))
-            cabin = trimesh.creation.box(extents=(cabin_l, width - 16.0, cabin_h))
-            # The cabin sits behind the middle: the bonnet, the front, is towards +X.
-            cabin.apply_translation((-0.08 * length if name != "van" else -0.04 * length, 0.0,
-                                     clearance + body_h + cabin_h / 2))
-            wheels = []
-            for sx in (-0.32, 0.32):
-                for sy in (-0.5, 0.5):
-                    wheel = trimesh.creation.cylinder(radius=32.0, height=22.0, sections=16)
-                    wheel.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))
-                    wheel.apply_translation((sx * length, sy * (width - 22.0), 32.0))
-                    wheels.append(wheel)
-            _mesh(stage, "/Vehicle/Body", _in_cm_y_up(body), paint)
-            _mesh(stage, "/Vehicle/Cabin", _in_cm_y_up(cabin), glass)
-            _mesh(stage, "/Vehicle/Wheels", _in_cm_y_up(trimesh.util.concatenate(wheels)), rubber)
+            for part, mesh in vehicle_parts(name).items():
+                prim_path = f"/Vehicle/{part.capitalize()}"
+                material = paint if part in ("body", "mirrors") else looks[part]
+                _mesh(stage, prim_path, _in_cm_y_up(mesh.copy().apply_transform(to_cm)), material)
+                kind = VEHICLE_LOOKS.get(part, (None, None, None))[2]
+                if kind is not None:
+                    stage.GetPrimAtPath(prim_path).CreateAttribute(
+                        SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(kind)
     models.SetVariantSelection("sedan")
     paints = root.GetVariantSets().AddVariantSet("paint")
-    for name, rgb in PAINTS.items():
+    for name in CAR_PARK_PAINTS:
+        rgb = PAINT_VARIANTS[name]
         paints.AddVariant(name)
         paints.SetVariantSelection(name)
         with paints.GetVariantEditContext():
-            from pxr import Gf
-
             paint_color.Set(Gf.Vec3f(*rgb))
     paints.SetVariantSelection("silver")
     path.write_text(stage.GetRootLayer().ExportToString())

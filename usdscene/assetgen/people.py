@@ -33,6 +33,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from usdscene.assetgen import body_model as bm
+from usdscene.assetgen.clothing import draw_outfit
 from usdscene.labels.keypoints import COCO_KEYPOINTS
 
 log = logging.getLogger(__name__)
@@ -50,11 +51,6 @@ SKIN_TONES = {  # linear RGB, lightest to darkest
 HAIR_COLOURS = {"black": (0.015, 0.012, 0.01), "dark_brown": (0.05, 0.025, 0.012),
                 "brown": (0.14, 0.07, 0.03), "blond": (0.50, 0.36, 0.16), "red": (0.30, 0.08, 0.03),
                 "grey": (0.35, 0.34, 0.33), "white": (0.62, 0.61, 0.58)}
-TOPS = ((0.15, 0.28, 0.55), (0.55, 0.06, 0.06), (0.08, 0.24, 0.12), (0.75, 0.75, 0.72), (0.70, 0.52, 0.08),
-        (0.22, 0.22, 0.24), (0.45, 0.20, 0.40), (0.05, 0.05, 0.06), (0.28, 0.32, 0.12), (0.10, 0.40, 0.45))
-BOTTOMS = ((0.05, 0.08, 0.18), (0.03, 0.03, 0.035), (0.35, 0.30, 0.20), (0.18, 0.18, 0.19), (0.10, 0.12, 0.28),
-           (0.25, 0.16, 0.09))
-SHOES = ((0.02, 0.02, 0.02), (0.75, 0.75, 0.73), (0.18, 0.09, 0.04), (0.25, 0.25, 0.27))
 MATERIALS = ("Body", "Bottom", "Shoes", "Skin", "Hair")
 BUILDS = {"slim": (0.15, 0.35), "average": (0.5, 0.5), "heavy": (0.92, 0.55)}  # (weight, muscle)
 
@@ -71,6 +67,8 @@ class BodySpec:
         hair: key of :data:`HAIR_COLOURS`.
         long_hair: hair down to the neck rather than short.
         top, bottom, shoes: default clothing colours (linear RGB).
+        top_fabric, bottom_fabric: surface kinds of the top and the trousers
+            (:mod:`usdscene.assetgen.clothing`).
     """
 
     name: str
@@ -82,13 +80,17 @@ class BodySpec:
     top: tuple[float, float, float]
     bottom: tuple[float, float, float]
     shoes: tuple[float, float, float]
+    top_fabric: str = "cotton"
+    bottom_fabric: str = "denim"
 
 
 def family(count: int = 24, seed: int = 2201) -> tuple[BodySpec, ...]:
     """The bodies: half women, half men; ages spread over 18-80 years, heights over
-    1.50-1.80 m (women) and 1.62-1.95 m (men), builds and the six skin tones in turn, hair and
-    clothes drawn from ``seed``."""
+    1.50-1.80 m (women) and 1.62-1.95 m (men), builds and the six skin tones in turn, hair drawn
+    from ``seed``, clothes from :func:`usdscene.assetgen.clothing.draw_outfit` (a generator of
+    ``seed + 1``)."""
     rng = np.random.default_rng(seed)
+    dress = np.random.default_rng(seed + 1)
     per_sex = count // 2
     out = []
     tones = list(SKIN_TONES)
@@ -115,11 +117,14 @@ def family(count: int = 24, seed: int = 2201) -> tuple[BodySpec, ...]:
             ph = bm.Phenotype(male=float(male), age_years=float(age), muscle=muscle + (0.1 if male else 0.0),
                               weight=weight, height_m=float(heights[i]), african=african, asian=asian,
                               caucasian=caucasian)
-            top = TOPS[int(rng.integers(len(TOPS)))]
-            bottom = BOTTOMS[int(rng.integers(len(BOTTOMS)))]
-            shoes = SHOES[int(rng.integers(len(SHOES)))]
+            # The draws of the former clothing palette (10 tops, 6 trousers, 4 shoes) stay, so
+            # every later body keeps its hair, and so its baked geometry.
+            for former_palette_size in (10, 6, 4):
+                rng.integers(former_palette_size)
+            outfit = draw_outfit(dress)
             name = f"{'m' if male else 'f'}_{age}_{int(round(heights[i] * 100))}_{build}_{tone}"
-            out.append(BodySpec(name, ph, build, tone, hair, long_hair, top, bottom, shoes))
+            out.append(BodySpec(name, ph, build, tone, hair, long_hair, outfit.top_rgb, outfit.bottom_rgb,
+                                outfit.shoe_rgb, outfit.top_fabric, outfit.bottom_fabric))
     return tuple(out)
 
 
@@ -508,6 +513,7 @@ def write_people_asset(folder: Path, class_name: str, binding: bm.LowPolyBinding
     from pxr import Gf, Kind, Sdf, UsdGeom, UsdShade, Vt
 
     from usdscene.document import stage_schema as ss
+    from usdscene.document.surfaces import SURFACE_ATTRIBUTE, surface_slots_value
     from usdscene.assetgen.usd_write import MaterialSpec, define_material, new_asset_stage, save_stage, set_material_color
 
     stage, root = new_asset_stage(class_name, Kind.Tokens.component)
@@ -540,6 +546,9 @@ def write_people_asset(folder: Path, class_name: str, binding: bm.LowPolyBinding
             for name, colour in (("Body", spec.top), ("Bottom", spec.bottom), ("Shoes", spec.shoes),
                                  ("Skin", SKIN_TONES[spec.skin]), ("Hair", HAIR_COLOURS[spec.hair])):
                 set_material_color(stage, f"{looks}/{name}", colour)
+            # The fabrics: the renderer's procedural surfaces on the top and the trousers.
+            mesh.GetPrim().CreateAttribute(SURFACE_ATTRIBUTE, Sdf.ValueTypeNames.String, custom=True).Set(
+                surface_slots_value({"Body": spec.top_fabric, "Bottom": spec.bottom_fabric}))
             for k, name in enumerate(MATERIALS):
                 faces = np.flatnonzero(body.face_material == k).astype(np.int32)
                 subset = UsdGeom.Subset.Define(stage, f"{root_path}/Geom/Body/{name}")
@@ -573,7 +582,8 @@ def _provenance(spec: BodySpec) -> dict:
             "sex": "male" if ph.male >= 0.5 else "female", "age_years": ph.age_years,
             "height_m": ph.height_m, "build": spec.build, "muscle": ph.muscle, "weight": ph.weight,
             "ethnic_blend": f"african {ph.african}, asian {ph.asian}, caucasian {ph.caucasian}",
-            "skin": spec.skin, "hair": spec.hair + (" long" if spec.long_hair else " short")}
+            "skin": spec.skin, "hair": spec.hair + (" long" if spec.long_hair else " short"),
+            "clothes": f"{spec.top_fabric} top, {spec.bottom_fabric} trousers"}
 
 
 def _variant(prim, set_name: str, name: str):

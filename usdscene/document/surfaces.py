@@ -10,6 +10,10 @@ renderer shows, and its colour stays the surface's base colour. The render worke
 node tree: colour variation, roughness variation and bump detail, all in world metres (or
 object metres for things that move, so clothes do not swim over a walking body).
 
+One mesh with several materials (a person: top, trousers, skin) names a kind per material
+instead: ``Body=knit Bottom=denim`` (material name ``=`` kind, separated by spaces); its other
+materials keep their UsdPreviewSurface.
+
 In a modelling tool's file the same name is a material called ``surface.<kind>``
 (``surface.asphalt``), the way place boxes are called ``place.<place>.<region>``;
 ``usdscene assets add`` turns it into the attribute.
@@ -126,3 +130,32 @@ def surface_from_material_name(material_name: str | None, *, where: str) -> str 
     kind = material_name[len(MATERIAL_PREFIX):]
     surface_recipe(kind, where=where)
     return kind
+
+
+def surface_slots(value: str, *, where: str) -> dict[str | None, str]:
+    """The kinds a ``usdscene_surface`` value asks for: ``"asphalt"`` (every material of the
+    mesh) → ``{None: "asphalt"}``; ``"Body=knit Bottom=denim"`` (per material name) →
+    ``{"Body": "knit", "Bottom": "denim"}``.
+
+    Raises:
+        AssetError: an unknown kind or a malformed pair, naming ``where`` and the value.
+    """
+    words = str(value).split()
+    if len(words) == 1 and "=" not in words[0]:
+        surface_recipe(words[0], where=where)
+        return {None: words[0]}
+    slots: dict[str | None, str] = {}
+    for word in words:
+        material, sep, kind = word.partition("=")
+        if not sep or not material or not kind:
+            raise AssetError(f"{word!r} in {value!r} is not <material>=<surface kind>", where=where)
+        surface_recipe(kind, where=where)
+        slots[material] = kind
+    if not slots:
+        raise AssetError(f"empty surface value {value!r}", where=where)
+    return slots
+
+
+def surface_slots_value(slots: dict[str, str]) -> str:
+    """The ``usdscene_surface`` value of per-material kinds (inverse of :func:`surface_slots`)."""
+    return " ".join(f"{material}={kind}" for material, kind in slots.items())

@@ -2,7 +2,8 @@
 
 The worker calls :func:`apply_surfaces` once after the USD import. Every mesh object whose
 custom property ``usdscene_surface`` (from ``userProperties:usdscene_surface`` in the stage)
-names a kind gets, in each material slot, a node tree built from the kind's recipe and the
+names a kind gets, in each material slot (or in the slots whose material the value names,
+``Body=knit Bottom=denim``), a node tree built from the kind's recipe and the
 slot's imported base colour (the UsdPreviewSurface colour, which a document may have
 recoloured): one material per (kind, colour), shared by every object that asks for it.
 
@@ -31,7 +32,9 @@ from __future__ import annotations
 
 import logging
 
-from usdscene.document.surfaces import SURFACE_PROPERTY, SurfaceRecipe, surface_recipe
+import re
+
+from usdscene.document.surfaces import SURFACE_PROPERTY, SurfaceRecipe, surface_recipe, surface_slots
 
 log = logging.getLogger(__name__)
 
@@ -192,6 +195,11 @@ def _base_color(material) -> tuple[float, float, float]:
     return (0.5, 0.5, 0.5)
 
 
+def _imported_name(material) -> str | None:
+    """The USD material's prim name: Blender adds ``.001`` to the second material of a name."""
+    return None if material is None else re.sub(r"\.\d{3,}$", "", material.name)
+
+
 def surface_of(ob) -> str | None:
     """The surface kind an imported object asks for (on the object or its mesh data)."""
     kind = ob.get(SURFACE_PROPERTY)
@@ -217,15 +225,19 @@ def apply_surfaces(bpy) -> int:
         kind = surface_of(ob)
         if kind is None:
             continue
-        recipe = surface_recipe(kind, where=f"{ob.name}: {SURFACE_PROPERTY}")
-        slots = ob.material_slots
-        if not slots:
+        where = f"{ob.name}: {SURFACE_PROPERTY}"
+        kinds = surface_slots(kind, where=where)
+        if not ob.material_slots:
             ob.data.materials.append(None)
         for slot in ob.material_slots:
+            slot_kind = kinds.get(None) or kinds.get(_imported_name(slot.material))
+            if slot_kind is None:
+                continue  # a material the value does not name keeps its imported look
+            recipe = surface_recipe(slot_kind, where=where)
             base = _base_color(slot.material)
-            key = (kind, base)
+            key = (slot_kind, base)
             if key not in made:
-                made[key] = build_material(bpy, recipe, base, f"usdscene_surface_{kind}_{len(made):03d}")
+                made[key] = build_material(bpy, recipe, base, f"usdscene_surface_{slot_kind}_{len(made):03d}")
             slot.material = made[key]
             replaced += 1
     if made:
