@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import glob
 import json
 import math
 import os
@@ -334,6 +335,28 @@ def _indented_chunks(value: Any, newline: str, out: list[str]) -> None:
         out[-1] = newline + "}"
         return
     raise TypeError(f"Object of type {value.__class__.__name__} is not JSON serializable")
+
+
+def remove_stale_temporaries(folder: str | os.PathLike, *, recursive: bool = True, name: str | None = None) -> int:
+    """Delete the temporary files (``.<name>.<random>.tmp``) that atomic writes of a killed
+    process left in ``folder`` (a SIGKILL cannot be cleaned up after; the real files were
+    never replaced by partial ones). Call it before a step writes there again, never while
+    another process writes into the folder. ``name``: only those of files whose name starts
+    so (a user's folder holds other things).
+
+    Returns:
+        How many were removed (0 when the folder does not exist).
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        return 0
+    removed = 0
+    pattern = f".{glob.escape(name)}*.tmp" if name else ".*.tmp"
+    for tmp in (root.rglob(pattern) if recursive else root.glob(pattern)):
+        if tmp.is_file():
+            tmp.unlink(missing_ok=True)
+            removed += 1
+    return removed
 
 
 def write_json_atomic(path: str | os.PathLike, data: Any, *, compact: bool = False) -> Path:
