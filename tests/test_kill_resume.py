@@ -176,3 +176,22 @@ def test_export_killed_part_way_resumes_to_the_same_files(rendered, tmp_path, fm
     _no_temporaries(out)
     exported = _files(out / layout.EXPORTS_DIR)
     assert exported and exported == _files(reference / layout.EXPORTS_DIR)
+
+
+def test_what_a_killed_write_leaves_is_removed_and_nothing_else(tmp_path):
+    from usdscene.files import remove_stale_temporaries
+
+    keep = [tmp_path / "doc.json", tmp_path / "sub" / "a.json", tmp_path / "notes.tmp.txt"]
+    stale = [tmp_path / ".doc.json.x1.tmp", tmp_path / "sub" / ".a.json.x2.tmp"]
+    for path in keep + stale:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("x")
+    staged = tmp_path / "exports" / ".mot.x3.partial"  # a staged_folder of a killed export
+    (staged / "cam").mkdir(parents=True)
+    (staged / "cam" / "gt.txt").write_text("1,2")
+    old = tmp_path / "exports" / ".mot.old-1234"
+    old.mkdir()
+    assert remove_stale_temporaries(tmp_path / "sub", recursive=False, name="other.") == 0
+    assert remove_stale_temporaries(tmp_path) == 4
+    assert all(p.exists() for p in keep) and not any(p.exists() for p in (*stale, staged, old))
+    assert remove_stale_temporaries(tmp_path / "missing") == 0

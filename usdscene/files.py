@@ -338,11 +338,12 @@ def _indented_chunks(value: Any, newline: str, out: list[str]) -> None:
 
 
 def remove_stale_temporaries(folder: str | os.PathLike, *, recursive: bool = True, name: str | None = None) -> int:
-    """Delete the temporary files (``.<name>.<random>.tmp``) that atomic writes of a killed
-    process left in ``folder`` (a SIGKILL cannot be cleaned up after; the real files were
-    never replaced by partial ones). Call it before a step writes there again, never while
-    another process writes into the folder. ``name``: only those of files whose name starts
-    so (a user's folder holds other things).
+    """Delete what the atomic writes of a killed process left in ``folder``: temporary files
+    (``.<name>.<random>.tmp``, :func:`write_text_atomic` and kin) and the hidden folders of
+    :func:`staged_folder` (``.<name>.<random>.partial`` and ``.<name>.old-<pid>``). A SIGKILL
+    cannot be cleaned up after; the real files were never replaced by partial ones. Call it
+    before a step writes there again, never while another process writes into the folder.
+    ``name``: only those of files whose name starts so (a user's folder holds other things).
 
     Returns:
         How many were removed (0 when the folder does not exist).
@@ -350,11 +351,17 @@ def remove_stale_temporaries(folder: str | os.PathLike, *, recursive: bool = Tru
     root = Path(folder)
     if not root.is_dir():
         return 0
+    stem = f".{glob.escape(name)}*" if name else ".*"
     removed = 0
-    pattern = f".{glob.escape(name)}*.tmp" if name else ".*.tmp"
-    for tmp in (root.rglob(pattern) if recursive else root.glob(pattern)):
-        if tmp.is_file():
-            tmp.unlink(missing_ok=True)
+    for suffix in (".tmp", ".partial", ".old-*"):
+        found = root.rglob(stem + suffix) if recursive else root.glob(stem + suffix)
+        for path in sorted(found, key=lambda p: len(p.parts)):
+            if path.is_symlink() or path.is_file():
+                path.unlink(missing_ok=True)
+            elif path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                continue
             removed += 1
     return removed
 
