@@ -75,3 +75,18 @@ def test_the_one_line_document_composes_to_the_same_layers(moving, tmp_path):
     # Every layer but the root, which records the source file's digest.
     for layer in ss.SUBLAYERS:
         assert (stages["one_line"] / layer).read_bytes() == (stages["indented"] / layer).read_bytes(), layer
+
+
+def test_the_annotation_store_streams_the_same_text(moving, tmp_path):
+    from usdscene.converters.openlabel.store import AnnotationStore, StoreWriter
+
+    frames = moving["openlabel"]["frames"]
+    keys = list(frames)
+    writer = StoreWriter(tmp_path / "store", frames_per_shard=16)
+    for first in range(0, len(keys), 16):
+        part = {k: frames[k] for k in keys[first:first + 16]}
+        writer.write_shard(int(keys[first]), int(keys[first]) + 15, part)
+    writer.finish(moving)
+    target = tmp_path / "single.json"
+    AnnotationStore(tmp_path / "store").write_document(target)
+    assert target.read_text(encoding="utf-8") == document_text(moving)

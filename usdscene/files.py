@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import glob
 import json
 import math
 import os
@@ -334,6 +335,35 @@ def _indented_chunks(value: Any, newline: str, out: list[str]) -> None:
         out[-1] = newline + "}"
         return
     raise TypeError(f"Object of type {value.__class__.__name__} is not JSON serializable")
+
+
+def remove_stale_temporaries(folder: str | os.PathLike, *, recursive: bool = True, name: str | None = None) -> int:
+    """Delete what the atomic writes of a killed process left in ``folder``: temporary files
+    (``.<name>.<random>.tmp``, :func:`write_text_atomic` and kin) and the hidden folders of
+    :func:`staged_folder` (``.<name>.<random>.partial`` and ``.<name>.old-<pid>``). A SIGKILL
+    cannot be cleaned up after; the real files were never replaced by partial ones. Call it
+    before a step writes there again, never while another process writes into the folder.
+    ``name``: only those of files whose name starts so (a user's folder holds other things).
+
+    Returns:
+        How many were removed (0 when the folder does not exist).
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        return 0
+    stem = f".{glob.escape(name)}*" if name else ".*"
+    removed = 0
+    for suffix in (".tmp", ".partial", ".old-*"):
+        found = root.rglob(stem + suffix) if recursive else root.glob(stem + suffix)
+        for path in sorted(found, key=lambda p: len(p.parts)):
+            if path.is_symlink() or path.is_file():
+                path.unlink(missing_ok=True)
+            elif path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                continue
+            removed += 1
+    return removed
 
 
 def write_json_atomic(path: str | os.PathLike, data: Any, *, compact: bool = False) -> Path:

@@ -22,7 +22,7 @@ atomically and its bytes depend only on the labels, so a rewrite gives the same 
 
 The one standard document is the static part with the shards' frames in place of its empty
 ``frames`` (:meth:`AnnotationStore.write_document` streams it; for a run labelled in one shard
-it is byte for byte what a single ``json.dumps(document, indent=2)`` gives).
+it is byte for byte what ``write_document`` writes of the whole document).
 """
 
 from __future__ import annotations
@@ -283,13 +283,15 @@ class AnnotationStore:
         return {"openlabel": root}
 
     def write_document(self, path: str | os.PathLike) -> dict:
-        """Write the one standard OpenLABEL document (indented JSON) to ``path`` atomically,
+        """Write the one standard OpenLABEL document (indented JSON, one line per frame as
+        :func:`usdscene.converters.openlabel.write.document_text` writes it) to ``path`` atomically,
         frame by frame: the static part's text with every frame streamed in place of its
         empty ``frames``.
 
         Returns:
             ``{"file": name, "sha256", "bytes"}`` of what was written.
         """
+        from usdscene.converters.openlabel.write import frame_line
         from usdscene.files import atomic_text_file, dumps_json
 
         static = self.static()
@@ -311,8 +313,7 @@ class AnnotationStore:
                     continue
                 first = True
                 for frame_key, frame in self.frames():
-                    put(("{" if first else ",") + "\n      " + json.dumps(frame_key, ensure_ascii=False) + ": "
-                        + dumps_json(frame)[:-1].replace("\n", "\n      "))
+                    put(("{" if first else ",") + "\n" + frame_line(frame_key, frame))  # write.document_text's form
                     first = False
                 put("{}" if first else "\n    }")
             put("\n  }\n}\n")

@@ -434,8 +434,6 @@ def document_text(document: dict) -> str:
     Raises:
         ValueError: a NaN or infinite float. TypeError: a value JSON cannot hold.
     """
-    import json
-
     from usdscene.files import dumps_json
 
     body = document.get("openlabel") if isinstance(document, dict) else None
@@ -445,7 +443,18 @@ def document_text(document: dict) -> str:
     head = dumps_json({**document, "openlabel": {**body, "frames": {}}})
     marker = '\n    "frames": {}'
     assert head.count(marker) == 1  # the body's own keys are the only ones at this indent
-    lines = ",\n".join(f"      {json.dumps(str(key), ensure_ascii=False)}: "
-                       f"{json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(',', ':'))}"
-                       for key, value in frames.items())
+    lines = ",\n".join(frame_line(key, value) for key, value in frames.items())
     return head.replace(marker, '\n    "frames": {\n' + lines + "\n    }")
+
+
+def frame_line(key, frame: dict) -> str:
+    """One entry of ``openlabel.frames`` as :func:`document_text` writes it (no line break):
+    ``      "<key>": {...}``, the frame without spaces.
+
+    Raises:
+        ValueError: a NaN or infinite float. TypeError: a value JSON cannot hold.
+    """
+    import json
+
+    return (f"      {json.dumps(str(key), ensure_ascii=False)}: "
+            f"{json.dumps(frame, ensure_ascii=False, allow_nan=False, separators=(',', ':'))}")

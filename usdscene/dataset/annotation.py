@@ -536,6 +536,12 @@ def _prepare(out_dir, document_path, epsilon_px, min_visible_fraction, amodal, l
     from usdscene.errors import OutputError
 
     out = Path(out_dir)
+    # What a killed annotate left half-written (kept labels, shards, the single document).
+    from usdscene.files import remove_stale_temporaries
+
+    remove_stale_temporaries(out / layout.LABELS_DIR)
+    remove_stale_temporaries(out / layout.ANNOTATION_STORE_DIR)
+    remove_stale_temporaries(out, recursive=False)
     stage_path = layout.stage_root(out)
     masks_dir = out / layout.MASKS_DIR
     pairs = sorted((int(p.stem), p.parent.name) for p in masks_dir.glob("*/*.png") if p.stem.isdigit())

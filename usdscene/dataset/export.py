@@ -208,8 +208,10 @@ def export_formats(out_dir, formats, options: ExportOptions = ExportOptions()) -
     from usdscene.converters.exports.registry import FORMATS, ExportJob, format_names, require_needs
     from usdscene.document import output_layout as layout
     from usdscene.errors import OutputError
+    from usdscene.files import remove_stale_temporaries
 
     out = Path(out_dir)
+    remove_stale_temporaries(out / layout.EXPORTS_DIR)  # what a killed export left half-written
     names = format_names()
     unknown = [f for f in formats if f not in FORMATS]
     if unknown:

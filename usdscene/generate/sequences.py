@@ -702,11 +702,13 @@ def write_generated(scene: SceneSpec, report: dict, out_path: Path, catalog, pro
             is written.
     """
     from usdscene.converters.openlabel import read_loaded, write_document, write_openlabel
-    from usdscene.files import write_json_atomic
+    from usdscene.files import remove_stale_temporaries, write_json_atomic
 
     written = write_openlabel(scene)
     # What composition will read: the written document, read back.
     check_composes(read_loaded(written, provenance), catalog)
+    # A killed earlier run's half-written document or report (their temporary files).
+    remove_stale_temporaries(Path(out_path).parent, recursive=False, name=Path(out_path).name + ".")
     write_document(out_path, written)
     report = dict(report)
     report["document"] = Path(out_path).name

@@ -24,7 +24,7 @@ from usdscene import __version__
 
 from usdscene.document import output_layout as layout
 from usdscene.errors import Problem, RenderError
-from usdscene.files import write_json_atomic
+from usdscene.files import remove_stale_temporaries, write_json_atomic
 from usdscene.document.model import MAX_BOUNCES, RenderSettings
 from usdscene.labels.projection import undistorted_render_intrinsics
 from usdscene.render.job import JobCamera, to_json
@@ -413,9 +413,7 @@ def _remove_stale_temporaries(out_dir: Path, cameras: Sequence[str], depth_forma
         if depth_format is not None:
             folders.append(layout.depth_path(out_dir, camera, 0, depth_format).parent)
         for folder in folders:
-            if folder.is_dir():
-                for tmp in folder.glob(".*.tmp"):
-                    tmp.unlink(missing_ok=True)
+            remove_stale_temporaries(folder, recursive=False)
 
 
 def _seconds_per_image(manifest: Manifest) -> float | None:

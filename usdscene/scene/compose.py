@@ -89,7 +89,7 @@ from usdscene.document import stage_schema as ss
 from usdscene.bulk import paused_collection
 from usdscene.scene.catalog import COMBINED_SETS, Catalog
 from usdscene.errors import AssetError, CompositionError, OutputError, ProblemCollector
-from usdscene.files import make_folder, write_text_atomic
+from usdscene.files import make_folder, remove_stale_temporaries, write_text_atomic
 from usdscene.document.output_layout import mask_ids
 from usdscene.document.model import (Camera, FrameInterval, Intrinsics, Light, LightKind, Pose,
                             Randomization, RenderSettings, SceneSpec, canonical_json, clip_intervals,
@@ -185,6 +185,7 @@ def compose_stage(scene: SceneSpec, catalog: Catalog, out_dir: str | os.PathLike
         raise OutputError(f"the stage folder is a symbolic link to {os.readlink(out_dir)!r}; "
                           "remove it or choose another output folder", where=str(out_dir))
     stage_dir = make_folder(Path(out_dir), what="stage folder").resolve()
+    remove_stale_temporaries(stage_dir, recursive=False)  # a killed compose's half-written layers
     texts = {
         "render.usda": _render_layer(resolved),
         "cameras.usda": _cameras_layer(resolved),
