@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
+from usdscene.document.stage_schema import POSE_CHILD_PREFIX
 from usdscene.render.manifest import Manifest
 from usdscene.render.worker_process import ShardExit
 
@@ -29,6 +30,14 @@ MAX_RENDERS_PER_WORKER = 250
 ASSUMED_SECONDS_PER_IMAGE = 15.0
 
 
+def _imported_prims(job_object: dict) -> list[str]:
+    """The prims a shard imports for one job object: the object, or of an object whose pose
+    changes per frame only the pose children shown in the shard's frames (their ancestors come
+    with them): a walker of a one-frame shard brings one body, not one per pose it ever shows."""
+    shown = sorted(v for v, frames in job_object.get("pose_frames", {}).items() if frames)
+    return [f"{job_object['prim']}/{POSE_CHILD_PREFIX}{v}" for v in shown] or [job_object["prim"]]
+
+
 def shard_job(plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], threads: int | None,
               keep_clean: bool, pairs: Sequence[tuple[int, str]]) -> dict:
     """The worker job (:mod:`usdscene.render.job`) of one shard: its (frame, camera) pairs, the
@@ -41,7 +50,7 @@ def shard_job(plan, settings: Mapping[str, Any], cam_json: Mapping[str, dict], t
                 **({"pose_frames": {v: [f for f in fs if f in frame_set] for v, fs in o.pose_frames}}
                    if o.pose_frames else {})}
                for o in plan.objects if frame_set.intersection(o.visible_frames)]
-    mask = list(plan.shared_prims) + [o["prim"] for o in objects]
+    mask = list(plan.shared_prims) + [prim for o in objects for prim in _imported_prims(o)]
     return {
         # Only documents with a world, and runs keeping clean images, add keys: other jobs stay
         # what they were before worlds and sensors existed.
