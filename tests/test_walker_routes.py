@@ -81,3 +81,21 @@ def test_a_single_door_walks_to_the_far_end_and_back(setup):
     assert middle.mean() > 0.5
     for t in tracks:
         assert not floor_missing(obstacles, t.position[t.present, :2], t.position[t.present, 2]).any()
+
+
+def test_frame_data_text_is_the_canonical_json_of_the_frame_data():
+    """The per-frame object data formatted directly is byte for byte what canonical_json writes."""
+    import json
+
+    from usdscene.document.model import canonical_json
+    from usdscene.generate.motion import frame_data_text
+
+    rng = np.random.default_rng(0)
+    values = [*rng.normal(0.0, 30.0, 60), -0.0, 0.0, 1e-17, 123456789.125, -3.0]
+    for k in range(0, len(values) - 3):
+        position, phase, pose = np.array(values[k:k + 3]), float(values[k + 3]) % 1.0, f"walk_{k % 8}"
+        vec = [{"name": "ground_position_m", "val": [float(v) for v in position]}]
+        assert frame_data_text(position, None, None) == canonical_json({"object_data": {"vec": vec}})
+        walker = {"vec": vec, "num": [{"name": "walk_phase", "val": phase}],
+                  "text": [{"name": "walk_pose_variant", "val": pose}]}
+        assert frame_data_text(position, phase, json.dumps(pose)) == canonical_json({"object_data": walker})
