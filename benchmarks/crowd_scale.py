@@ -7,8 +7,10 @@ Usage::
 
     python benchmarks/crowd_scale.py [--cases 500x3000 1000x3000] [--compose 50 200 500]
 
-``--compose N ...`` also composes a 20-frame document of N people and renders one 320 x 240
-image (1 sample) of it, to give compose and render per image at each crowd size.
+``--compose N ...`` also generates a 20-frame crowd of N people, composes it (seconds, the
+stage's layers in MB, peak memory) and renders one 320 x 240 image (1 sample) of frame 10 with
+one worker: the worker's wall time, USD import, render call, its memory after the image, and
+the people's meshes before and after :mod:`usdscene.render.blender.mesh_sharing` shares them.
 """
 
 from __future__ import annotations
@@ -57,31 +59,42 @@ print(json.dumps({"people": people, "frames": frames, "engine_s": round(engine_s
 """
 
 _COMPOSE = r"""
-import json, sys, time, tempfile
+import dataclasses, json, os, resource, sys, time
 from pathlib import Path
-from usdscene.cli import main as cli
 from usdscene.converters.openlabel import read_openlabel
+from usdscene.generate.crowd import CrowdOptions, generate_crowd
+from usdscene.generate.motion import environment_obstacles
+from usdscene.render.driver import render
 from usdscene.scene.catalog import load_catalog
 from usdscene.scene.compose import compose_stage
 
 setup_path, people, folder = Path(sys.argv[1]), int(sys.argv[2]), Path(sys.argv[3])
-doc = folder / f"crowd_{people}.openlabel.json"
-assert cli(["generate", "tracks", "--motion", "crowd", "--setup", str(setup_path), "-o", str(doc), "--frames", "20",
-            "--fps", "10", "--people", str(people), "--seed", "1", "--person-classes", "person"]) == 0
-scene = read_openlabel(doc)
-catalog = load_catalog(scene.asset_paths, base_dir=doc.parent)
-started = time.perf_counter()
-result = compose_stage(scene, catalog, folder / f"stage_{people}")
-compose_s = time.perf_counter() - started
+scene = read_openlabel(setup_path)
+catalog = load_catalog(scene.asset_paths, base_dir=setup_path.parent)
+generated = generate_crowd(scene, catalog, CrowdOptions(frames=20, fps=10.0, people=people, seed=1,
+                                                        person_classes=("person",)),
+                           obstacles=environment_obstacles(scene, catalog))
+crowd = generated.scene
+camera = crowd.cameras[0]
+camera = dataclasses.replace(camera, intrinsics=camera.intrinsics.resized(WIDTH, HEIGHT))
+crowd = dataclasses.replace(crowd, cameras=(camera,))
+started, cpu = time.perf_counter(), time.process_time()
+result = compose_stage(crowd, catalog, folder / f"stage_{people}")
+compose_s, compose_cpu_s = time.perf_counter() - started, time.process_time() - cpu
 size = sum(f.stat().st_size for f in result.stage_dir.glob("*.usd*"))
-camera = scene.cameras[0].name
-started = time.perf_counter()
-assert cli(["render", str(doc), "-o", str(folder / f"run_{people}"), "--frames", "10:10", "--cameras", camera,
-            "--samples", "1", "--workers", "1", "--no-progress", "--asset-path",
-            str(setup_path.parent / "assets")]) == 0
-render_s = time.perf_counter() - started
-print(json.dumps({"people": people, "compose_s": round(compose_s, 2), "stage_mb": round(size / 1e6, 2),
-                  "render_one_image_s": round(render_s, 1)}))
+events = []
+report = render(result.root_layer, folder / f"run_{people}", frames=[10], cameras=[camera.name],
+                settings_override={"samples": 1, "denoise": False}, progress=False, workers=1,
+                on_event=events.append)
+imported = next(e for e in events if e.get("event") == "imported")
+done = [e for e in events if e.get("event") == "done"]
+print(json.dumps({"people": people, "objects": len(crowd.objects), "compose_s": round(compose_s, 2),
+                  "compose_cpu_s": round(compose_cpu_s, 2), "stage_mb": round(size / 1e6, 2),
+                  "compose_peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0),
+                  "render_wall_s": round(report.wall_s, 1), "import_s": round(report.import_s, 1),
+                  "render_s": round(report.render_s, 2), "render_cpu_s": round(report.render_cpu_s, 1),
+                  "meshes": imported.get("object_meshes"), "shared_meshes": imported.get("shared_meshes"),
+                  "worker_rss_mb": round(max(e["rss_mb"] for e in done))}))
 """
 
 
@@ -98,7 +111,8 @@ def main() -> int:
         print(out.stdout.strip().splitlines()[-1])
     with tempfile.TemporaryDirectory(prefix="crowd-bench-") as tmp:
         for people in args.compose:
-            out = subprocess.run([sys.executable, "-c", _COMPOSE, str(args.setup), str(people), tmp],
+            out = subprocess.run([sys.executable, "-c", _COMPOSE.replace("WIDTH, HEIGHT", "320, 240"),
+                                  str(args.setup), str(people), tmp],
                                  check=True, capture_output=True, text=True)
             print(json.loads(out.stdout.strip().splitlines()[-1]))
     return 0

@@ -15,7 +15,7 @@ from usdscene.generate.movers import (FRONT_YAW, STRIDE_M, Ground, Track, TrackO
                                       full_fail, place, problem)
 from usdscene.generate.obstacles import floor_missing
 from usdscene.generate.routes import (Area, Polyline, has_word, offset_sideways, place_graph, rounded,
-                                      route_points, shortest_path, speed_profile, timed_distances)
+                                      route_points, shortest_path, simplified, speed_profile, timed_distances)
 
 PERSON_WORDS = ("person", "pedestrian", "human", "walker", "people")
 WALK_VARIANT = re.compile(r"^walk_(\d+)$")
@@ -25,6 +25,10 @@ STRIDE_RANGE_M = (0.9, 1.8)
 PERSON_MARGIN_M = 0.05
 """Added around a person's footprint against others (swinging arms and legs)."""
 WALK_TURN_RADIUS_M = 0.8
+MIN_SHOWN_S = 2.0
+"""Seconds of its route every walker is in the sequence for (at most half its route and half the sequence)."""
+ROUTE_TRIES = 50
+"""Candidates drawn on a walker's route before its route is drawn again (see :func:`walkers`)."""
 
 
 def walk_variants(entry: AssetEntry) -> tuple[str, ...]:
@@ -71,10 +75,11 @@ def _off_floor(line: Polyline, obstacles) -> bool:
     return bool(floor_missing(obstacles, pos[:, :2], pos[:, 2]).any())
 
 
-def _check_support(areas: Sequence[Area], path: Sequence[int], obstacles) -> None:
-    """Refuse a route whose centre line leaves the floor (an entrance box beside a walk place,
-    past the slab's end: the walkers would hang in the air), naming its entrance and the spot."""
-    line = Polyline(route_points(areas, path))
+def _check_support(areas: Sequence[Area], path: Sequence[int], points: np.ndarray, obstacles) -> None:
+    """Refuse a route (``points`` (P, 3) through the places ``path``) whose centre line leaves
+    the floor (an entrance box beside a walk place, past the slab's end: the walkers would hang
+    in the air), naming its entrance and the spot."""
+    line = Polyline(points)
     s = np.arange(0.0, line.length + SUPPORT_STEP_M, SUPPORT_STEP_M)
     pos, _ = line.at(s)
     missing = floor_missing(obstacles, pos[:, :2], pos[:, 2])
@@ -87,6 +92,44 @@ def _check_support(areas: Sequence[Area], path: Sequence[int], obstacles) -> Non
                                              "its entrance): put the entrance at the end of a walk place, on the floor")
 
 
+TURN_INSET_M = 0.5
+"""How far before the far end of its walk place a single door's route turns back (its walkers
+turn on the spot up to :data:`WALK_TURN_RADIUS_M` before that, see :func:`~usdscene.generate.routes.rounded`)."""
+
+
+def _far_end(area: Area, point: np.ndarray) -> np.ndarray:
+    """The end of the area's long centre line farther from ``point`` (3,), :data:`TURN_INSET_M`
+    inside it (at most its middle) → (3,)."""
+    long_axis = int(np.argmax(area.half))
+    local = np.zeros(2)
+    side = -1.0 if float((point[:2] - area.centre[:2]) @ area.axes[:, long_axis]) > 0 else 1.0
+    local[long_axis] = side * max(float(area.half[long_axis]) - TURN_INSET_M, 0.0)
+    xy = area.centre[:2] + area.axes @ local
+    return np.array([xy[0], xy[1], area.centre[2]])
+
+
+def _there_and_back(areas: Sequence[Area], edges, gate: int) -> tuple[list[int], np.ndarray] | None:
+    """A single door's route: in at ``gate``, along the walk places to the far end of the one
+    whose far end lies farthest from the door, turn back there, and out the same way. Returns
+    ``(places passed, points (P, 3))``, or None when no walk place is reached."""
+    best = None
+    for i, area in enumerate(areas):
+        if area.role != "walk":
+            continue
+        there = shortest_path(areas, edges, gate, i, {"walk"})
+        if there is None:
+            continue
+        points = route_points(areas, there)[:-1]  # up to the portal into the far place
+        end = _far_end(area, points[-1])
+        reach = float(np.linalg.norm(end[:2] - areas[gate].centre[:2]))
+        if best is None or reach > best[0]:
+            best = (reach, there, simplified(np.vstack([points, end[None]])))
+    if best is None:
+        return None
+    _, there, points = best
+    return there + there[::-1][1:], np.vstack([points, points[::-1][1:]])
+
+
 def walkers(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> list[Track]:
     """Walkers between entrances over the walk places, clear of ``accepted`` (see
     :mod:`usdscene.generate.motion`)."""
@@ -96,46 +139,55 @@ def walkers(ground: Ground, classes: Sequence[str], accepted: list[Track]) -> li
     F, fps = options.frames, float(options.fps)
     walk_roles = {"walk", "entrance"}
     edges = place_graph(areas, walk_roles)
-    walk = [i for i, a in enumerate(areas) if a.role == "walk"]
     gates = [i for i in edges if areas[i].role == "entrance" and any(areas[j].role == "walk" for j in edges[i])]
-    routes: list[list[int]] = []
+    routes: list[tuple[list[int], np.ndarray]] = []  # (places passed, points (P, 3))
     for a in gates:
         for b in gates:
             if a != b:
                 path = shortest_path(areas, edges, a, b, {"walk"})
                 if path is not None:
-                    routes.append(path)
-    if not routes:
-        if len(gates) == 1:  # one door: walk in, turn at the far end of the walk space, walk out
-            far = max(walk, key=lambda i: float(np.linalg.norm(areas[i].centre[:2] - areas[gates[0]].centre[:2])))
-            there = shortest_path(areas, edges, gates[0], far, {"walk"})
-            if there is not None:
-                routes.append(there + there[::-1][1:])
+                    routes.append((path, route_points(areas, path)))
+    if not routes and len(gates) == 1:  # one door: walk in, turn at the far end of the walk space, walk out
+        route = _there_and_back(areas, edges, gates[0])
+        routes += [route] if route is not None else []
     if not routes:
         raise problem("setup places", "no route between two entrances over the walk places")
     if obstacles is not None:
-        for path in routes:
-            _check_support(areas, path, obstacles)
+        for path, points in routes:
+            _check_support(areas, path, points, obstacles)
     sizes = [np.prod(2.0 * footprint_of(catalog[c], PERSON_MARGIN_M)[1]) for c in classes]
-    _check_capacity(areas, [Polyline(route_points(areas, r)).length for r in routes], options, float(np.mean(sizes)))
+    _check_capacity(areas, [Polyline(points).length for _, points in routes], options, float(np.mean(sizes)))
     out: list[Track] = []
     low, high = options.speed_range_m_s
     for k in range(options.people):
         mover = draw_mover(catalog, classes, rng, PERSON_MARGIN_M)
         across = mover.footprint[1][0]  # facing -Y: the asset's x is across the path
 
+        # The route (its direction) is drawn for a walker before its candidates, and again only
+        # after ROUTE_TRIES of them failed: drawn with every candidate, a crowded way would
+        # favour whichever direction overlaps the others least (all eight walkers of a platform
+        # went one way).
+        chosen: dict = {"tries": 0}
+
         def draw() -> Track | None:
-            path = routes[int(rng.integers(len(routes)))]
-            width = min(float(2 * areas[i].half.min()) for i in path if areas[i].role == "walk") \
-                if any(areas[i].role == "walk" for i in path) else 0.0
-            room = max(0.0, width / 2.0 - float(across))
+            if chosen["tries"] % ROUTE_TRIES == 0:
+                path, points = routes[int(rng.integers(len(routes)))]
+                width = min(float(2 * areas[i].half.min()) for i in path if areas[i].role == "walk") \
+                    if any(areas[i].role == "walk" for i in path) else 0.0
+                chosen.update(path=path, points=points, room=max(0.0, width / 2.0 - float(across)))
+            chosen["tries"] += 1
+            path, points, room = chosen["path"], chosen["points"], chosen["room"]
             side = float(rng.uniform(-room, room)) if room > 0 else 0.0
-            line = Polyline(rounded(offset_sideways(route_points(areas, path), side), WALK_TURN_RADIUS_M))
+            line = Polyline(rounded(offset_sideways(points, side), WALK_TURN_RADIUS_M))
             if obstacles is not None and _off_floor(line, obstacles):
                 return None  # offset sideways past a slab's edge: drawn again
             speed = float(rng.uniform(low, high))
             duration_s = line.length / speed
-            start_s = float(rng.uniform(-duration_s / 2.0, max(F / fps - duration_s / 2.0, 0.0)))
+            # Starts spread as in a steady flow, over [-duration, sequence) less the time every
+            # walker is shown: those on their way at frame 0 are spread along their routes, not
+            # bunched at the doors.
+            shown_s = min(MIN_SHOWN_S, duration_s / 2.0, F / fps / 2.0)
+            start_s = float(rng.uniform(shown_s - duration_s, F / fps - shown_s))
             s = timed_distances(speed_profile(line.length, speed, from_rest=False, to_rest=False, accel=1.0),
                                 start_s=start_s, fps=fps, frames=F)
             present = np.isfinite(s) & (s <= line.length)

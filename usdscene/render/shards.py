@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from usdscene.render.job import JobCamera, JobObject, RenderJob
+from usdscene.document.stage_schema import POSE_CHILD_PREFIX
 from usdscene.render.manifest import Manifest
 from usdscene.sensor.exposure import meter_window
 from usdscene.render.worker_process import ShardExit
@@ -31,6 +32,14 @@ MAX_RENDERS_PER_WORKER = 250
 ASSUMED_SECONDS_PER_IMAGE = 15.0
 
 
+def _imported_prims(job_object: JobObject) -> list[str]:
+    """The prims a shard imports for one job object: the object, or of an object whose pose
+    changes per frame only the pose children shown in the shard's frames (their ancestors come
+    with them): a walker of a one-frame shard brings one body, not one per pose it ever shows."""
+    shown = sorted(v for v, frames in (job_object.pose_frames or {}).items() if frames)
+    return [f"{job_object.prim}/{POSE_CHILD_PREFIX}{v}" for v in shown] or [job_object.prim]
+
+
 def shard_job(plan, settings: Mapping[str, Any], cameras: Mapping[str, JobCamera], threads: int | None,
               keep_clean: bool, pairs: Sequence[tuple[int, str]]) -> RenderJob:
     """The :class:`~usdscene.render.job.RenderJob` of one shard: its (frame, camera) pairs, the
@@ -42,7 +51,7 @@ def shard_job(plan, settings: Mapping[str, Any], cameras: Mapping[str, JobCamera
                   for g in meter_window(f, cameras[c].sensor["warmup_frames"], cameras[c].sensor["first_frame"])}
     frame_set = frozenset(frame_set)
     objects = tuple(JobObject.of(o, frame_set) for o in plan.objects if frame_set.intersection(o.visible_frames))
-    mask = list(plan.shared_prims) + [o.prim for o in objects]
+    mask = list(plan.shared_prims) + [prim for o in objects for prim in _imported_prims(o)]
     return RenderJob(
         world=plan.world,
         keep_clean=keep_clean,

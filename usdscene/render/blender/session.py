@@ -100,10 +100,14 @@ class Session:
             mask_id = int(wanted[uid].mask_id)
             for ob in members:
                 ob.pass_index = mask_id
+        # One mesh per distinct (body, pose): a crowd's people share them (blender/mesh_sharing.py).
+        from usdscene.render.blender.mesh_sharing import share_equal_meshes
+
+        meshes, shared = share_equal_meshes(bpy, [ob for members in self.objects.values() for ob in members])
         missing = sorted(set(wanted) - set(self.objects))
         emit({"event": "imported", "seconds": time.perf_counter() - started, "pid": os.getpid(),
               "objects": len(bpy.data.objects), "missing_uids": missing[:20],
-              "missing_count": len(missing)})
+              "missing_count": len(missing), "object_meshes": meshes, "shared_meshes": shared})
 
     def _setup_render(self) -> None:
         bpy = self.bpy
