@@ -5,13 +5,14 @@ the video export's time per image.
 
 The moving car park (``examples/car_park/setup_moving.openlabel.json`` through ``usdscene
 generate tracks``: 6 walkers, 1 standing, 2 vehicles, 5 fps) at ``--size``, ``--samples``
-samples without denoising, 1 bounce, cameras ``pole_north`` (perspective) and
-``ceiling_fisheye`` (equidistant fisheye), rendered by ``usdscene run`` with ``render.depth``
+samples without denoising, 1 bounce, cameras ``pole_north`` (perspective),
+``ceiling_fisheye`` (equidistant fisheye) and ``entrance_wide`` (OpenCV pinhole: rendered wider
+and remapped, the depth with the mask's nearest-neighbour map), rendered by ``usdscene run`` with ``render.depth``
 absent, then ``png16``, then ``exr``, ``--repeat`` times in turn (so a change of the machine's
 load hits every variant alike). The render figure is per image from the manifest: Cycles'
 render plus the worker's decoding and writing (``render_s + decode_s + post_s``), without
 Blender's start, the stage import and the labelling; the median of the run's images, and the
-ratio on / off. The video figure is ``export_video`` of the ``png16`` run (its images, both
+ratio on / off; then the same per camera. The video figure is ``export_video`` of the ``png16`` run (its images, both
 cameras), seconds per image, best of ``--repeat``.
 """
 
@@ -28,7 +29,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 CAR_PARK = REPO / "examples" / "car_park"
-CAMERAS = ("pole_north", "ceiling_fisheye")
+CAMERAS = ("pole_north", "ceiling_fisheye", "entrance_wide")
 
 
 def _document(folder: Path, size, frames: int, samples: int, depth) -> Path:
@@ -49,10 +50,11 @@ def _document(folder: Path, size, frames: int, samples: int, depth) -> Path:
     return doc
 
 
-def _seconds_per_image(out: Path) -> float:
+def _seconds_per_image(out: Path, camera: str | None = None) -> float:
+    """Median seconds per image of a run (of one camera's images when ``camera`` is given)."""
     manifest = json.loads((out / "manifest.json").read_text())
     times = [t["render_s"] + t.get("decode_s", 0.0) + t.get("post_s", 0.0)
-             for frames in manifest["done"].values() for t in frames.values()]
+             for name, frames in manifest["done"].items() if camera in (None, name) for t in frames.values()]
     return statistics.median(times)
 
 
@@ -76,12 +78,15 @@ def main() -> int:
     variants = (None, "png16", "exr")
     docs = {v: _document(folder, args.size, args.frames, args.samples, v) for v in variants}
     figures: dict = {v: [] for v in variants}
+    per_camera: dict = {}
     for k in range(args.repeat):
         for v in variants:
             out = folder / f"out_{v}_{k}"
             shutil.rmtree(out, ignore_errors=True)
             assert cli(["run", str(docs[v]), "-o", str(out), "--cameras", *CAMERAS, "--no-progress"]) == 0
             figures[v].append(_seconds_per_image(out))
+            for camera in CAMERAS:
+                per_camera.setdefault((v, camera), []).append(_seconds_per_image(out, camera))
     images = args.frames * len(CAMERAS)
     print(f"{args.size[0]}x{args.size[1]}, {args.samples} samples, {images} images per run, "
           f"load {os.getloadavg()[0]:.1f}")
@@ -90,6 +95,10 @@ def main() -> int:
         best = min(figures[v])
         runs = ", ".join(f"{s:.3f}" for s in figures[v])
         print(f"depth {v or 'off':6s}: {best:.3f} s per image (median per run: {runs}); on / off {best / off:.3f}")
+    for camera in CAMERAS:
+        off = min(per_camera[(None, camera)])
+        print(f"  {camera}: " + ", ".join(f"{v or 'off'} {min(per_camera[(v, camera)]):.3f} s "
+                                         f"({min(per_camera[(v, camera)]) / off:.3f})" for v in variants))
     document = json.loads((folder / "out_png16_0" / "annotations.openlabel.json").read_text())
     seconds = []
     for _ in range(args.repeat):
