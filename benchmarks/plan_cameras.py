@@ -22,7 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from usdscene.design.camera_design import plan_cameras, verify_plan
+from usdscene.design.camera_design import plan_cameras
+from usdscene.design.plan_verify import verify_plan
 from usdscene.design.plan_request import PlanRequest
 
 CABIN = Path(__file__).resolve().parents[1] / "examples" / "aircraft_cabin" / "cabin.openlabel.json"

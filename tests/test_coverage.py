@@ -226,11 +226,11 @@ def test_target_behind_the_pillar_is_occluded_for_the_camera_that_cannot_see_it(
 
 @pytest.mark.usd
 def test_visibility_matrix_of_the_room(room_setup):
-    from usdscene.design.camera_design import occluder_scene, stage_triangles, _read_setup
+    from usdscene.design.camera_design import occluder_scene, read_setup, stage_triangles
     from usdscene.scene.compose import compose_stage
 
     root, document = room_setup
-    setup, catalog = _read_setup(document)
+    setup, catalog = read_setup(document)
     composed = compose_stage(occluder_scene(setup, catalog, "setup"), catalog, root / "stage_vis")
     occ = Occluders(stage_triangles(composed.root_layer, 0))
     targets = targets_from_places(catalog.places("pillar_room"), [parse_target_spec("spot_*:on")],
@@ -272,7 +272,8 @@ def test_auto_mounts_cover_both_spots_and_the_plan_is_a_valid_openlabel_setup(ro
 @pytest.mark.usd
 @pytest.mark.blender
 def test_predicted_and_rendered_visibility_agree(room_setup, monkeypatch):
-    from usdscene.design.camera_design import plan_cameras, verify_plan
+    from usdscene.design.camera_design import plan_cameras
+    from usdscene.design.plan_verify import verify_plan
 
     root, document = room_setup
     # The plan document in root/both names ../assets: outside its folder, so consent to root.

@@ -172,7 +172,7 @@ def test_a_bad_mounts_file_names_every_problem(tmp_path):
 
 
 def test_a_point_beyond_the_image_border_is_not_seen_in_the_render():
-    from usdscene.design.camera_design import _rendered_points
+    from usdscene.design.plan_verify import _rendered_points
 
     # Looking down +z from the origin; the first point projects 40 px above the image, the
     # second onto its centre. The mask holds the target's id everywhere but the centre.
@@ -221,14 +221,13 @@ def test_open_air_scene_gets_pole_and_facade_mounts_and_none_in_the_tree(open_lo
     triangles, surfaces, _ = scene_geometry(root / "plan" / "occluders" / "scene.usda", 0)
     assert any("OakTree/Crown" in p for p in surfaces.unmountable_paths)
     occ = Occluders(triangles)
-    lo, hi = occ.bounds_m
-    rooms = candidate_mounts(occ, lo, hi, surfaces=surfaces, structure=Occluders(triangles[surfaces.mountable]))
-    outdoor = open_air_mounts(occ, triangles, surfaces, lo, hi)
+    rooms = candidate_mounts(occ, occ.bounds_m, surfaces=surfaces, structure=Occluders(triangles[surfaces.mountable]))
+    outdoor = open_air_mounts(occ, triangles, surfaces, occ.bounds_m)
     kinds = {m.surface for m in outdoor}
     assert kinds == {"pole", "facade"}
     assert not _in_crown([m.position_m for m in rooms + outdoor]).any()
     # Without the rule (everything mountable, nothing to keep clear of) the crown is a ceiling.
-    naive = candidate_mounts(occ, lo, hi)
+    naive = candidate_mounts(occ, occ.bounds_m)
     assert _in_crown([m.position_m for m in naive]).any()
     # Poles stand on the ground at the asked heights.
     heights = sorted({round(m.position_m[2], 3) for m in outdoor if m.surface == "pole"})
@@ -292,7 +291,7 @@ def test_mount_node_of_the_environment_is_read(tmp_path):
 @pytest.mark.usd
 @pytest.mark.blender
 def test_open_air_plan_agrees_with_its_cycles_render(open_lot, lot_plan, monkeypatch):
-    from usdscene.design.camera_design import verify_plan
+    from usdscene.design.plan_verify import verify_plan
 
     root, _, _ = open_lot
     monkeypatch.setenv("USDSCENE_ASSET_PATH", str(root))

@@ -209,9 +209,8 @@ def test_mount_search_says_why_no_pole_stands_on_a_deck_above_lower_stairs():
               SimpleNamespace(path="/Platform/Tree/Crown", triangles_m=crown, mountable=None)]
     tris = np.concatenate([deck, stairs, crown])
     occ = Occluders(tris)
-    lo, hi = occ.bounds_m
     left_out: dict[str, int] = {}
-    mounts = open_air_mounts(occ, tris, mount_surfaces(meshes, 0), lo, hi, left_out=left_out)
+    mounts = open_air_mounts(occ, tris, mount_surfaces(meshes, 0), occ.bounds_m, left_out=left_out)
     assert mounts == []
     high = [n for reason, n in left_out.items() if "more than 1 m above the scene's lowest point" in reason]
     tree = [n for reason, n in left_out.items() if "unmountable" in reason and "first surface" in reason]

@@ -37,7 +37,8 @@ def test_the_sample_is_seeded_and_drawn_from_what_is_in_view():
 def test_a_sampled_verification_renders_only_the_sample_and_states_its_confidence(tmp_path, monkeypatch):
     from test_open_air_planning import write_setup
 
-    from usdscene.design.camera_design import plan_cameras, verify_plan
+    from usdscene.design.camera_design import plan_cameras
+    from usdscene.design.plan_verify import verify_plan
 
     document, lenses = write_setup(tmp_path)
     monkeypatch.setenv("USDSCENE_ASSET_PATH", str(tmp_path))

@@ -41,6 +41,7 @@ PURE_MODULES = [
     "usdscene.dataset.statistics",
     "usdscene.dataset.contact_sheet",
     "usdscene.dataset.report",
+    "usdscene.dataset.report_pictures",
     "usdscene.shipped",
     "usdscene.converters.openlabel",
     "usdscene.converters.openlabel.annotations",

@@ -16,7 +16,8 @@ from usdscene.cli import main
 from usdscene.converters.openlabel.annotations import add_annotations, labels_in
 from usdscene.labels.image_labels import image_labels_to_json, label_image, label_images
 from usdscene.document.model import Camera, Intrinsics, LensModel, SceneObject, SceneSpec
-from usdscene.dataset.report import THUMB_WIDTH_PX, build_report, picture_paths
+from usdscene.dataset.report import build_report
+from usdscene.dataset.report_pictures import THUMB_WIDTH_PX, picture_paths
 
 W, H = 400, 240  # wider than THUMB_ABOVE_PX: thumbnails are drawn
 CAMERAS = ("cam_a", "cam_b")
@@ -135,14 +136,14 @@ def test_report_holds_every_image_and_label(output):
 
 
 def test_tint_indices_wrap_past_255():
-    from usdscene.dataset.report import tint_indices
+    from usdscene.dataset.report_pictures import tint_indices
 
     ids = np.array([[0, 1, 255, 256, 511, 65535]], np.uint16)
     assert tint_indices(ids).tolist() == [[0, 1, 255, 1, 1, 255]]
 
 
 def test_grey_png_decodes_to_its_pixels_and_is_stable():
-    from usdscene.dataset.report import grey_png
+    from usdscene.dataset.report_pictures import grey_png
 
     rng = np.random.default_rng(3)
     pixels = rng.integers(0, 256, (37, 53), dtype=np.uint8)
@@ -181,7 +182,7 @@ def test_rebuild_redraws_only_changed_pictures(output):
 
 
 def test_pictures_drawn_while_rendering_are_kept_by_the_report(output):
-    from usdscene.dataset.report import PicturesWhileRendering
+    from usdscene.dataset.report_pictures import PicturesWhileRendering
 
     pictures = PicturesWhileRendering(output)
     for frame in FRAMES:

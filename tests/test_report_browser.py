@@ -151,7 +151,7 @@ def test_image_labelled_with_nothing_opens_without_a_tint(report, browser, tmp_p
     from selenium.webdriver.common.keys import Keys
     from selenium.webdriver.support.ui import WebDriverWait
 
-    from usdscene.dataset.report import picture_paths
+    from usdscene.dataset.report_pictures import picture_paths
 
     out = tmp_path / "out"
     shutil.copytree(report, out)

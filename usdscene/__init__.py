@@ -63,7 +63,7 @@ _LAZY = {
     "balance_report": ("usdscene.generate.balance", "balance_report"),
     "plan_cameras": ("usdscene.design.camera_design", "plan_cameras"),
     "PlanRequest": ("usdscene.design.plan_request", "PlanRequest"),
-    "verify_plan": ("usdscene.design.camera_design", "verify_plan"),
+    "verify_plan": ("usdscene.design.plan_verify", "verify_plan"),
 }
 
 __all__ = ["__version__", "AssetError", "CompositionError", "DocumentError", "OutputError",

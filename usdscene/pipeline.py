@@ -232,7 +232,7 @@ class _Run:
             labelling = LabelsWhileRendering(self.out)
             listeners = [labelling]
             if options.report:
-                from usdscene.dataset.report import PicturesWhileRendering
+                from usdscene.dataset.report_pictures import PicturesWhileRendering
 
                 # the report's thumbnails and mask tints too: its step at the end only writes data
                 listeners.append(PicturesWhileRendering(self.out))

@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     if args.verify:
         if args.setup or args.out:
             return _usage("--verify PLAN_DIR takes no --setup or -o")
-        from usdscene.design.camera_design import VERIFY_DIR, verify_plan
+        from usdscene.design.plan_verify import VERIFY_DIR, verify_plan
 
         result = verify_plan(args.verify, resolution_scale=args.verify_scale, samples=args.verify_samples,
                              marker_radius_m=args.marker_radius, cameras=args.verify_cameras,

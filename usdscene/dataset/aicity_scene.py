@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
@@ -123,8 +124,24 @@ def write_videos(folder: Path, images: Mapping[str, list[Path]], fps: float) -> 
         encode_video(av, path, list(paths), frame_rate(fps), DEFAULT_CRF)
 
 
-def export_aicity_scene(out_dir, document: dict, catalog, options, *, render_the_map: bool = True,
-                        map_samples: int | None = None, map_cut_m: float = MAP_CUT_M, videos: bool = True) -> Path:
+@dataclass(frozen=True)
+class SceneParts:
+    """What :func:`export_aicity_scene` writes beside the pure exporter's files.
+
+    Attributes:
+        render_the_map: render ``map.png`` (2025); needs the scene's source document.
+        map_samples: samples per pixel of the map render (None: the document's).
+        map_cut_m: the map shows what lies below this height (metres).
+        videos: write the videos (needs PyAV).
+    """
+
+    render_the_map: bool = True
+    map_samples: int | None = None
+    map_cut_m: float = MAP_CUT_M
+    videos: bool = True
+
+
+def export_aicity_scene(out_dir, document: dict, catalog, options, parts: SceneParts = SceneParts()) -> Path:
     """Write ``OUT/exports/aicity/<scene>/`` (:func:`usdscene.converters.exports.aicity.export_aicity`)
     with the defaults of this module; returns the scene folder.
 
@@ -133,10 +150,7 @@ def export_aicity_scene(out_dir, document: dict, catalog, options, *, render_the
         document, catalog: its annotated document and catalog (None: no person classes, no extents).
         options: :class:`usdscene.converters.exports.aicity.AicOptions` (``class_map`` = the
             user's mapping, merged over the defaults here).
-        render_the_map: render ``map.png`` (2025); needs the scene's source document.
-        map_samples: samples per pixel of the map render (None: the document's).
-        map_cut_m: the map shows what lies below this height (metres).
-        videos: write the videos (needs PyAV).
+        parts: the map and the videos (:class:`SceneParts`).
 
     Raises:
         UsdSceneError: as the exporter; OutputError when the map needs a source document that is gone.
@@ -148,6 +162,8 @@ def export_aicity_scene(out_dir, document: dict, catalog, options, *, render_the
     from usdscene.document import output_layout as layout
     from usdscene.errors import OutputError
 
+    render_the_map, videos = parts.render_the_map, parts.videos
+    map_samples, map_cut_m = parts.map_samples, parts.map_cut_m
     out = Path(out_dir)
     options = replace(options, class_map=default_class_map(catalog, options.class_map))
     write_map = None
@@ -181,6 +197,6 @@ def write_aicity(job) -> Path:
     from usdscene.converters.exports.aicity import AicOptions
 
     options = job.options
-    return export_aicity_scene(job.out_dir, job.document, job.catalog, options.aicity or AicOptions(),
-                               render_the_map=options.aicity_map, videos=options.aicity_videos,
-                               map_samples=options.aicity_map_samples, map_cut_m=options.aicity_map_cut_m)
+    parts = SceneParts(render_the_map=options.aicity_map, map_samples=options.aicity_map_samples,
+                       map_cut_m=options.aicity_map_cut_m, videos=options.aicity_videos)
+    return export_aicity_scene(job.out_dir, job.document, job.catalog, options.aicity or AicOptions(), parts)

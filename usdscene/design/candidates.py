@@ -44,23 +44,72 @@ class Mount:
     name: str = ""
 
 
-def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region_max_m: Sequence[float], *,
-                     spacing_m: float = 0.8, offset_m: float = 0.05, walls: bool = True,
-                     surfaces: MountSurfaces | None = None, structure: Occluders | None = None,
+@dataclass(frozen=True)
+class RoomGrid:
+    """How :func:`candidate_mounts` probes a room.
+
+    Attributes:
+        spacing_m: grid spacing, metres.
+        offset_m: distance of the camera centre from its surface, metres.
+        walls: add wall mounts.
+    """
+
+    spacing_m: float = 0.8
+    offset_m: float = 0.05
+    walls: bool = True
+
+
+@dataclass(frozen=True)
+class PoleGrid:
+    """How :func:`open_air_mounts` stands poles and finds façades.
+
+    Attributes:
+        heights_m: camera heights above the ground, metres.
+        spacing_m: pole grid spacing, metres.
+        ground_band_m: how far above the region's lowest point the ground may lie, metres.
+        facade_reach_m: how far from a pole a façade is looked for, metres.
+        offset_m: distance of a façade camera from its wall, metres.
+    """
+
+    heights_m: tuple[float, ...] = (4.0, 6.0)
+    spacing_m: float = 4.0
+    ground_band_m: float = 1.0
+    facade_reach_m: float = 12.0
+    offset_m: float = 0.05
+
+
+@dataclass(frozen=True)
+class Aiming:
+    """How :func:`candidate_cameras` aims a mount's cameras.
+
+    Attributes:
+        aims: how many of the nearest target clusters a mount aims at.
+        cluster_m: target cluster cell, metres.
+        max_range_m: farthest cluster aimed at from a ceiling or wall mount, metres.
+        open_air_range_m: farthest cluster aimed at from any other mount, metres.
+    """
+
+    aims: int = 4
+    cluster_m: float = 1.6
+    max_range_m: float = 8.0
+    open_air_range_m: float = 20.0
+
+
+def candidate_mounts(occluders: Occluders, region_m: tuple[Sequence[float], Sequence[float]], *,
+                     grid: RoomGrid = RoomGrid(), surfaces: MountSurfaces | None = None,
+                     structure: Occluders | None = None,
                      left_out: MutableMapping[str, int] | None = None) -> list[Mount]:
     """Ceiling and wall positions of the environment inside an axis-aligned region.
 
-    A grid of probe points at the region's mid-height (``spacing_m`` apart in X and Y) casts
-    rays up (ceiling) and, with ``walls``, sideways in ±X and ±Y at 80 % of the ceiling height
+    A grid of probe points at the region's mid-height (``grid.spacing_m`` apart in X and Y) casts
+    rays up (ceiling) and, with ``grid.walls``, sideways in ±X and ±Y at 80 % of the ceiling height
     (walls). A probe counts only when a ray down also hits something (it is inside the
-    environment, not above an open floor). Mounts sit ``offset_m`` off the surface hit.
+    environment, not above an open floor). Mounts sit ``grid.offset_m`` off the surface hit.
 
     Args:
         occluders: the environment (and objects) to cast against.
-        region_min_m, region_max_m: (3,) corners of the space to look in, metres.
-        spacing_m: grid spacing.
-        offset_m: distance of the camera centre from its surface.
-        walls: add wall mounts.
+        region_m: ((3,), (3,)) min and max corners of the space to look in, metres.
+        grid: the probe grid (:class:`RoomGrid`).
         surfaces: when given, a mount must be clear of unmountable geometry
             (:meth:`MountSurfaces.clear`).
         structure: when given, the rays are cast against it instead of ``occluders``: the
@@ -69,9 +118,10 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
         left_out: when given, counts of what was not made a mount, by reason (added to).
 
     Returns:
-        Mounts, deduplicated to a ``spacing_m / 2`` grid, in a deterministic order.
+        Mounts, deduplicated to a ``grid.spacing_m / 2`` grid, in a deterministic order.
     """
-    lo, hi = np.asarray(region_min_m, float), np.asarray(region_max_m, float)
+    spacing_m, offset_m, walls = grid.spacing_m, grid.offset_m, grid.walls
+    lo, hi = np.asarray(region_m[0], float), np.asarray(region_m[1], float)
     if structure is not None:
         occluders = structure
     xs = np.arange(lo[0] + spacing_m / 2, hi[0], spacing_m)
@@ -114,13 +164,11 @@ def candidate_mounts(occluders: Occluders, region_min_m: Sequence[float], region
 
 
 def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: MountSurfaces,
-                    region_min_m: Sequence[float], region_max_m: Sequence[float], *,
-                    heights_m: Sequence[float] = (4.0, 6.0), spacing_m: float = 4.0, ground_band_m: float = 1.0,
-                    facade_reach_m: float = 12.0, offset_m: float = 0.05,
+                    region_m: tuple[Sequence[float], Sequence[float]], *, grid: PoleGrid = PoleGrid(),
                     left_out: MutableMapping[str, int] | None = None) -> list[Mount]:
     """Poles and façade mounts of the open air.
 
-    A grid of rays (``spacing_m`` apart in X and Y) comes straight down from above the region.
+    A grid of rays (``grid.spacing_m`` apart in X and Y) comes straight down from above the region.
     Where the first surface it meets is *open ground* (mountable, facing up within 25°, and no
     more than ``ground_band_m`` above the lowest point of the region: the walkable or drivable
     level, not a roof or a tree crown), a pole stands, with a camera at each of ``heights_m``
@@ -133,20 +181,18 @@ def open_air_mounts(occluders: Occluders, triangles_m: np.ndarray, surfaces: Mou
         occluders: the whole scene.
         triangles_m: (T, 3, 3) the same triangles (for surface normals).
         surfaces: mountability of those triangles.
-        region_min_m, region_max_m: (3,) corners of the space to look in, metres.
-        heights_m: camera heights above the ground, metres.
-        spacing_m: pole grid spacing, metres.
-        ground_band_m: how far above the region's lowest point the ground may lie, metres.
-        facade_reach_m: how far from a pole a façade is looked for, metres.
-        offset_m: distance of a façade camera from its wall.
+        region_m: ((3,), (3,)) min and max corners of the space to look in, metres.
+        grid: the poles' grid, heights and façade reach (:class:`PoleGrid`).
         left_out: when given, counts of pole positions (grid rays) and pole cameras not made
             mounts, by reason (added to), e.g. ground higher than ``ground_band_m`` above the
             lowest point.
 
     Returns:
-        Pole mounts, then façade mounts, deduplicated to a ``spacing_m / 4`` grid, deterministic.
+        Pole mounts, then façade mounts, deduplicated to a ``grid.spacing_m / 4`` grid, deterministic.
     """
-    lo, hi = np.asarray(region_min_m, float), np.asarray(region_max_m, float)
+    heights_m, spacing_m, ground_band_m = grid.heights_m, grid.spacing_m, grid.ground_band_m
+    facade_reach_m, offset_m = grid.facade_reach_m, grid.offset_m
+    lo, hi = np.asarray(region_m[0], float), np.asarray(region_m[1], float)
     tris = np.asarray(triangles_m, dtype=np.float64).reshape(-1, 3, 3)
     normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
@@ -240,12 +286,11 @@ _ROOM_SURFACES = ("ceiling", "wall")
 
 
 def candidate_cameras(mounts: Sequence[Mount], targets: Sequence[Target], lenses: Sequence[Lens], *,
-                      aims: int = 4, cluster_m: float = 1.6, max_range_m: float = 8.0,
-                      open_air_range_m: float = 20.0) -> list[Camera]:
+                      aiming: Aiming = Aiming()) -> list[Camera]:
     """Cameras at every mount, with every lens, aimed along the mount's own ``aims`` when it has
     some, else along the surface normal (ceilings, nodes; walls and façades tilted 35° down)
-    and at the ``aims`` nearest target clusters (within ``max_range_m`` of a ceiling or wall
-    mount, ``open_air_range_m`` of any other) that lie in front of the surface.
+    and at the ``aiming.aims`` nearest target clusters (within ``aiming.max_range_m`` of a
+    ceiling or wall mount, ``aiming.open_air_range_m`` of any other) that lie in front of the surface.
 
     Camera names are ``cand_<mount>_<aim>_<lens>``; ``custom`` records the lens name, mount
     surface and aim, which the plan writes back into the document.
@@ -253,6 +298,8 @@ def candidate_cameras(mounts: Sequence[Mount], targets: Sequence[Target], lenses
     Returns:
         Cameras in mount, aim, lens order.
     """
+    aims, cluster_m = aiming.aims, aiming.cluster_m
+    max_range_m, open_air_range_m = aiming.max_range_m, aiming.open_air_range_m
     clusters = target_clusters(targets, cluster_m)
     cameras = []
     for m_index, mount in enumerate(mounts):

@@ -608,7 +608,7 @@ def _smoothed(xy: np.ndarray, window: int) -> np.ndarray:
 
 
 def person_tracks(run: CrowdRun, layout: CrowdLayout, catalog: Catalog, classes: Sequence[str],
-                  seated_classes: Sequence[str], options: CrowdOptions, rng: np.random.Generator) -> list[Track]:
+                  options: CrowdOptions, rng: np.random.Generator) -> list[Track]:
     """One :class:`Track` per person of the run (bodies: facing, phase, ground height)."""
     fps = float(options.fps)
     window = max(1, int(round(SMOOTHING_S * fps)) | 1)
@@ -752,7 +752,7 @@ def generate_crowd(setup: SceneSpec, catalog: Catalog, options: CrowdOptions, *,
     regions = check_crowd(layout, options, f"setup environment {setup.environment!r}")
     run = simulate(layout, options, regions)
     rng = np.random.default_rng([options.seed, 1])
-    tracks = person_tracks(run, layout, catalog, people_classes, sitting, options, rng)
+    tracks = person_tracks(run, layout, catalog, people_classes, options, rng)
     seated = int(options.seated) + sum(int(s.numbers.get("seated", 0)) for s in layout.of_role("seat"))
     if seated:
         tracks += seated_tracks(layout, catalog, sitting, seated, options, rng)
