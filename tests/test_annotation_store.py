@@ -18,7 +18,7 @@ import pytest
 
 from usdscene.converters.openlabel import store as stores
 from usdscene.errors import OutputError
-from usdscene.files import dumps_json
+from usdscene.converters.openlabel.write import document_text
 
 CAR_PARK = Path(__file__).resolve().parents[1] / "examples" / "car_park"
 CAMERAS = ("pole_north", "entrance_wide")
@@ -87,7 +87,7 @@ def test_the_streamed_document_is_the_whole_document_and_schema_valid(tmp_path, 
     assert store.index["labels"] == 23 * 2 * 3 and store.index["images"] == 23 * 2
     written = store.write_document(tmp_path / "one.json")
     data = (tmp_path / "one.json").read_bytes()
-    assert data == dumps_json(whole).encode("utf-8")
+    assert data == document_text(whole).encode("utf-8")
     assert written["bytes"] == len(data)
     assert schema_problems(json.loads(data), openlabel_schema_path) == []
     # each shard alone is an OpenLABEL fragment the official schema accepts
@@ -184,7 +184,7 @@ def test_store_in_shards_reads_as_one_labelling_of_the_whole_run(run, tmp_path, 
     from usdscene.dataset.annotation import annotate_output, write_annotations
 
     whole, _ = annotate_output(run)  # every label of the run in memory at once, as before the store
-    expected = dumps_json(whole).encode("utf-8")
+    expected = document_text(whole).encode("utf-8")
     _, summary = write_annotations(run, frames_per_shard=2)
     store = stores.AnnotationStore(stores.store_folder(run))
     assert [e["file"] for e in store.shards] == ["frames/000000-000001.json", "frames/000002-000003.json",
