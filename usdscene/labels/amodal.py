@@ -331,7 +331,7 @@ class _RenderSamples:
     """Which render pixel each output pixel's mask takes, and the inverse as ranges.
 
     Attributes:
-        rows, cols: (H, W) int64 render row and column of each output pixel (-1: none).
+        rows, cols: (H, W) int32 render row and column of each output pixel (-1: none).
         row_lo, row_hi: (render height,) first and last output row sampling each render row
             (lo > hi when none); ``col_lo``, ``col_hi`` (render width,) the same for columns.
     """
@@ -352,7 +352,8 @@ def _render_intrinsics(intrinsics: Intrinsics) -> Intrinsics:
     return undistorted_render_intrinsics(intrinsics)
 
 
-@functools.lru_cache(maxsize=64)
+# About 10 bytes per output pixel each (a 1920x1080 camera: 20 MB).
+@functools.lru_cache(maxsize=16)
 def _render_samples(intrinsics: Intrinsics) -> _RenderSamples:
     """The render pixel each output pixel's mask takes: ``cv2.remap`` ``INTER_NEAREST``'s
     rounding of :func:`usdscene.labels.projection.remap_grids` (half to even, as ``cvRound``);
@@ -361,15 +362,15 @@ def _render_samples(intrinsics: Intrinsics) -> _RenderSamples:
 
     render = _render_intrinsics(intrinsics)
     map_x, map_y = remap_grids(intrinsics, render)
-    cols = np.rint(map_x).astype(np.int64)
-    rows = np.rint(map_y).astype(np.int64)
+    cols = np.rint(map_x).astype(np.int32)
+    rows = np.rint(map_y).astype(np.int32)
     outside = (cols < 0) | (cols >= render.width_px) | (rows < 0) | (rows >= render.height_px)
     cols[outside], rows[outside] = -1, -1
-    v, u = np.mgrid[0:intrinsics.height_px, 0:intrinsics.width_px]
+    v, u = np.mgrid[0:intrinsics.height_px, 0:intrinsics.width_px].astype(np.int32)
     ok = ~outside
     ranges = []
     for index, position, count in ((rows, v, render.height_px), (cols, u, render.width_px)):
-        lo, hi = np.full(count, np.iinfo(np.int64).max), np.full(count, -1, dtype=np.int64)
+        lo, hi = np.full(count, np.iinfo(np.int32).max, dtype=np.int32), np.full(count, -1, dtype=np.int32)
         np.minimum.at(lo, index[ok], position[ok])
         np.maximum.at(hi, index[ok], position[ok])
         ranges += [lo, hi]
