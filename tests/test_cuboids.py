@@ -141,3 +141,31 @@ def test_box_projection_contains_the_amodal_box_on_every_lens_model(stage):
                 classes.add(next(o.class_name for o in scene.objects if o.uid == uid) if uid in movers else "")
     lenses = {c.intrinsics.lens for c in cameras}
     assert lenses == set(LensModel) and checked > 100 and len(classes) >= 3
+
+
+def test_a_striding_body_keeps_its_box_centred_on_its_origin():
+    """A walker's leg swung forward grows its box, not moves it: the box is centred on the
+    object's origin (inside its footprint), so its centre moves with the track (the tight box's
+    centre jumped 0.17 m in a frame at 30 fps, 5 m/s, which the AI City export refuses)."""
+    yaw, origin = 0.4, np.array([2.0, -1.0, 0.0])
+    c, s = math.cos(yaw), math.sin(yaw)
+    pose = np.array([[c, s, 0, 0], [-s, c, 0, 0], [0, 0, 1, 0], [*origin, 1]], dtype=float)  # USD row vectors
+    body = _box_triangles((0.4, 0.25, 1.7), 0.0, (0.0, 0.0, 0.85))
+    centres = []
+    for stride in (0.0, 0.35, -0.2):
+        leg = _box_triangles((0.12, 0.12, 0.8), 0.0, (0.1, stride, 0.4))  # along the body's y
+        local = np.concatenate([body, leg]).reshape(-1, 3)
+        world = (local @ pose[:3, :3] + pose[3, :3]).reshape(-1, 3, 3)
+        box = frame_cuboids({"w": world}, {"w": pose})["w"]
+        tight = fit_cuboid(world, object_yaw(pose))
+        assert box.center_m[:2] == pytest.approx(tuple(origin[:2]), abs=1e-12)
+        assert box.center_m[2] == pytest.approx(tight.center_m[2]) and box.size_m[2] == pytest.approx(tight.size_m[2])
+        # it holds every point: in the box's axes, within half its size of its centre
+        inside = (world.reshape(-1, 3) - np.asarray(box.center_m)) @ box.rotation()
+        assert np.all(np.abs(inside) <= np.asarray(box.size_m) / 2 + 1e-12)
+        centres.append(tight.center_m[:2])
+    assert max(np.linalg.norm(np.subtract(a, centres[0])) for a in centres) > 0.1  # the tight box moved
+    # an origin outside the footprint (a model placed off its origin) keeps the tight box
+    far = pose.copy()
+    far[3, :3] = [10.0, 10.0, 0.0]
+    assert frame_cuboids({"w": world}, {"w": far})["w"] == fit_cuboid(world, object_yaw(far))

@@ -32,7 +32,7 @@ def run(tmp_path_factory):
     (folder / "setup.json").write_text(json.dumps(setup))
     doc, out = folder / "doc.json", folder / "out"
     assert main(["generate", "tracks", "--setup", str(folder / "setup.json"), "-o", str(doc), "--frames", "8",
-                 "--fps", "5", "--people", "6", "--standing", "1", "--vehicles", "2", "--seed", "2"]) == 0
+                 "--fps", "5", "--people", "6", "--standing", "1", "--vehicles", "2", "--seed", "1"]) == 0
     assert main(["run", str(doc), "-o", str(out), "--cameras", *CAMERAS, "--export", "--no-progress"]) == 0
     assert main(["export", "mot", "multiview", str(out)]) == 0
     return out
@@ -200,8 +200,9 @@ def test_every_position_projects_into_its_boxes_through_the_written_calibration(
                 # pixel thick reaches at most one pixel beyond its edges, but a part thinner than
                 # a pixel can fall between the pixel centres and be left out whole: legs (about
                 # 0.1 m across, under a pixel at 128x96 beyond a few metres) end at the feet and
-                # are up to half a body's length (2.2 px beyond a 5 px box seen here).
-                slack = 1.0 + 0.5 * max(view["xmax"] - view["xmin"], view["ymax"] - view["ymin"])
+                # are up to half a body's length, as long as the rest of the body, which the box
+                # holds (seed 1: feet 3.1 px beyond a 3 px box of pole_north, the legs missed).
+                slack = 1.0 + max(view["xmax"] - view["xmin"], view["ymax"] - view["ymin"])
                 assert view["xmin"] - slack <= u + 0.5 <= view["xmax"] + slack, (path.name, person, u)
                 assert view["ymin"] - slack <= v + 0.5 <= view["ymax"] + slack, (path.name, person, v)
                 checked += 1

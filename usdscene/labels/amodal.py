@@ -10,8 +10,12 @@ Exactness, per lens:
 
 * perspective and orthographic: triangles are clipped at the near plane and projected; straight
   edges stay straight, so the raster is the exact full-mesh projection;
-* distorting lenses (OpenCV pinhole with distortion, fisheye models): projected edges are
-  curves; triangles are split until their projected edges are at most
+* pinhole models the renderer draws through a perspective render and a remap (OpenCV pinhole
+  with distortion, non-square pixels): filled through that render's lens (straight edges,
+  exact) and sampled as the instance mask is, each output pixel taking the render pixel the
+  mask's nearest-neighbour remap takes (:func:`_through_render`), so a visible pixel is
+  always an amodal one;
+* distorting lenses (fisheye models): projected edges are curves; triangles are split until their projected edges are at most
   :data:`MAX_PROJECTED_EDGE_PX` long, which keeps the raster within a fraction of a pixel of
   the curved one;
 * fisheye lenses with a field of view (``fov_deg``): the image is empty beyond the image circle.
@@ -46,7 +50,7 @@ if TYPE_CHECKING:
 # Revision of the rasterisation rules; kept labels computed under another revision are
 # computed anew (:class:`usdscene.dataset.annotation.ImageLabeller`). Raise it whenever a change can
 # move a projection's pixels.
-RASTER_REVISION = 5
+RASTER_REVISION = 6
 
 # Projected triangle edges of distorting lenses are curves; triangles are split until their
 # projected edges are at most this long (pixels), so the straight-edge raster stays within a
@@ -218,9 +222,12 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
         is out of view).
     """
     from usdscene.labels.amodal_kernels import faces_to_fill, to_camera, used_vertices
+    from usdscene.labels.projection import native_renderable
     from usdscene.lens import lens_for
 
     intr = camera.intrinsics
+    if lens_for(intr).pinhole and not native_renderable(intr):
+        return _through_render(camera, triangles_world_m, frame)
     size = (intr.width_px, intr.height_px)
     uids = list(triangles_world_m)
     empty = AmodalProjection(np.zeros((0, 0), dtype=bool), (0, 0), size, False)
@@ -264,6 +271,112 @@ def amodal_projections(camera: Camera, triangles_world_m: Mapping[str, np.ndarra
     for index, projection in zip(visible, projections):
         result[uids[index]] = projection
     return result
+
+
+def _through_render(camera: Camera, triangles_world_m: Mapping[str, np.ndarray],
+                    frame: int | None) -> dict[str, AmodalProjection]:
+    """Amodal projections of a pinhole camera the renderer draws through a straight perspective
+    render and a nearest-neighbour remap (:func:`usdscene.labels.projection.undistorted_render_intrinsics`,
+    the instance mask's own path): the objects are filled through the render's lens (straight
+    edges, exact) and each output pixel takes the render pixel its mask takes.
+
+    Sampled at the output's own pixel centres instead, a sub-pixel-thin limb or a far person
+    could cover render pixels the mask shows but no output pixel centre (an empty amodal box
+    for a person 1-5 px visible), as the mask samples the render's pixel centres, up to half a
+    render pixel away from the rays of the output's.
+    """
+    from dataclasses import replace
+
+    render = _render_intrinsics(camera.intrinsics)
+    sources = amodal_projections(replace(camera, intrinsics=render), triangles_world_m, frame)
+    samples = _render_samples(camera.intrinsics)
+    size = (camera.intrinsics.width_px, camera.intrinsics.height_px)
+    out = {}
+    for uid, source in sources.items():
+        out[uid] = _sampled(source, samples, size)
+    return out
+
+
+def _sampled(source: AmodalProjection, samples: _RenderSamples, size: tuple[int, int]) -> AmodalProjection:
+    """The output image's projection from the render's ``source``: each output pixel of the
+    window that can sample the source's crop takes the render pixel its mask takes."""
+    if source.box is None:
+        return AmodalProjection(_EMPTY_CROP, (0, 0), size, source.truncated)
+    x0, y0 = source.origin_px
+    h, w = source.crop.shape
+    # The output window: every output pixel sampling a render column / row of the crop.
+    u0, u1 = int(samples.col_lo[x0:x0 + w].min()), int(samples.col_hi[x0:x0 + w].max())
+    v0, v1 = int(samples.row_lo[y0:y0 + h].min()), int(samples.row_hi[y0:y0 + h].max())
+    if u1 < u0 or v1 < v0:  # nothing of the crop is sampled: it lies beyond the output image
+        return AmodalProjection(_EMPTY_CROP, (0, 0), size, True)
+    rows = samples.rows[v0:v1 + 1, u0:u1 + 1] - y0
+    cols = samples.cols[v0:v1 + 1, u0:u1 + 1] - x0
+    taken = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    window = np.zeros(rows.shape, dtype=bool)
+    window[taken] = source.crop[rows[taken], cols[taken]]
+    # Truncated: the render's own word, or covered render pixels no output pixel samples
+    # (beyond the output image).
+    seen = np.zeros_like(source.crop)
+    seen[rows[window], cols[window]] = True
+    truncated = source.truncated or bool((source.crop & ~seen).any())
+    kept_rows, kept_cols = np.flatnonzero(window.any(axis=1)), np.flatnonzero(window.any(axis=0))
+    if not kept_rows.size:
+        return AmodalProjection(_EMPTY_CROP, (0, 0), size, truncated)
+    crop = window[kept_rows[0]:kept_rows[-1] + 1, kept_cols[0]:kept_cols[-1] + 1]
+    return AmodalProjection(crop, (u0 + int(kept_cols[0]), v0 + int(kept_rows[0])), size, truncated)
+
+
+@dataclass(frozen=True, eq=False)
+class _RenderSamples:
+    """Which render pixel each output pixel's mask takes, and the inverse as ranges.
+
+    Attributes:
+        rows, cols: (H, W) int32 render row and column of each output pixel (-1: none).
+        row_lo, row_hi: (render height,) first and last output row sampling each render row
+            (lo > hi when none); ``col_lo``, ``col_hi`` (render width,) the same for columns.
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    row_lo: np.ndarray
+    row_hi: np.ndarray
+    col_lo: np.ndarray
+    col_hi: np.ndarray
+
+
+@functools.lru_cache(maxsize=64)
+def _render_intrinsics(intrinsics: Intrinsics) -> Intrinsics:
+    """The native lens the renderer draws ``intrinsics`` through (cached)."""
+    from usdscene.labels.projection import undistorted_render_intrinsics
+
+    return undistorted_render_intrinsics(intrinsics)
+
+
+# About 10 bytes per output pixel each (a 1920x1080 camera: 20 MB).
+@functools.lru_cache(maxsize=16)
+def _render_samples(intrinsics: Intrinsics) -> _RenderSamples:
+    """The render pixel each output pixel's mask takes: ``cv2.remap`` ``INTER_NEAREST``'s
+    rounding of :func:`usdscene.labels.projection.remap_grids` (half to even, as ``cvRound``);
+    -1 where it takes none (no ray, or outside the render)."""
+    from usdscene.labels.projection import remap_grids
+
+    render = _render_intrinsics(intrinsics)
+    map_x, map_y = remap_grids(intrinsics, render)
+    cols = np.rint(map_x).astype(np.int32)
+    rows = np.rint(map_y).astype(np.int32)
+    outside = (cols < 0) | (cols >= render.width_px) | (rows < 0) | (rows >= render.height_px)
+    cols[outside], rows[outside] = -1, -1
+    v, u = np.mgrid[0:intrinsics.height_px, 0:intrinsics.width_px].astype(np.int32)
+    ok = ~outside
+    ranges = []
+    for index, position, count in ((rows, v, render.height_px), (cols, u, render.width_px)):
+        lo, hi = np.full(count, np.iinfo(np.int32).max, dtype=np.int32), np.full(count, -1, dtype=np.int32)
+        np.minimum.at(lo, index[ok], position[ok])
+        np.maximum.at(hi, index[ok], position[ok])
+        ranges += [lo, hi]
+    for array in (rows, cols, *ranges):
+        array.flags.writeable = False
+    return _RenderSamples(rows, cols, *ranges)
 
 
 def _split_curved(intrinsics: Intrinsics, points_cam: np.ndarray, uv: np.ndarray, imaged: np.ndarray,
