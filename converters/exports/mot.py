@@ -174,7 +174,7 @@ def mot_rows(document: dict, records: Iterable[dict], ids: Mapping[str, int], cl
     lines = []
     for record in records:
         mot_frame = record["frame"] - first_frame + 1
-        for label in index.labels(record["frame"], record["camera"]):
+        for label in index.held_labels(record["frame"], record["camera"]):
             box = label["amodal_bbox"] or label["bbox"]
             if box is None or label["uid"] not in classes or label["uid"] not in ids:
                 continue
