@@ -234,6 +234,32 @@ def test_export_mot_without_tracks_is_one_error_and_writes_nothing(run, tmp_path
     assert not (out / "exports").exists()  # not even the COCO part
 
 
+def test_mot_and_multiview_read_each_frame_once_for_every_camera(run, tmp_path):
+    """With an index that holds two frames, MOT (three cameras) and multi-view each read every
+    frame's labels once, and write the same bytes as with an index that holds every frame."""
+    from usdscene.converters.exports.mot import MotClasses, export_mot
+    from usdscene.converters.exports.multiview import export_multiview
+    from usdscene.converters.openlabel.annotations import LabelIndex
+
+    movers = _mover_classes()
+    numbers = MotClasses(class_map={name: 1 for name in movers})
+    written = {}
+    for held in (2, 8):
+        out = tmp_path / f"held_{held}"
+        shutil.copytree(run, out, symlinks=True, ignore=shutil.ignore_patterns("exports"))
+        document = _document(out)
+        index = LabelIndex(document, max_frames=held)
+        export_mot(document, out, mot_classes=numbers, index=index)
+        assert index.frames_read == 8  # not 8 per camera
+        export_multiview(document, out, index=index, classes=movers)
+        assert index.frames_read == (16 if held == 2 else 8) and index.most_frames_held == held
+        written[held] = {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted((out / "exports").rglob("*"))
+                         if p.is_file() and not p.is_symlink() and p.suffix != ".png"}
+    assert written[2] == written[8]
+    assert sum(name.endswith("gt/gt.txt") for name in written[2]) == len(CAMERAS)
+    assert all(len(rows) for name, rows in written[2].items() if name.endswith("gt/gt.txt"))
+
+
 def test_projection_through_a_calibration_reads_strided_points():
     """The first three columns of homogeneous points (a strided view) project like a copy."""
     from usdscene.converters.exports.multiview import project_with_calibration

@@ -174,7 +174,7 @@ def mot_rows(document: dict, records: Iterable[dict], ids: Mapping[str, int], cl
     lines = []
     for record in records:
         mot_frame = record["frame"] - first_frame + 1
-        for label in index.labels(record["frame"], record["camera"]):
+        for label in index.held_labels(record["frame"], record["camera"]):
             box = label["amodal_bbox"] or label["bbox"]
             if box is None or label["uid"] not in classes or label["uid"] not in ids:
                 continue
@@ -248,6 +248,12 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
     for record in records:
         by_camera.setdefault(record["camera"], []).append(record)
     sequences = sequence_names(by_camera, layout_name)
+    # Frame by frame (the records' order), every camera's rows at once: the index keeps a few
+    # frames, so a pass per camera would read every frame's labels once per camera.
+    camera_rows: dict[str, list[str]] = {camera: [] for camera in by_camera}
+    for record in records:
+        camera_rows[record["camera"]].extend(
+            mot_rows(document, (record,), ids, uid_classes, first, index, ignore_occluded=ignore_occluded))
     target = Path(out_dir) / layout.EXPORTS_DIR / MOT_DIR
     with staged_folder(target, what="MOT export folder") as staging:
         for camera, camera_records in sorted(by_camera.items()):
@@ -257,8 +263,7 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
             for record in camera_records:
                 link_or_copy((Path(out_dir) / record["uri"]).resolve(),
                              seq / "img1" / f"{record['frame'] - first + 1:06d}.png", copy_images)
-            rows = mot_rows(document, camera_records, ids, uid_classes, first, index, ignore_occluded=ignore_occluded)
-            (seq / "gt" / "gt.txt").write_text("".join(f"{row}\n" for row in rows), encoding="utf-8")
+            (seq / "gt" / "gt.txt").write_text("".join(f"{row}\n" for row in camera_rows[camera]), encoding="utf-8")
             width, height = camera_records[0]["width_px"], camera_records[0]["height_px"]
             (seq / "seqinfo.ini").write_text(
                 f"[Sequence]\nname={Path(sequences[camera]).name}\nimDir=img1\nframeRate={fps:g}\n"

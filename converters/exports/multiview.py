@@ -470,7 +470,7 @@ def export_multiview(document: dict, out_dir: str | os.PathLike, *, grid: Ground
             pids = grid.position_ids(np.array([here[u][:2] for u in uids]).reshape(-1, 2)) if uids else []
             boxes: dict[str, dict[str, list[int]]] = {}
             for name in views:
-                for label in index.labels(frame, name):
+                for label in index.held_labels(frame, name):
                     if label["bbox"] is not None and label["uid"] in here:
                         boxes.setdefault(label["uid"], {})[name] = _edges(label["amodal_bbox"] or label["bbox"])
             entries = []

@@ -575,6 +575,8 @@ class LabelIndex:
 
     Attributes:
         most_frames_held: the most frames held at once so far.
+        frames_read: frames read from the document so far (each read counts; a frame let go
+            and asked for again is read again).
     """
 
     MAX_FRAMES = 16
@@ -586,18 +588,25 @@ class LabelIndex:
         self._max_frames = max(1, int(max_frames))
         self._read: dict[int, dict[str, list[dict]]] = {}  # frame → camera → labels, oldest first
         self.most_frames_held = 0
+        self.frames_read = 0
 
     def labels(self, frame: int, camera: str) -> list[dict]:
         """As :func:`labels_in` (fresh dicts on every call)."""
+        return [dict(label, attributes=dict(label["attributes"]), polygons=[dict(p) for p in label["polygons"]],
+                     keypoints=None if label["keypoints"] is None else list(label["keypoints"]))
+                for label in self.held_labels(frame, camera)]
+
+    def held_labels(self, frame: int, camera: str) -> list[dict]:
+        """As :meth:`labels`, but the index's own dicts, not copies (for readers that only read
+        them, in the exports' loops over every image): do not modify them."""
         frame = int(frame)
         if frame not in self._read:
             while len(self._read) >= self._max_frames:
                 del self._read[next(iter(self._read))]
             self._read[frame] = self._read_frame(frame)
+            self.frames_read += 1
             self.most_frames_held = max(self.most_frames_held, len(self._read))
-        return [dict(label, attributes=dict(label["attributes"]), polygons=[dict(p) for p in label["polygons"]],
-                     keypoints=None if label["keypoints"] is None else list(label["keypoints"]))
-                for label in self._read[frame].get(camera, [])]
+        return self._read[frame].get(camera, [])
 
     def _read_frame(self, frame: int) -> dict[str, list[dict]]:
         frame_objects = (self._frames.get(str(frame), {}) or {}).get("objects", {}) or {}
@@ -607,21 +616,29 @@ class LabelIndex:
             found: dict[str, dict] = {}  # camera → {"bbox", "amodal_bbox", "attributes", "polygons"}
 
             def of(camera: str) -> dict:
-                return found.setdefault(camera, {"bbox": None, "amodal_bbox": None, "attributes": {},
-                                                 "polygons": [], "keypoints": {}})
+                label = found.get(camera)
+                if label is None:
+                    label = found[camera] = {"bbox": None, "amodal_bbox": None, "attributes": {},
+                                             "polygons": [], "keypoints": {}}
+                return label
 
-            for item in data.get("bbox", []):
+            for item in data.get("bbox", ()):
                 name = item.get("name", "")
+                if not name.endswith(BBOX_SUFFIX):
+                    continue
                 # A name can be the visible box of one camera and the amodal box of another
                 # (cameras "c" and "c_amodal"): both readings count, as they would per camera.
-                if name.endswith(AMODAL_BBOX_SUFFIX):
-                    label = of(name[:-len(AMODAL_BBOX_SUFFIX)])
-                    label["amodal_bbox"] = list(item["val"])
-                    _merge_attributes(label["attributes"], item)
-                if name.endswith(BBOX_SUFFIX):
-                    label = of(name[:-len(BBOX_SUFFIX)])
-                    label["bbox"] = list(item["val"])
-                    _merge_attributes(label["attributes"], item)
+                readings = ((("amodal_bbox", name[:-len(AMODAL_BBOX_SUFFIX)]),) if name.endswith(AMODAL_BBOX_SUFFIX)
+                            else ()) + (("bbox", name[:-len(BBOX_SUFFIX)]),)
+                for key, camera in readings:
+                    label = of(camera)
+                    label[key] = list(item["val"])
+                    attributes = label["attributes"]
+                    # the first value of each name wins (inline: this loop sees every label of every frame)
+                    for kind_items in (item.get("attributes") or {}).values():
+                        for attr in kind_items:
+                            if attr["name"] not in attributes:
+                                attributes[attr["name"]] = attr["val"]
             for item in data.get("poly2d", []):
                 name = item.get("name", "")
                 cut = name.rfind(POLY2D_INFIX)
@@ -663,13 +680,6 @@ def _coco_order(found: dict) -> list[tuple[float, float, int]] | None:
     from usdscene.labels.keypoints import COCO_KEYPOINTS
 
     return [found.get(name, (0.0, 0.0, 0)) for name in COCO_KEYPOINTS]
-
-
-def _merge_attributes(into: dict, item: dict) -> None:
-    """Add an object data item's attributes (first value of each name wins)."""
-    for kind_items in (item.get("attributes") or {}).values():
-        for attr in kind_items:
-            into.setdefault(attr["name"], attr["val"])
 
 
 def label_classes(document: dict, classes: Iterable[str] | None = None) -> list[str]:
