@@ -154,13 +154,23 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
             operating system refused the write (no space, file size limit, permission); the
             target is then untouched and no temporary file is left behind.
     """
+    with _atomic_handle(path, "wb") as (target, handle):
+        handle.write(data)
+    return target
+
+
+@contextlib.contextmanager
+def _atomic_handle(path: str | os.PathLike, mode: str, **open_args) -> Iterator[tuple[Path, object]]:
+    """``(target, handle)`` of a temporary file beside ``path`` that replaces it when the block
+    ends without an exception (fsync + rename); on an exception the temporary file is removed
+    and an operating-system refusal becomes one :class:`OutputError` naming the path."""
     target = prepare_output_file(path)
     tmp = None
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
         os.fchmod(fd, _FILE_MODE)
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
+        with os.fdopen(fd, mode, **open_args) as handle:
+            yield target, handle
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, target)
@@ -174,7 +184,6 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
             problem = os_problem(exc, what="file")
             raise OutputError([Problem(str(target), problem.message)]) from None
         raise
-    return target
 
 
 @contextlib.contextmanager
@@ -186,26 +195,8 @@ def atomic_text_file(path: str | os.PathLike) -> Iterator:
     Raises:
         OutputError: as :func:`write_bytes_atomic`.
     """
-    target = prepare_output_file(path)
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-        os.fchmod(fd, _FILE_MODE)
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            yield handle
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, target)
-    except BaseException as exc:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
-        if isinstance(exc, OSError):
-            problem = os_problem(exc, what="file")
-            raise OutputError([Problem(str(target), problem.message)]) from None
-        raise
+    with _atomic_handle(path, "w", encoding="utf-8", newline="\n") as (_, handle):
+        yield handle
 
 
 def write_png_atomic(path: str | os.PathLike, image) -> Path:
