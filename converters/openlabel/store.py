@@ -212,11 +212,13 @@ class AnnotationStore:
         self.most_frames_held = 0
         self._static: dict | None = None
         self._held: tuple[str, dict] | None = None  # (shard file, its frames)
+        self._shards: list[dict] = list(index.get("shards") or ())
+        self._shard_starts = [entry["frame_start"] for entry in self._shards]  # for frame()
 
     @property
     def shards(self) -> list[dict]:
         """The index entries of the shards, by first frame."""
-        return list(self.index.get("shards") or ())
+        return self._shards
 
     def _read(self, name: str, sha256: str | None) -> bytes:
         path = self.folder / name
@@ -261,18 +263,13 @@ class AnnotationStore:
 
     def frame(self, number: int) -> dict | None:
         """One frame, or None when the store has none of that number."""
-        number = int(number)
-        for entry in self.shards:
-            if entry["frame_start"] <= number <= entry["frame_end"]:
-                return self.shard_frames(entry).get(str(number))
-        return None
+        import bisect
 
-    def frame_keys(self) -> list[str]:
-        """Every frame key, in the document's order (the shards are read once for it)."""
-        keys = []
-        for entry in self.shards:
-            keys.extend(self.shard_frames(entry))
-        return keys
+        number = int(number)
+        at = bisect.bisect_right(self._shard_starts, number) - 1
+        if at >= 0 and number <= self._shards[at]["frame_end"]:
+            return self.shard_frames(self._shards[at]).get(str(number))
+        return None
 
     def document(self) -> dict:
         """The annotated document as consumers read it: the static part with a
@@ -326,12 +323,6 @@ class StoredFrames(Mapping):
 
     def __init__(self, store: AnnotationStore) -> None:
         self._store = store
-        self._keys: list[str] | None = None
-
-    def _all_keys(self) -> list[str]:
-        if self._keys is None:
-            self._keys = self._store.frame_keys()
-        return self._keys
 
     def __getitem__(self, key: str) -> dict:
         try:
