@@ -222,7 +222,8 @@ def export_mot(document: dict, out_dir: str | os.PathLike, *, classes: Iterable[
         raise OutputError("the document has no labelled image; render and annotate it first",
                           where=str(Path(out_dir) / layout.ANNOTATIONS_FILE))
     names = label_classes(document, classes)
-    still = still_objects(document)
+    # a pass over every frame, read only when static people get their own class
+    still = still_objects(document) if mot_classes.static_people else set()
     objects = document["openlabel"].get("objects", {}) or {}
     ids = track_ids(document)
     numbers = {name: mot_classes.number(name, False) for name in names}
