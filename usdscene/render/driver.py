@@ -30,6 +30,7 @@ from usdscene.labels.projection import undistorted_render_intrinsics
 from usdscene.render.job import JobCamera, to_json
 from usdscene.render.manifest import Manifest, fingerprint
 from usdscene.render.shards import Progress, ShardQueue, ShardRunner, Tally, shard_job
+from usdscene.sensor.exposure import meter_window
 
 log = logging.getLogger(__name__)
 
@@ -349,7 +350,7 @@ def camera_jobs(plan, camera_names: Sequence[str], frames: Sequence[int], scale:
         cam = by_name[name]
         warmup = sequence_warmup(plan, name)
         # an adapting camera's shards also pre-pass the frames before theirs (its exposure window)
-        wanted = set(frames) if not warmup else {f for f in plan.frames if f >= min(frames) - warmup}
+        wanted = set(frames) if not warmup else {g for f in frames for g in meter_window(f, warmup, plan.frames.start)}
         intr = scale_intrinsics(cam.intrinsics, scale)
         try:
             render_intr = undistorted_render_intrinsics(intr)

@@ -380,11 +380,6 @@ class Session:
         write_display_outputs(Path(self.job.out_dir), camera, frame, image, ids, clean=clean)
         return {"post_s": time.perf_counter() - started, "post_cpu_s": time.thread_time() - cpu_started}
 
-    def render_pair(self, frame: int, camera: str) -> dict:
-        """Render, decode and write one pair in sequence; returns its timings."""
-        rgb, ids, timing = self.render_image(frame, camera)
-        return {**timing, **self.write_image(frame, camera, rgb, ids)}
-
     def _finish_depth(self, camera: str, z_pass):
         """Cycles' Z pass → distance to the image plane, remapped as the mask (nearest native
         pixel, the same maps)."""
