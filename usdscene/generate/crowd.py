@@ -626,7 +626,9 @@ def person_tracks(run: CrowdRun, layout: CrowdLayout, catalog: Catalog, classes:
         z = np.where(np.isfinite(z), z, 0.0)
         position = np.concatenate([filled, z[:, None]], axis=1)
         smooth = _smoothed(np.where(present[:, None], xy, np.nan), window)
-        vel = np.gradient(np.nan_to_num(smooth), axis=0) * fps
+        # the gradient before zeroing the absent frames: a frame beside an absence is then still,
+        # not a jump to the world origin (which turned a person arriving or leaving for one frame)
+        vel = np.nan_to_num(np.gradient(smooth, axis=0)) * fps
         speed = np.linalg.norm(vel, axis=1)
         moving = present & (speed >= STILL_M_S)
         yaw = np.full(len(xy), np.nan)
@@ -754,6 +756,9 @@ def generate_crowd(setup: SceneSpec, catalog: Catalog, options: CrowdOptions, *,
     rng = np.random.default_rng([options.seed, 1])
     tracks = person_tracks(run, layout, catalog, people_classes, options, rng)
     seated = int(options.seated) + sum(int(s.numbers.get("seated", 0)) for s in layout.of_role("seat"))
+    if seated and not sitting:  # the setup's benches ask for them (options.seated was checked above)
+        raise DocumentError(f"the setup's seats ask for {seated} seated people, but the catalog has no seated "
+                            f"class (kind passenger); name one", where="--seated-classes")
     if seated:
         tracks += seated_tracks(layout, catalog, sitting, seated, options, rng)
     scene = _scene(setup, catalog, tracks, TrackOptions(frames=options.frames, fps=options.fps, seed=options.seed))
