@@ -384,12 +384,13 @@ class Session:
         """Cycles' Z pass → distance to the image plane, remapped as the mask (nearest native
         pixel, the same maps)."""
         from usdscene.labels.projection import remap_grids
-        from usdscene.render.depth import plane_depth, ray_cosines, remap_depth
+        from usdscene.document.model import LensModel
+        from usdscene.render.depth import PANORAMIC, plane_depth, ray_cosines, remap_depth
 
         cam_job = self.job.cameras[camera]
         render = cam_job.render_intrinsics
-        if camera not in self._ray_cosines:
-            self._ray_cosines[camera] = ray_cosines(render)
+        if camera not in self._ray_cosines:  # only a panoramic pass needs them (plane_depth)
+            self._ray_cosines[camera] = ray_cosines(render) if LensModel(render.lens) in PANORAMIC else None
         depth = plane_depth(z_pass, render, self._ray_cosines[camera])
         if cam_job.remapped:
             if camera not in self._remaps:  # the mask's map (_finish makes the same one)
