@@ -130,6 +130,9 @@ def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.Pat
     merged = None
     per_class: dict[str, int] = {}
     hidden = 0
+    input_by_range: dict[tuple[int, int], dict] = {}  # the input document's frames, by shard range
+    for key, frame in input_frames.items():
+        input_by_range.setdefault(stores.shard_range(int(key), per_shard), {})[key] = frame
     with _progress_bar(progress, len(pairs)) as advance:
         while planned - done:
             first, last = span = min(planned - done)
@@ -147,8 +150,7 @@ def write_annotations(out_dir: str | os.PathLike, *, document_path: str | os.Pat
             annotations = label_images(images, epsilon_px=labeller.epsilon_px,
                                        min_visible_fraction=labeller.min_visible_fraction)
             densities, cuboids = _geometry_labels(annotations, labeller)
-            part = {key: ({k: f for k, f in input_frames.items() if first <= int(k) <= last}
-                          if key == "frames" else value) for key, value in root.items()}
+            part = {key: (input_by_range.get(span, {}) if key == "frames" else value) for key, value in root.items()}
             result = add_annotations({"openlabel": part}, scene, annotations, out, densities=densities,
                                      cuboids=cuboids)["openlabel"]
             frames = result.get("frames") or {}
